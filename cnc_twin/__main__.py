@@ -1,0 +1,5 @@
+"""``python -m cnc_twin`` is the same as the ``cnc-twin`` command."""
+
+from cnc_twin.cli import main
+
+raise SystemExit(main())

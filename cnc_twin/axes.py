@@ -1,0 +1,24 @@
+"""The six machine axes, their order and kinds; the one place that fixes them.
+
+Every per-axis array in the code base (shape ``(6,)``) is in this order.
+"""
+
+AXES: tuple[str, ...] = ("X", "Y", "Z", "A", "B", "C")
+LINEAR_AXES: frozenset[str] = frozenset({"X", "Y", "Z"})
+ROTARY_AXES: frozenset[str] = frozenset({"A", "B", "C"})
+N_AXES = len(AXES)
+
+
+def is_rotary(axis: str) -> bool:
+    """True for A/B/C (positions in rad inside, deg in scenarios)."""
+    return axis in ROTARY_AXES
+
+
+def joint_name(axis: str) -> str:
+    """MJCF joint driven by ``axis``, e.g. ``"X" -> "x_joint"``."""
+    return f"{axis.lower()}_joint"
+
+
+def actuator_name(axis: str) -> str:
+    """MJCF actuator (the servo amplifier) of ``axis``, e.g. ``"X" -> "x_drive"``."""
+    return f"{axis.lower()}_drive"

@@ -1,0 +1,81 @@
+"""Speed figures measured in one process run: the full twin against bare MuJoCo stepping.
+
+``bare``: a Python loop of ``mujoco.mj_step(model, data)`` on the same MJCF at the same
+timestep, for the same number of physics steps the twin takes, drives at 0 V.
+``twin``: ``Twin.run()`` for the scenario (planner, DSP servo task, plant, recording, metrics),
+excluding model compilation and writing files.
+Each side is measured ``repeat`` times, alternating, and the fastest of each is kept, so both
+see the same machine state; quote the ratio, not the absolute times.
+"""
+
+from __future__ import annotations
+
+import resource
+import time
+from pathlib import Path
+from typing import Any
+
+import mujoco
+
+from cnc_twin.plant import Plant, load_model
+from cnc_twin.scenario import load_scenario
+from cnc_twin.twin import Twin
+
+
+def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
+    """Wall time [s] of ``steps`` calls of ``mj_step`` on a fresh plant at home."""
+    plant = Plant(load_model(model_file), timestep=timestep)
+    model, data, mj_step = plant.model, plant.data, mujoco.mj_step
+    start = time.perf_counter()
+    for _ in range(steps):
+        mj_step(model, data)
+    return time.perf_counter() - start
+
+
+def time_twin_run(scenario_file: Path) -> tuple[float, int, int]:
+    """Wall time [s] of one full twin run, its physics step count and its trace size [bytes]."""
+    twin = Twin(load_scenario(scenario_file))
+    start = time.perf_counter()
+    result = twin.run()
+    wall = time.perf_counter() - start
+    return wall, result.metrics["physics_steps"], result.trace.nbytes()
+
+
+def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
+    """Measure twin and bare stepping for ``scenario_file``; returns figures as a flat dict."""
+    scenario = load_scenario(scenario_file)
+    twin_times, bare_times = [], []
+    steps = trace_bytes = 0
+    for _ in range(repeat):
+        wall, steps, trace_bytes = time_twin_run(scenario_file)
+        twin_times.append(wall)
+        bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps))
+    twin_s, bare_s = min(twin_times), min(bare_times)
+    ticks = steps // scenario.timing.substeps_per_tick
+    sim_time = ticks * scenario.timing.servo_period
+    return {
+        "scenario": scenario.name,
+        "physics_steps": steps,
+        "servo_ticks": ticks,
+        "sim_time_s": sim_time,
+        "bare_mj_step_s": bare_s,
+        "twin_s": twin_s,
+        "ratio_twin_over_bare": twin_s / bare_s,
+        "bare_us_per_step": bare_s / steps * 1e6,
+        "twin_us_per_tick": twin_s / ticks * 1e6,
+        "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
+        "real_time_factor": sim_time / twin_s,
+        "trace_bytes": trace_bytes,
+        "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "repeat": repeat,
+    }
+
+
+def format_bench(figures: dict[str, Any]) -> str:
+    """Figures as an aligned two-column table."""
+    width = max(len(k) for k in figures)
+    lines = []
+    for key, value in figures.items():
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        lines.append(f"{key:<{width}}  {text}")
+    return "\n".join(lines)

@@ -1,0 +1,146 @@
+"""``cnc-twin`` command line: run | validate | bench.
+
+Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from cnc_twin.errors import ScenarioError
+from cnc_twin.progress import ProgressBar
+from cnc_twin.resources import default_scenario
+
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits with 2 and one line, like every other input error."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="cnc-twin", description="Digital twin of a six-axis PC + DSP polishing machine.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    run = sub.add_parser("run", help="run a scenario and write a run directory")
+    run.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
+    run.add_argument("--out", type=Path, default=None,
+                     help="run directory to create (default: runs/<name>-<UTC time>)")
+    run.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
+    run.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
+
+    validate = sub.add_parser("validate", help="check scenario files without running them")
+    validate.add_argument("scenarios", nargs="+", type=Path)
+
+    bench = sub.add_parser("bench", help="twin wall time against bare MuJoCo stepping, in one process")
+    bench.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
+    bench.add_argument("--repeat", type=int, default=3, help="measurements of each side; the best counts")
+    bench.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "run":
+            return _run(args)
+        if args.command == "validate":
+            return _validate(args)
+        if args.command == "bench":
+            return _bench(args)
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    raise AssertionError(f"unhandled command {args.command}")  # pragma: no cover
+
+
+def _run(args: argparse.Namespace) -> int:
+    from cnc_twin.scenario import load_scenario
+    from cnc_twin.twin import Twin
+
+    scenario = load_scenario(args.scenario or default_scenario())
+    run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
+    if run_dir.exists():
+        raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
+    twin = Twin(scenario)
+    bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
+                      stream=None if not args.quiet else _NullStream())
+    result = twin.run(progress=bar)
+    result.write(run_dir)
+    if not args.quiet:
+        print(summary_table(result.metrics))
+    print(f"run directory: {run_dir}")
+    return EXIT_OK
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from cnc_twin.scenario import load_scenario
+
+    for path in args.scenarios:
+        scenario = load_scenario(path)
+        print(f"{path}: ok ({scenario.name}, {len(scenario.program.moves)} moves)")
+    return EXIT_OK
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from cnc_twin.bench import bench_scenario, format_bench
+
+    if args.repeat < 1:
+        raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
+    figures = bench_scenario(args.scenario or default_scenario(), repeat=args.repeat)
+    print(format_bench(figures))
+    if args.json is not None:
+        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    return EXIT_OK
+
+
+def _default_run_dir(parent: Path, name: str) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    candidate = parent / f"{name}-{stamp}"
+    n = 2
+    while candidate.exists():
+        candidate = parent / f"{name}-{stamp}-{n}"
+        n += 1
+    return candidate
+
+
+def summary_table(metrics: dict) -> str:
+    """The terminal summary: timing line and one row per axis."""
+    lines = [
+        f"{metrics['scenario']}: {metrics['sim_time_s']:.3f} s simulated in {metrics['wall_time_s']:.2f} s "
+        f"({metrics['real_time_factor']:.1f}x real time), {metrics['physics_steps']} physics steps",
+        f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}{'DAC sat':>9}",
+    ]
+    for axis, fe in metrics["following_error"].items():
+        final = metrics["final_following_error"][axis]
+        unit = fe["unit"]
+        lines.append(
+            f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
+            f"{metrics['dac_saturation_ticks'][axis]:>9d}"
+        )
+    if metrics.get("mujoco_warnings"):
+        lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
+    return "\n".join(lines)
+
+
+class _NullStream:
+    def write(self, _text: str) -> None:
+        pass
+
+    def flush(self) -> None:
+        pass
+
+    def isatty(self) -> bool:
+        return False

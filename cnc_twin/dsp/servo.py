@@ -1,0 +1,122 @@
+"""The DSP servo task: every block of the card wired in one explicit, ordered place.
+
+Per interpolation period (``begin_period``), from the coarse interpolator's setpoint
+``p_next`` [counts]::
+
+    v = (p_next - p_prev) / T_ipo          # chord velocity [counts/s], feed-forward
+    a = (v - v_prev) / T_ipo               # [counts/s^2], feed-forward
+
+Per servo tick ``j`` of ``n`` in the period (``tick``), for each axis::
+
+    command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
+    actual   = QEP.sample(position)                          # encoder, counts
+    volts    = PID+FF(command, actual, v, a)
+    volts    = DAC.write(volts)                              # 12-bit, saturation counted
+    force    = ADC.convert(load cell) - tare                 # [N], tare taken on the first tick
+
+The tick fills ``frame`` (a flat list: command x6, actual x6, DAC code x6, force) for the
+recorder, so nothing is allocated per tick besides the returned voltages.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from cnc_twin.dsp.adc import Adc
+from cnc_twin.dsp.dac import Dac12
+from cnc_twin.dsp.encoder import QuadratureEncoder
+from cnc_twin.dsp.pid import PidFF
+from cnc_twin.scenario import AxisConfig, ForceSensorConfig, Timing
+
+FRAME_FIELDS = ("command", "actual", "dac")
+"""per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
+
+
+class ServoTask:
+    """The card's servo interrupt and its per-period setpoint latch.
+
+    Parameters
+    ----------
+    axes : the six axes in order (SI configuration).
+    timing : the scenario's rates.
+    power_on : axis positions when the card powered up [m | rad]; encoders count from here.
+    force_sensor : load-cell ADC configuration.
+    """
+
+    def __init__(
+        self,
+        axes: Sequence[AxisConfig],
+        *,
+        timing: Timing,
+        power_on: Sequence[float],
+        force_sensor: ForceSensorConfig,
+    ):
+        self.n_axes = len(axes)
+        self.ticks_per_period = timing.ticks_per_period
+        self._inv_period = 1.0 / timing.interpolation_period
+        self.encoders = [
+            QuadratureEncoder(cfg.counts_per_unit, position_at_power_on=p0) for cfg, p0 in zip(axes, power_on)
+        ]
+        self.loops = [
+            PidFF(
+                kp=cfg.kp, ki=cfg.ki, kd=cfg.kd, kvff=cfg.kvff, kaff=cfg.kaff,
+                speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
+                dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit,
+            )
+            for cfg in axes
+        ]
+        self.dacs = [Dac12() for _ in axes]
+        self.force_adc = Adc(force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
+        self._force_tare: float | None = None
+        n = self.n_axes
+        self._p_prev = [0.0] * n
+        self._p_next = [0.0] * n
+        self._velocity = [0.0] * n
+        self._acceleration = [0.0] * n
+        self._fractions = [(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)]
+        self.frame = [0.0] * (len(FRAME_FIELDS) * n + 1)
+        self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
+
+    def begin_period(self, setpoint: Sequence[float]) -> None:
+        """Latch the next period's end setpoint [counts] and derive the feed-forward terms."""
+        inv_t = self._inv_period
+        self._p_prev = self._p_next
+        self._p_next = list(setpoint)
+        velocity = [(b - a) * inv_t for a, b in zip(self._p_prev, self._p_next)]
+        self._acceleration = [(v - v0) * inv_t for v, v0 in zip(velocity, self._velocity)]
+        self._velocity = velocity
+
+    def tick(self, j: int, positions: Sequence[float], pad_force: float) -> list[float]:
+        """One servo interrupt, tick ``j`` of the period.
+
+        Parameters
+        ----------
+        positions : true axis positions [m | rad], shape ``(6,)``.
+        pad_force : load-cell force [N].
+
+        Returns
+        -------
+        Drive voltages as output by the DACs [V], shape ``(6,)``.
+        """
+        frac = self._fractions[j]
+        p_prev, p_next, vel, acc = self._p_prev, self._p_next, self._velocity, self._acceleration
+        frame = self.frame
+        n = self.n_axes
+        volts = [0.0] * n
+        for i, encoder, loop, dac in self._channels:
+            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac
+            actual = encoder.sample(positions[i])
+            volts[i] = dac.write(loop.update(command, actual, vel[i], acc[i]))
+            frame[i] = command
+            frame[n + i] = actual
+            frame[2 * n + i] = dac.code
+        measured = self.force_adc.convert(pad_force)
+        if self._force_tare is None:
+            self._force_tare = measured
+        frame[3 * n] = measured - self._force_tare
+        return volts
+
+    @property
+    def dac_saturations(self) -> list[int]:
+        """Ticks each DAC channel spent clamped, per axis."""
+        return [dac.saturations for dac in self.dacs]

@@ -1,0 +1,40 @@
+"""Errors users see as one line and exit code 2 (bad input)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class ScenarioError(Exception):
+    """A scenario (or a file it references) is invalid.
+
+    Rendered by the CLI as one line ``FILE: KEY.PATH: what was expected`` and exit code 2.
+
+    Parameters
+    ----------
+    file : path of the offending file.
+    key_path : dotted key path inside the file, e.g. ``program.moves[2].X``; empty when the
+        problem is the file as a whole.
+    message : what was expected or what is wrong.
+    """
+
+    def __init__(self, file: str | Path, key_path: str, message: str):
+        self.file = str(file)
+        self.key_path = key_path
+        self.message = message
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = f"{self.file}: {self.key_path}" if self.key_path else self.file
+        return f"{where}: {self.message}"
+
+
+def format_key_path(loc: tuple) -> str:
+    """Turn a location tuple such as ``("program", "moves", 2, "X")`` into ``program.moves[2].X``."""
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out

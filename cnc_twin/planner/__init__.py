@@ -1,0 +1,1 @@
+"""The PC side: turns a scenario's program into segments the card executes."""

@@ -1,0 +1,79 @@
+"""Point-to-point planning: each move becomes one synchronised trapezoid segment.
+
+For a move with per-axis displacement ``d_i``, the normalised profile limits are::
+
+    v_s = min( min_i v_max_i / |d_i| ,  feed / |d_xyz| )      [1/s]
+    a_s = min_i a_max_i / |d_i|                                [1/s^2]
+
+so every axis stays within its own velocity and acceleration limits, the tool's X/Y/Z speed
+within ``feed``, and all axes start and arrive together. Durations are rounded up to whole
+interpolation periods.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from cnc_twin.axes import LINEAR_AXES
+from cnc_twin.dsp.profiles import Trapezoid
+from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
+from cnc_twin.scenario import AxisConfig, PointToPoint
+
+
+def plan_point_to_point(
+    program: PointToPoint, axes: Sequence[AxisConfig], *, start: Sequence[float], period: float
+) -> list[Segment]:
+    """Plan every move and dwell of ``program`` from ``start`` [m | rad].
+
+    Parameters
+    ----------
+    program : the scenario's point-to-point program (SI).
+    axes : the six axis configurations, in axis order.
+    start : position of each axis when the program starts, shape ``(6,)``.
+    period : interpolation period [s].
+
+    Returns
+    -------
+    list of segments, ending with a dwell of ``program.settle`` so the run records settling.
+    """
+    segments: list[Segment] = []
+    here = tuple(float(p) for p in start)
+    for move in program.moves:
+        target = tuple(here[i] if t is None else t for i, t in enumerate(move.targets))
+        segment = plan_move(here, target, axes, feed=move.feed, period=period)
+        if segment is not None:
+            segments.append(segment)
+        here = target
+        if move.dwell > 0:
+            segments.append(DwellSegment(position=here, periods=_periods(move.dwell, period)))
+    if program.settle > 0:
+        segments.append(DwellSegment(position=here, periods=_periods(program.settle, period)))
+    return segments
+
+
+def plan_move(
+    start: tuple[float, ...], end: tuple[float, ...], axes: Sequence[AxisConfig], *, feed: float | None, period: float
+) -> MoveSegment | None:
+    """One synchronised move, or ``None`` when nothing moves."""
+    v_s = math.inf
+    a_s = math.inf
+    xyz_sq = 0.0
+    for cfg, p0, p1 in zip(axes, start, end):
+        d = abs(p1 - p0)
+        if d == 0.0:
+            continue
+        v_s = min(v_s, cfg.max_velocity / d)
+        a_s = min(a_s, cfg.max_acceleration / d)
+        if cfg.name in LINEAR_AXES:
+            xyz_sq += d * d
+    if math.isinf(v_s):
+        return None
+    if feed is not None and xyz_sq > 0.0:
+        v_s = min(v_s, feed / math.sqrt(xyz_sq))
+    profile, periods = Trapezoid.fastest(v_s, a_s).quantised(period)
+    return MoveSegment(start=start, end=end, profile=profile, periods=periods)
+
+
+def _periods(seconds: float, period: float) -> int:
+    return max(1, math.ceil(seconds / period - 1e-9))

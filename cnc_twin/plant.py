@@ -1,0 +1,171 @@
+"""The machine as MuJoCo sees it: load the MJCF, resolve names to ids once, step, read sensors.
+
+Inputs per servo tick: drive command voltages, shape ``(6,)`` [V], axis order ``X Y Z A B C``.
+Outputs: axis positions [m | rad], the pad load-cell force [N, compression positive], the
+tool-tip position in the world frame [m].
+
+The servo amplifiers (velocity mode) are MuJoCo ``general`` actuators whose ctrl is the analog
+command in volts, so the drive's own velocity loop runs in C at the physics rate. Their scaling
+``speed_per_volt`` is read back from the model so the controller and the machine cannot disagree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from cnc_twin.axes import AXES, actuator_name, joint_name
+from cnc_twin.errors import ScenarioError
+
+PAD_FORCE_SENSOR = "pad_force"
+TOOL_POS_SENSOR = "tool_pos"
+HOME_KEYFRAME = "home"
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """Facts about an MJCF machine the scenario loader checks targets against.
+
+    Attributes
+    ----------
+    travel : per axis ``(lo, hi)`` [m | rad], or ``None`` for an unlimited (continuous) joint.
+    home : per axis position at the ``home`` keyframe [m | rad], shape ``(6,)``.
+    speed_per_volt : per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``.
+    """
+
+    travel: tuple[tuple[float, float] | None, ...]
+    home: tuple[float, ...]
+    speed_per_volt: tuple[float, ...]
+
+
+def load_model(path: Path) -> mujoco.MjModel:
+    """Compile an MJCF file and check it has what the twin drives and reads.
+
+    Raises
+    ------
+    ScenarioError
+        If the file does not compile or lacks a required joint, actuator, sensor or keyframe.
+    """
+    try:
+        model = mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "does not compile"
+        raise ScenarioError(path, "", f"MJCF does not compile: {first_line}") from None
+    _require(model, path)
+    return model
+
+
+def _require(model: mujoco.MjModel, path: Path) -> None:
+    def has(obj_type: mujoco.mjtObj, name: str) -> bool:
+        return mujoco.mj_name2id(model, obj_type, name) >= 0
+
+    for axis in AXES:
+        if not has(mujoco.mjtObj.mjOBJ_JOINT, joint_name(axis)):
+            raise ScenarioError(path, "", f"MJCF lacks joint '{joint_name(axis)}' for axis {axis}")
+        if not has(mujoco.mjtObj.mjOBJ_ACTUATOR, actuator_name(axis)):
+            raise ScenarioError(path, "", f"MJCF lacks actuator '{actuator_name(axis)}' for axis {axis}")
+        act = model.actuator(actuator_name(axis))
+        if not (act.biasprm[2] < 0 and act.gainprm[0] > 0):
+            raise ScenarioError(
+                path, "", f"actuator '{act.name}' is not a velocity-mode drive (need gainprm[0] > 0, biasprm[2] < 0)"
+            )
+    for sensor in (PAD_FORCE_SENSOR, TOOL_POS_SENSOR):
+        if not has(mujoco.mjtObj.mjOBJ_SENSOR, sensor):
+            raise ScenarioError(path, "", f"MJCF lacks sensor '{sensor}'")
+    if not has(mujoco.mjtObj.mjOBJ_KEY, HOME_KEYFRAME):
+        raise ScenarioError(path, "", f"MJCF lacks keyframe '{HOME_KEYFRAME}'")
+
+
+def model_info(model: mujoco.MjModel) -> ModelInfo:
+    """Travel ranges, home positions and drive scaling of a checked model."""
+    key = model.key(HOME_KEYFRAME)
+    travel, home, spv = [], [], []
+    for axis in AXES:
+        joint = model.joint(joint_name(axis))
+        travel.append((float(joint.range[0]), float(joint.range[1])) if joint.limited[0] else None)
+        home.append(float(key.qpos[joint.qposadr[0]]))
+        act = model.actuator(actuator_name(axis))
+        spv.append(float(act.gainprm[0] / -act.biasprm[2]))
+    return ModelInfo(travel=tuple(travel), home=tuple(home), speed_per_volt=tuple(spv))
+
+
+class Plant:
+    """A MuJoCo machine with named accessors resolved once and a lean per-tick path.
+
+    Parameters
+    ----------
+    model : a model checked by :func:`load_model`; its ``opt.timestep`` is set to ``timestep``.
+    timestep : physics step [s].
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, timestep: float):
+        self.model = model
+        self.model.opt.timestep = timestep
+        self.data = mujoco.MjData(model)
+        self.info = model_info(model)
+        self.qpos_adr = np.array([model.joint(joint_name(a)).qposadr[0] for a in AXES], dtype=np.intp)
+        self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
+        if not np.array_equal(self.actuator_ids, np.arange(len(AXES))):
+            raise ScenarioError("<model>", "", "drive actuators must be the first six actuators, in X Y Z A B C order")
+        force = model.sensor(PAD_FORCE_SENSOR)
+        # z of the force sensor, in the pad site frame (tool axis); see pad_force().
+        self._force_z_adr = int(force.adr[0]) + 2
+        tool = model.sensor(TOOL_POS_SENSOR)
+        self._tool_adr = slice(int(tool.adr[0]), int(tool.adr[0]) + 3)
+        # Views into MjData kept once: no attribute lookups on the hot path.
+        self._qpos = self.data.qpos
+        self._ctrl = self.data.ctrl
+        self._sensordata = self.data.sensordata
+        self._n_drives = len(AXES)
+        self.reset()
+
+    def reset(self) -> None:
+        """Put the machine at the ``home`` keyframe at rest, drives at 0 V."""
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key(HOME_KEYFRAME).id)
+        self.data.ctrl[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    # --- lean per-tick path -------------------------------------------------------------
+    def axis_positions(self) -> list[float]:
+        """Joint positions in axis order [m | rad], as a list of 6 floats."""
+        qpos = self._qpos
+        return [float(qpos[i]) for i in self.qpos_adr]
+
+    def apply_volts(self, volts: list[float]) -> None:
+        """Set the six drive command voltages [V] (held until the next call)."""
+        self._ctrl[: self._n_drives] = volts
+
+    def step(self, n: int) -> None:
+        """Advance the physics ``n`` steps of ``timestep``."""
+        mujoco.mj_step(self.model, self.data, nstep=n)
+
+    def pad_force(self) -> float:
+        """Load-cell force between head and pad along the tool axis [N], compression positive.
+
+        The sensor reports the force the spindle exerts on the pad in the pad frame; pressing the
+        pad onto the workpiece makes that force point down the tool axis (negative z), so the sign
+        is flipped. With no contact it reads minus the pad's weight (about -1.5 N) when vertical.
+        """
+        return -float(self._sensordata[self._force_z_adr])
+
+    def tool_position(self) -> np.ndarray:
+        """Tool-tip (pad face centre) position in the world frame [m], shape ``(3,)``."""
+        return self._sensordata[self._tool_adr].copy()
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo warnings raised so far, by name, only those with a non-zero count."""
+        out = {}
+        for i, name in enumerate(mujoco.mjtWarning.__members__):
+            if i >= len(self.data.warning):
+                break
+            if self.data.warning[i].number:
+                out[name] = int(self.data.warning[i].number)
+        return out

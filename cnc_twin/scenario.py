@@ -1,0 +1,488 @@
+"""Scenario files: YAML in machinist units -> a validated, frozen :class:`Scenario` in SI.
+
+Loading is the only place units are converted (see :mod:`cnc_twin.units`). Every problem is a
+:class:`~cnc_twin.errors.ScenarioError` naming the file and the key path, e.g.::
+
+    scenarios/bad.yaml: program.moves[1].X: target 900 mm is outside the X travel -400..400 mm
+
+The machine's parameter file (``machine.parameters``, default ``polisher.yaml``) gives every
+axis's limits, encoder and servo gains; a scenario's own ``axes:`` / ``force_sensor:`` keys
+override any of them, key by key.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from cnc_twin import units
+from cnc_twin.axes import AXES, is_rotary
+from cnc_twin.errors import ScenarioError, format_key_path
+from cnc_twin.plant import ModelInfo, load_model, model_info
+from cnc_twin.resources import resolve_model_file
+
+
+# --------------------------------------------------------------------------------------------
+# Schema, in the units users write. Field descriptions state the unit.
+# --------------------------------------------------------------------------------------------
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+
+class EncoderSpec(_Strict):
+    """Quadrature encoder on the motor shaft (semi-closed loop)."""
+
+    lines_per_rev: int = Field(gt=0, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
+    gear_ratio: float = Field(1.0, gt=0, description="motor revolutions per screw (linear) or axis (rotary) revolution")
+    pitch: float | None = Field(None, gt=0, description="ball-screw lead [mm per screw revolution]; linear axes only")
+
+
+class ServoSpec(_Strict):
+    """Position loop gains in machine terms; the DSP converts them to volts per count."""
+
+    kp: float = Field(ge=0, description="position loop gain [1/s]: commanded speed per unit of following error")
+    ki: float = Field(0.0, ge=0, description="integral gain [1/s^2]")
+    kd: float = Field(0.0, ge=0, description="derivative gain [-]: speed per unit error rate")
+    kvff: float = Field(1.0, ge=0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
+    kaff: float = Field(0.0, ge=0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
+    integrator_limit: float = Field(3.0, ge=0, description="clamp on the integrator's contribution [V]")
+
+
+class AxisSpec(_Strict):
+    """One axis: limits (mm or deg based), encoder, servo gains."""
+
+    max_velocity: float = Field(gt=0, description="[mm/min] linear, [deg/min] rotary")
+    max_acceleration: float = Field(gt=0, description="[mm/s^2] linear, [deg/s^2] rotary")
+    encoder: EncoderSpec
+    servo: ServoSpec
+
+
+class AxesSpec(_Strict):
+    X: AxisSpec
+    Y: AxisSpec
+    Z: AxisSpec
+    A: AxisSpec
+    B: AxisSpec
+    C: AxisSpec
+
+    @model_validator(mode="after")
+    def _pitch_only_on_linear_axes(self) -> "AxesSpec":
+        for axis in AXES:
+            enc = getattr(self, axis).encoder
+            if is_rotary(axis) and enc.pitch is not None:
+                raise _KeyedValueError((axis, "encoder", "pitch"), "rotary axes have no screw pitch; remove the key")
+            if not is_rotary(axis) and enc.pitch is None:
+                raise _KeyedValueError((axis, "encoder", "pitch"), "linear axes need the screw pitch [mm/rev]")
+        return self
+
+
+class ForceSensorSpec(_Strict):
+    """Load cell between head and pad, read by the DSP's ADC."""
+
+    range: list[float] = Field(min_length=2, max_length=2, description="[N] force at ADC code 0 and at full scale")
+    bits: int = Field(12, ge=8, le=16, description="ADC resolution [bits]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ForceSensorSpec":
+        if not self.range[0] < self.range[1]:
+            raise _KeyedValueError(("range",), f"expected [low, high] with low < high, got {self.range}")
+        return self
+
+
+class MachineParameters(_Strict):
+    """A machine parameter file (e.g. ``models/polisher.yaml``)."""
+
+    axes: AxesSpec
+    force_sensor: ForceSensorSpec
+
+
+class TimingSpec(_Strict):
+    """The three rates; each period must be an integer multiple of the next."""
+
+    interpolation_period: float = Field(1.0, gt=0, description="PC <-> DSP exchange and interpolation period [ms]")
+    servo_period: float = Field(0.25, gt=0, description="DSP servo interrupt period [ms]")
+    physics_timestep: float = Field(0.25, gt=0, description="MuJoCo timestep [ms]")
+    mode: Literal["lockstep"] = Field("lockstep", description="lockstep: deterministic, the DSP waits for the planner")
+
+
+class MachineRef(_Strict):
+    model: str = Field("scene.xml", description="MJCF file, relative to the scenario or bundled in models/")
+    parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
+
+
+class MoveSpec(_Strict):
+    """One point-to-point move: absolute targets; axes not named keep their position."""
+
+    X: float | None = Field(None, description="[mm]")
+    Y: float | None = Field(None, description="[mm]")
+    Z: float | None = Field(None, description="[mm]")
+    A: float | None = Field(None, description="[deg]")
+    B: float | None = Field(None, description="[deg]")
+    C: float | None = Field(None, description="[deg]")
+    feed: float | None = Field(None, gt=0, description="cap on the tool's X/Y/Z path speed [mm/min]; default: rapid")
+    dwell: float = Field(0.0, ge=0, description="pause after arriving [s]")
+
+
+class PointToPointProgram(_Strict):
+    """Moves executed in turn, each on a synchronised trapezoid profile (all axes arrive together)."""
+
+    type: Literal["point_to_point"]
+    moves: list[MoveSpec] = Field(min_length=1)
+    settle: float = Field(0.3, ge=0, description="time simulated after the last move [s]")
+
+
+class ScenarioFile(_Strict):
+    """A whole scenario file, after the machine parameters were merged in."""
+
+    name: str = Field(min_length=1)
+    description: str = ""
+    seed: int = Field(0, ge=0, description="seed for every random source in the run")
+    timing: TimingSpec = TimingSpec()
+    machine: MachineRef = MachineRef()
+    axes: AxesSpec
+    force_sensor: ForceSensorSpec
+    program: PointToPointProgram
+
+
+class _KeyedValueError(ValueError):
+    """Raised inside validators to report a key path below the validated model."""
+
+    def __init__(self, loc: tuple, message: str):
+        self.loc = loc
+        super().__init__(message)
+
+
+# --------------------------------------------------------------------------------------------
+# The validated scenario, in SI.
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Timing:
+    """Periods [s] and the integer ratios between them."""
+
+    interpolation_period: float
+    servo_period: float
+    physics_timestep: float
+    ticks_per_period: int
+    """servo ticks per interpolation period"""
+    substeps_per_tick: int
+    """physics steps per servo tick"""
+    mode: str
+
+
+@dataclass(frozen=True)
+class AxisConfig:
+    """One axis in SI. Positions in m (linear) or rad (rotary)."""
+
+    name: str
+    rotary: bool
+    max_velocity: float
+    """[m/s | rad/s]"""
+    max_acceleration: float
+    """[m/s^2 | rad/s^2]"""
+    counts_per_unit: float
+    """encoder counts per m or per rad (4 x lines x gear / lead)"""
+    kp: float
+    """[1/s]"""
+    ki: float
+    """[1/s^2]"""
+    kd: float
+    """[-]"""
+    kvff: float
+    """[-]"""
+    kaff: float
+    """[s]"""
+    output_limit: float
+    """[V]"""
+    integrator_limit: float
+    """[V]"""
+    travel: tuple[float, float] | None
+    """hard travel from the MJCF [m | rad]; None when unlimited"""
+    speed_per_volt: float
+    """drive scaling read from the MJCF [m/s/V | rad/s/V]"""
+
+    @property
+    def display_factor(self) -> float:
+        """Scenario units (mm or deg) per SI unit."""
+        return 1.0 / units.position_factor(self.rotary)
+
+    @property
+    def display_unit(self) -> str:
+        return units.position_unit(self.rotary)
+
+
+@dataclass(frozen=True)
+class ForceSensorConfig:
+    range_min: float
+    """[N] at ADC code 0"""
+    range_max: float
+    """[N] at full scale"""
+    bits: int
+
+
+@dataclass(frozen=True)
+class Move:
+    targets: tuple[float | None, ...]
+    """per axis absolute target [m | rad] or None (keep), shape (6,)"""
+    feed: float | None
+    """cap on the X/Y/Z path speed [m/s]"""
+    dwell: float
+    """[s]"""
+
+
+@dataclass(frozen=True)
+class PointToPoint:
+    moves: tuple[Move, ...]
+    settle: float
+    """[s]"""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario, SI units throughout. Build with :func:`load_scenario`."""
+
+    name: str
+    description: str
+    seed: int
+    source_file: Path | None
+    source_text: str
+    """the scenario text as written (copied into the run directory)"""
+    timing: Timing
+    model_file: Path
+    axes: tuple[AxisConfig, ...]
+    """in X Y Z A B C order"""
+    force_sensor: ForceSensorConfig
+    program: PointToPoint
+    home: tuple[float, ...]
+    """start position of every axis [m | rad]: the MJCF home keyframe"""
+
+    def axis(self, name: str) -> AxisConfig:
+        return self.axes[AXES.index(name)]
+
+
+# --------------------------------------------------------------------------------------------
+# Loading.
+# --------------------------------------------------------------------------------------------
+def load_scenario(path: str | Path) -> Scenario:
+    """Read, validate and convert a scenario file.
+
+    Raises
+    ------
+    ScenarioError
+        For any problem, naming the file and the key path.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(path, "", "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(path, "", f"cannot read: {exc}") from None
+    return scenario_from_text(text, source_file=path)
+
+
+def scenario_from_text(text: str, *, source_file: Path | None = None) -> Scenario:
+    """Validate scenario YAML ``text``; relative model paths resolve against ``source_file``'s folder."""
+    label = source_file if source_file is not None else Path("<scenario>")
+    raw = _parse_yaml(text, label)
+    return scenario_from_dict(raw, source_file=source_file, source_text=text)
+
+
+def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text: str | None = None) -> Scenario:
+    """Validate an already-parsed scenario mapping (e.g. after applying overrides)."""
+    label = source_file if source_file is not None else Path("<scenario>")
+    if not isinstance(raw, dict):
+        raise ScenarioError(label, "", f"expected a mapping of keys at the top level, got {type(raw).__name__}")
+    folder = source_file.parent if source_file is not None else None
+
+    machine_raw = raw.get("machine", {})
+    machine_ref = _validate(MachineRef, machine_raw, label, prefix=("machine",))
+    model_path = _resolve(machine_ref.model, folder, label, "machine.model")
+    params_path = _resolve(machine_ref.parameters, folder, label, "machine.parameters")
+    params_raw = _parse_yaml(_read(params_path), params_path)
+    params = _validate(MachineParameters, params_raw, params_path)
+
+    merged = dict(raw)
+    merged["axes"] = _deep_merge(params.model_dump()["axes"], raw.get("axes", {}))
+    merged["force_sensor"] = _deep_merge(params.model_dump()["force_sensor"], raw.get("force_sensor", {}))
+    spec = _validate(ScenarioFile, merged, label)
+
+    timing = _convert_timing(spec.timing, label)
+    model = load_model(model_path)
+    info = model_info(model)
+    axes = _convert_axes(spec.axes, info)
+    program = _convert_program(spec.program, axes, info, label)
+    if source_text is None:
+        source_text = yaml.safe_dump(raw, sort_keys=False)
+    return Scenario(
+        name=spec.name,
+        description=spec.description,
+        seed=spec.seed,
+        source_file=source_file,
+        source_text=source_text,
+        timing=timing,
+        model_file=model_path,
+        axes=axes,
+        force_sensor=ForceSensorConfig(spec.force_sensor.range[0], spec.force_sensor.range[1], spec.force_sensor.bits),
+        program=program,
+        home=info.home,
+    )
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(path, "", f"cannot read: {exc}") from None
+
+
+def _parse_yaml(text: str, label: Path) -> Any:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ScenarioError(label, where, f"not valid YAML: {problem}") from None
+
+
+def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:
+    found = resolve_model_file(name, folder)
+    if found is None:
+        raise ScenarioError(label, key, f"file '{name}' not found next to the scenario or in the bundled models")
+    return found
+
+
+def _deep_merge(base: Any, override: Any) -> Any:
+    """``override`` on top of ``base``, key by key; non-mapping overrides replace (and get validated)."""
+    if not isinstance(base, dict) or not isinstance(override, dict):
+        return copy.deepcopy(override)
+    out = copy.deepcopy(base)
+    for key, value in override.items():
+        out[key] = _deep_merge(out[key], value) if key in out else copy.deepcopy(value)
+    return out
+
+
+def _validate(model_cls: type[BaseModel], data: Any, label: Path, prefix: tuple = ()) -> Any:
+    try:
+        return model_cls.model_validate(data)
+    except ValidationError as exc:
+        raise _first_error(exc, label, prefix) from None
+
+
+def _first_error(exc: ValidationError, label: Path, prefix: tuple) -> ScenarioError:
+    errors = exc.errors(include_url=False)
+    err = errors[0]
+    loc = prefix + tuple(err["loc"])
+    cause = err.get("ctx", {}).get("error")
+    if isinstance(cause, _KeyedValueError):
+        loc = loc + cause.loc
+        message = str(cause)
+    elif err["type"] == "extra_forbidden":
+        message = "unknown key"
+    elif err["type"] == "missing":
+        message = "required key is missing"
+    else:
+        message = f"{err['msg'][0].lower()}{err['msg'][1:]}, got {err['input']!r}"
+    more = len(errors) - 1
+    if more:
+        message += f" (and {more} more problem{'s' if more > 1 else ''})"
+    return ScenarioError(label, format_key_path(loc), message)
+
+
+def _integer_ratio(numerator: float, denominator: float) -> int | None:
+    ratio = numerator / denominator
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= 1e-9 * ratio:
+        return int(nearest)
+    return None
+
+
+def _convert_timing(spec: TimingSpec, label: Path) -> Timing:
+    ticks = _integer_ratio(spec.interpolation_period, spec.servo_period)
+    if ticks is None:
+        raise ScenarioError(
+            label,
+            "timing.servo_period",
+            f"interpolation_period {spec.interpolation_period} ms must be an integer multiple (>= 1) "
+            f"of servo_period {spec.servo_period} ms",
+        )
+    substeps = _integer_ratio(spec.servo_period, spec.physics_timestep)
+    if substeps is None:
+        raise ScenarioError(
+            label,
+            "timing.physics_timestep",
+            f"servo_period {spec.servo_period} ms must be an integer multiple (>= 1) "
+            f"of physics_timestep {spec.physics_timestep} ms",
+        )
+    return Timing(
+        interpolation_period=spec.interpolation_period * units.MS,
+        servo_period=spec.servo_period * units.MS,
+        physics_timestep=spec.physics_timestep * units.MS,
+        ticks_per_period=ticks,
+        substeps_per_tick=substeps,
+        mode=spec.mode,
+    )
+
+
+def _counts_per_unit(axis: str, enc: EncoderSpec) -> float:
+    counts_per_motor_rev = 4.0 * enc.lines_per_rev
+    if is_rotary(axis):
+        return counts_per_motor_rev * enc.gear_ratio / (2.0 * math.pi)
+    return counts_per_motor_rev * enc.gear_ratio / (enc.pitch * units.MM)
+
+
+def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
+    out = []
+    for i, axis in enumerate(AXES):
+        a: AxisSpec = getattr(spec, axis)
+        rotary = is_rotary(axis)
+        out.append(
+            AxisConfig(
+                name=axis,
+                rotary=rotary,
+                max_velocity=a.max_velocity * units.velocity_factor(rotary),
+                max_acceleration=a.max_acceleration * units.position_factor(rotary),
+                counts_per_unit=_counts_per_unit(axis, a.encoder),
+                kp=a.servo.kp,
+                ki=a.servo.ki,
+                kd=a.servo.kd,
+                kvff=a.servo.kvff,
+                kaff=a.servo.kaff,
+                output_limit=a.servo.output_limit,
+                integrator_limit=a.servo.integrator_limit,
+                travel=info.travel[i],
+                speed_per_volt=info.speed_per_volt[i],
+            )
+        )
+    return tuple(out)
+
+
+def _convert_program(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], info: ModelInfo, label: Path) -> PointToPoint:
+    moves = []
+    for m_index, move in enumerate(spec.moves):
+        targets: list[float | None] = []
+        for cfg in axes:
+            value = getattr(move, cfg.name)
+            if value is None:
+                targets.append(None)
+                continue
+            si = value * units.position_factor(cfg.rotary)
+            if cfg.travel is not None and not (cfg.travel[0] <= si <= cfg.travel[1]):
+                lo, hi = (v * cfg.display_factor for v in cfg.travel)
+                raise ScenarioError(
+                    label,
+                    f"program.moves[{m_index}].{cfg.name}",
+                    f"target {value:g} {cfg.display_unit} is outside the {cfg.name} travel "
+                    f"{lo:g}..{hi:g} {cfg.display_unit}",
+                )
+            targets.append(si)
+        feed = move.feed * units.MM_PER_MIN if move.feed is not None else None
+        moves.append(Move(targets=tuple(targets), feed=feed, dwell=move.dwell))
+    return PointToPoint(moves=tuple(moves), settle=spec.settle)
