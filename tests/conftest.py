@@ -1,0 +1,29 @@
+"""Shared fixtures: paths and a helper that writes scenario files for a test."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def write_scenario(tmp_path):
+    """Write a scenario mapping (or raw text) to a YAML file in tmp_path; returns its path."""
+
+    def _write(content, name: str = "scenario.yaml") -> Path:
+        path = tmp_path / name
+        text = content if isinstance(content, str) else yaml.safe_dump(content, sort_keys=False)
+        path.write_text(text, encoding="utf-8")
+        return path
+
+    return _write
+
+
+def single_move(axis: str, target: float, *, settle: float = 0.5, **extra) -> dict:
+    """A minimal scenario mapping: one point-to-point move of one axis."""
+    return {"name": f"move_{axis}", "program": {"type": "point_to_point", "moves": [{axis: target}], "settle": settle},
+            **extra}
