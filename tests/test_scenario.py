@@ -1,0 +1,124 @@
+"""Scenario loading: units converted once, clear one-line errors naming file and key path."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import pytest
+
+from cnc_twin.errors import ScenarioError
+from cnc_twin.resources import scenarios_dir
+from cnc_twin.scenario import load_scenario
+
+BUNDLED = sorted(scenarios_dir().glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.name)
+def test_bundled_scenarios_validate(path):
+    scenario = load_scenario(path)
+    assert scenario.program.moves
+
+
+def test_units_converted_to_si_once(write_scenario):
+    path = write_scenario({
+        "name": "u",
+        "timing": {"interpolation_period": 2.0, "servo_period": 0.5, "physics_timestep": 0.25},
+        "axes": {"X": {"max_velocity": 6000}, "A": {"max_velocity": 3600}},
+        "program": {"type": "point_to_point", "moves": [{"X": 100, "A": 45, "feed": 1200, "dwell": 0.5}]},
+    })
+    s = load_scenario(path)
+    assert s.timing.interpolation_period == pytest.approx(0.002)
+    assert (s.timing.ticks_per_period, s.timing.substeps_per_tick) == (4, 2)
+    assert s.axis("X").max_velocity == pytest.approx(0.1)          # 6000 mm/min
+    assert s.axis("A").max_velocity == pytest.approx(math.pi / 3)  # 3600 deg/min = 60 deg/s
+    assert s.axis("X").counts_per_unit == pytest.approx(1e6)       # 2500 lines x4 / 10 mm
+    assert s.axis("A").counts_per_unit == pytest.approx(1e6 / (2 * math.pi))
+    move = s.program.moves[0]
+    assert move.targets[0] == pytest.approx(0.1) and move.targets[3] == pytest.approx(math.pi / 4)
+    assert move.targets[1] is None
+    assert move.feed == pytest.approx(0.02) and move.dwell == 0.5
+    # overrides merge key by key: the rest of X's parameters come from the machine file
+    assert s.axis("X").max_acceleration == pytest.approx(2.0) and s.axis("X").kp == 40.0
+
+
+GOOD_PROGRAM = {"type": "point_to_point", "moves": [{"X": 10}]}
+
+BAD = [
+    ("unknown key", {"name": "b", "program": GOOD_PROGRAM, "speling": 1}, "speling", "unknown key"),
+    ("unknown nested key", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 1, "Q": 2}]}},
+     "program.moves[0].Q", "unknown key"),
+    ("wrong type", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": "ten"}]}},
+     "program.moves[0].X", "valid number"),
+    ("negative feed", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 1, "feed": -100}]}},
+     "program.moves[0].feed", "greater than 0"),
+    ("beyond travel", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 10}, {"X": 900}]}},
+     "program.moves[1].X", "outside the X travel -400..400 mm"),
+    ("rates not divisible", {"name": "b", "timing": {"servo_period": 0.3}, "program": GOOD_PROGRAM},
+     "timing.servo_period", "integer multiple"),
+    ("physics not divisible", {"name": "b", "timing": {"physics_timestep": 0.1}, "program": GOOD_PROGRAM},
+     "timing.physics_timestep", "integer multiple"),
+    ("gain override ill-typed", {"name": "b", "axes": {"Y": {"servo": {"kp": [1]}}}, "program": GOOD_PROGRAM},
+     "axes.Y.servo.kp", "valid number"),
+    ("pitch on rotary axis", {"name": "b", "axes": {"A": {"encoder": {"pitch": 5}}}, "program": GOOD_PROGRAM},
+     "axes.A.encoder.pitch", "rotary axes have no screw pitch"),
+    ("missing program", {"name": "b"}, "program", "required key is missing"),
+    ("bool for number", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": True}]}},
+     "program.moves[0].X", "valid number"),
+    ("nan", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": float("nan")}]}},
+     "program.moves[0].X", "finite"),
+    ("missing model", {"name": "b", "machine": {"model": "nope.xml"}, "program": GOOD_PROGRAM},
+     "machine.model", "not found"),
+    ("no moves", {"name": "b", "program": {"type": "point_to_point", "moves": []}}, "program.moves", "at least 1"),
+]
+
+
+@pytest.mark.parametrize("label, content, key, fragment", BAD, ids=[b[0] for b in BAD])
+def test_bad_scenarios_name_file_and_key(write_scenario, label, content, key, fragment):
+    path = write_scenario(content)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    err = info.value
+    assert err.file == str(path)
+    assert err.key_path == key
+    assert fragment in err.message
+    assert "\n" not in str(err)
+
+
+def test_yaml_syntax_error_gives_line_and_column(write_scenario):
+    path = write_scenario("name: x\nprogram: [unclosed\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert info.value.key_path.startswith("line ") and "not valid YAML" in info.value.message
+
+
+def test_top_level_must_be_a_mapping(write_scenario):
+    with pytest.raises(ScenarioError, match="expected a mapping"):
+        load_scenario(write_scenario("- just\n- a list\n"))
+
+
+def test_missing_file():
+    with pytest.raises(ScenarioError, match="no such file"):
+        load_scenario("/nonexistent/scenario.yaml")
+
+
+def test_bad_mjcf_is_a_clear_error(write_scenario, tmp_path):
+    (tmp_path / "broken.xml").write_text("<mujoco><worldbody><body></mujoco>")
+    path = write_scenario({"name": "b", "machine": {"model": "broken.xml"}, "program": GOOD_PROGRAM})
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert info.value.file.endswith("broken.xml") and "MJCF does not compile" in info.value.message
+
+
+@pytest.mark.parametrize("label, content, key, fragment", BAD[:6], ids=[b[0] for b in BAD[:6]])
+def test_cli_exit_code_2_one_line_no_traceback(write_scenario, label, content, key, fragment):
+    path = write_scenario(content)
+    for command in ("validate", "run"):
+        proc = subprocess.run([sys.executable, "-m", "cnc_twin", command, str(path)],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1, proc.stderr
+        assert lines[0] == f"error: {path}: {key}: " + lines[0].split(f"{key}: ", 1)[1]
+        assert "Traceback" not in proc.stderr and proc.stdout == ""
