@@ -1,12 +1,15 @@
 """``cnc-twin`` command line: run | validate | bench.
 
-Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 130 interrupted.
+Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 130 interrupted by
+SIGINT (Ctrl-C), 143 by SIGTERM. An interrupted run stops at the next interpolation period and
+still writes its run directory, marked ``"status": "interrupted"`` in ``metrics.json``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import time
 from pathlib import Path
@@ -18,6 +21,7 @@ from cnc_twin.resources import default_scenario
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
 
 
 class _Parser(argparse.ArgumentParser):
@@ -77,12 +81,43 @@ def _run(args: argparse.Namespace) -> int:
     twin = Twin(scenario)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
                       stream=None if not args.quiet else _NullStream())
-    result = twin.run(progress=bar)
+    with _stop_on_signals(twin):
+        if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
+            total = twin.total_periods * scenario.timing.interpolation_period
+            print(f"{scenario.name}: running {total:.3f} s simulated ...", file=sys.stderr, flush=True)
+        result = twin.run(progress=bar)
     result.write(run_dir)
     if not args.quiet:
         print(summary_table(result.metrics))
     print(f"run directory: {run_dir}")
+    if twin.stop_reason == "SIGTERM":
+        return EXIT_TERMINATED
+    if twin.stop_reason == "SIGINT":
+        print(f"interrupted at {result.metrics['sim_time_s']:.3f} s simulated; the run directory "
+              "holds everything recorded up to then", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK
+
+
+class _stop_on_signals:
+    """Within the block, SIGINT and SIGTERM ask the twin to stop at the next period."""
+
+    def __init__(self, twin):
+        self.twin = twin
+        self.previous = {}
+
+    def __enter__(self):
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self.previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum, _frame):
+        self.twin.request_stop(signal.Signals(signum).name)
+
+    def __exit__(self, *exc):
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+        return False
 
 
 def _validate(args: argparse.Namespace) -> int:

@@ -110,6 +110,8 @@ class Plant:
         self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
         if not np.array_equal(self.actuator_ids, np.arange(len(AXES))):
             raise ScenarioError("<model>", "", "drive actuators must be the first six actuators, in X Y Z A B C order")
+        if not np.array_equal(self.qpos_adr, np.arange(len(AXES))):
+            raise ScenarioError("<model>", "", "axis joints must be the first six joints, in X Y Z A B C order")
         force = model.sensor(PAD_FORCE_SENSOR)
         # z of the force sensor, in the pad site frame (tool axis); see pad_force().
         self._force_z_adr = int(force.adr[0]) + 2
@@ -131,8 +133,8 @@ class Plant:
     # --- lean per-tick path -------------------------------------------------------------
     def axis_positions(self) -> list[float]:
         """Joint positions in axis order [m | rad], as a list of 6 floats."""
-        qpos = self._qpos
-        return [float(qpos[i]) for i in self.qpos_adr]
+        # The axis joints are qpos[0:6] (checked in __init__); tolist() is the cheapest exit.
+        return self._qpos.tolist()[: self._n_drives]
 
     def apply_volts(self, volts: list[float]) -> None:
         """Set the six drive command voltages [V] (held until the next call)."""

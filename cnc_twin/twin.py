@@ -75,6 +75,12 @@ class Twin:
         self.interpolator.extend(self.segments)
         self.total_periods = sum(seg.periods for seg in self.segments)
         self.frames = FrameBuffer(self.total_periods * timing.ticks_per_period, len(self.servo.frame))
+        self.stop_reason: str | None = None
+        """set (e.g. from a signal handler) to stop the run at the next period boundary"""
+
+    def request_stop(self, reason: str) -> None:
+        """Stop at the next interpolation period; what was recorded so far is kept."""
+        self.stop_reason = reason
 
     def run(self, *, progress: ProgressCallback | None = None) -> RunResult:
         """Run the whole program on the simulated clock and return the result."""
@@ -93,6 +99,8 @@ class Twin:
         k = 0
         wall_start = time.perf_counter()
         for period in range(total):
+            if self.stop_reason is not None:
+                break
             servo.begin_period(interpolator.next_period())
             for j in tick_range:
                 apply_volts(servo.tick(j, axis_positions(), pad_force()))
@@ -103,7 +111,7 @@ class Twin:
                 progress(period, total)
         wall_time = time.perf_counter() - wall_start
         self.frames.count = k
-        if progress is not None:
+        if progress is not None and self.stop_reason is None:
             progress(total, total)
         trace = Trace.from_frames(
             self.frames,
@@ -115,6 +123,9 @@ class Twin:
             trace, self.scenario, wall_time=wall_time, dac_saturations=servo.dac_saturations,
             warnings=plant.warnings(),
         )
+        if self.stop_reason is not None:
+            metrics["status"] = "interrupted"
+            metrics["stop_reason"] = self.stop_reason
         return RunResult(scenario=self.scenario, trace=trace, metrics=metrics)
 
 

@@ -128,3 +128,29 @@ def test_jog_axes_moves_every_axis_and_keeps_the_tool_clear():
     span = result.trace.actual.max(axis=0) - result.trace.actual.min(axis=0)
     assert np.all(span > 1000)  # every axis travelled more than 1000 counts
     assert np.max(np.abs(result.trace.pad_force)) < 0.5  # never touched anything (N)
+
+
+@pytest.mark.parametrize("sig, code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_signal_stops_run_and_keeps_what_was_recorded(tmp_path, write_scenario, sig, code):
+    """A long run is signalled mid-way: it stops at a period boundary and writes a readable run."""
+    import signal
+    import time
+
+    path = write_scenario({"name": "long", "program": {"type": "point_to_point", "settle": 120.0,
+                                                       "moves": [{"X": 50}]}})
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    started = proc.stderr.readline()  # printed once the signal handlers are in place
+    assert "running" in started, started
+    time.sleep(1.0)
+    proc.send_signal(getattr(signal, sig))
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == code, stderr
+    assert "Traceback" not in stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "interrupted" and metrics["stop_reason"] == sig
+    trace = read_trace(out / "trace.parquet")
+    n = len(trace["time"])
+    assert 0 < n < 120.0 / 0.00025 and n % 4 == 0  # whole periods only
+    assert metrics["servo_ticks"] == n
