@@ -396,31 +396,23 @@ def _first_error(exc: ValidationError, label: Path, prefix: tuple) -> ScenarioEr
     return ScenarioError(label, format_key_path(loc), message)
 
 
-def _integer_ratio(numerator: float, denominator: float) -> int | None:
+def _whole_multiple(spec: TimingSpec, longer: str, shorter: str, label: Path) -> int:
+    """How many ``shorter`` periods fit in ``longer``; an error unless a whole number >= 1."""
+    numerator, denominator = getattr(spec, longer), getattr(spec, shorter)
     ratio = numerator / denominator
     nearest = round(ratio)
     if nearest >= 1 and abs(ratio - nearest) <= 1e-9 * ratio:
         return int(nearest)
-    return None
+    raise ScenarioError(
+        label,
+        f"timing.{shorter}",
+        f"{longer} {numerator} ms must be an integer multiple (>= 1) of {shorter} {denominator} ms",
+    )
 
 
 def _convert_timing(spec: TimingSpec, label: Path) -> Timing:
-    ticks = _integer_ratio(spec.interpolation_period, spec.servo_period)
-    if ticks is None:
-        raise ScenarioError(
-            label,
-            "timing.servo_period",
-            f"interpolation_period {spec.interpolation_period} ms must be an integer multiple (>= 1) "
-            f"of servo_period {spec.servo_period} ms",
-        )
-    substeps = _integer_ratio(spec.servo_period, spec.physics_timestep)
-    if substeps is None:
-        raise ScenarioError(
-            label,
-            "timing.physics_timestep",
-            f"servo_period {spec.servo_period} ms must be an integer multiple (>= 1) "
-            f"of physics_timestep {spec.physics_timestep} ms",
-        )
+    ticks = _whole_multiple(spec, "interpolation_period", "servo_period", label)
+    substeps = _whole_multiple(spec, "servo_period", "physics_timestep", label)
     return Timing(
         interpolation_period=spec.interpolation_period * units.MS,
         servo_period=spec.servo_period * units.MS,
