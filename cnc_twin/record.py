@@ -36,7 +36,7 @@ import pyarrow.parquet as pq
 
 from cnc_twin.axes import AXES
 from cnc_twin.dsp.servo import FRAME_FIELDS
-from cnc_twin.scenario import Scenario
+from cnc_twin.config import Scenario
 
 TRACE_FILE = "trace.parquet"
 METRICS_FILE = "metrics.json"

@@ -28,7 +28,7 @@ from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.planner.ptp import plan_point_to_point
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.record import FrameBuffer, Trace, compute_metrics, write_run_dir
-from cnc_twin.scenario import Scenario
+from cnc_twin.config import Scenario
 
 ProgressCallback = Callable[[int, int], None]
 """called as ``progress(periods_done, periods_total)`` a few hundred times per run"""

@@ -26,7 +26,7 @@ from cnc_twin.dsp.adc import Adc
 from cnc_twin.dsp.dac import Dac12
 from cnc_twin.dsp.encoder import QuadratureEncoder
 from cnc_twin.dsp.pid import PidFF
-from cnc_twin.scenario import AxisConfig, ForceSensorConfig, Timing
+from cnc_twin.config import AxisConfig, ForceSensorConfig, Timing
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""

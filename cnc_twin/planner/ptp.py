@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from cnc_twin.axes import LINEAR_AXES
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
-from cnc_twin.scenario import AxisConfig, PointToPoint
+from cnc_twin.config import AxisConfig, PointToPoint
 
 
 def plan_point_to_point(

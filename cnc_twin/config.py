@@ -1,0 +1,117 @@
+"""The validated scenario in SI units: frozen dataclasses, no I/O and no heavy imports.
+
+Built by :mod:`cnc_twin.scenario` (which owns the YAML schema and the unit conversion) and
+passed as plain data to every part of the twin, including the planner process.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from cnc_twin import units
+from cnc_twin.axes import AXES
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Periods [s] and the integer ratios between them."""
+
+    interpolation_period: float
+    servo_period: float
+    physics_timestep: float
+    ticks_per_period: int
+    """servo ticks per interpolation period"""
+    substeps_per_tick: int
+    """physics steps per servo tick"""
+    mode: str
+
+
+@dataclass(frozen=True)
+class AxisConfig:
+    """One axis in SI. Positions in m (linear) or rad (rotary)."""
+
+    name: str
+    rotary: bool
+    max_velocity: float
+    """[m/s | rad/s]"""
+    max_acceleration: float
+    """[m/s^2 | rad/s^2]"""
+    counts_per_unit: float
+    """encoder counts per m or per rad (4 x lines x gear / lead)"""
+    kp: float
+    """[1/s]"""
+    ki: float
+    """[1/s^2]"""
+    kd: float
+    """[-]"""
+    kvff: float
+    """[-]"""
+    kaff: float
+    """[s]"""
+    output_limit: float
+    """[V]"""
+    integrator_limit: float
+    """[V]"""
+    travel: tuple[float, float] | None
+    """hard travel from the MJCF [m | rad]; None when unlimited"""
+    speed_per_volt: float
+    """drive scaling read from the MJCF [m/s/V | rad/s/V]"""
+
+    @property
+    def display_factor(self) -> float:
+        """Scenario units (mm or deg) per SI unit."""
+        return 1.0 / units.position_factor(self.rotary)
+
+    @property
+    def display_unit(self) -> str:
+        return units.position_unit(self.rotary)
+
+
+@dataclass(frozen=True)
+class ForceSensorConfig:
+    range_min: float
+    """[N] at ADC code 0"""
+    range_max: float
+    """[N] at full scale"""
+    bits: int
+
+
+@dataclass(frozen=True)
+class Move:
+    targets: tuple[float | None, ...]
+    """per axis absolute target [m | rad] or None (keep), shape (6,)"""
+    feed: float | None
+    """cap on the X/Y/Z path speed [m/s]"""
+    dwell: float
+    """[s]"""
+
+
+@dataclass(frozen=True)
+class PointToPoint:
+    moves: tuple[Move, ...]
+    settle: float
+    """[s]"""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario, SI units throughout. Build with :func:`load_scenario`."""
+
+    name: str
+    description: str
+    seed: int
+    source_file: Path | None
+    source_text: str
+    """the scenario text as written (copied into the run directory)"""
+    timing: Timing
+    model_file: Path
+    axes: tuple[AxisConfig, ...]
+    """in X Y Z A B C order"""
+    force_sensor: ForceSensorConfig
+    program: PointToPoint
+    home: tuple[float, ...]
+    """start position of every axis [m | rad]: the MJCF home keyframe"""
+
+    def axis(self, name: str) -> AxisConfig:
+        return self.axes[AXES.index(name)]
