@@ -21,7 +21,7 @@ def scenario():
 
 
 def test_bare_mj_step(benchmark, scenario):
-    steps = Twin(scenario).total_periods * scenario.timing.ticks_per_period * scenario.timing.substeps_per_tick
+    steps = Twin(scenario).run().metrics["physics_steps"]
     benchmark.pedantic(time_bare_steps, args=(scenario.model_file,),
                        kwargs={"timestep": scenario.timing.physics_timestep, "steps": steps}, rounds=3)
 

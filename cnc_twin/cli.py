@@ -1,7 +1,8 @@
 """``cnc-twin`` command line: run | validate | bench.
 
-Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 130 interrupted by
-SIGINT (Ctrl-C), 143 by SIGTERM. An interrupted run stops at the next interpolation period and
+Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 3 the run ended by a
+fault (the run directory is complete and says which); 130 interrupted by SIGINT (Ctrl-C), 143 by
+SIGTERM. An interrupted run stops at the next interpolation period and
 still writes its run directory, marked ``"status": "interrupted"`` in ``metrics.json``.
 """
 
@@ -20,6 +21,7 @@ from cnc_twin.resources import default_scenario
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
+EXIT_FAULT = 3
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
 
@@ -83,8 +85,7 @@ def _run(args: argparse.Namespace) -> int:
                       stream=None if not args.quiet else _NullStream())
     with _stop_on_signals(twin):
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
-            total = twin.total_periods * scenario.timing.interpolation_period
-            print(f"{scenario.name}: running {total:.3f} s simulated ...", file=sys.stderr, flush=True)
+            print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar)
     result.write(run_dir)
     if not args.quiet:
@@ -96,6 +97,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"interrupted at {result.metrics['sim_time_s']:.3f} s simulated; the run directory "
               "holds everything recorded up to then", file=sys.stderr)
         return EXIT_INTERRUPTED
+    if result.status == "fault":
+        fault = result.metrics["fault"]
+        print(f"fault {fault['code']} at {fault['time_s']:.3f} s: {fault['message']}", file=sys.stderr)
+        return EXIT_FAULT
     return EXIT_OK
 
 
@@ -165,6 +170,16 @@ def summary_table(metrics: dict) -> str:
             f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
             f"{metrics['dac_saturation_ticks'][axis]:>9d}"
         )
+    wb = metrics.get("whiteboard")
+    if wb:
+        lat = wb["exchange_latency_us"]
+        lines.append(
+            f"whiteboard ({metrics['mode']}): {wb['exchanges']} exchanges, {wb['missed_exchanges']} missed, "
+            f"{wb['records_accepted']} records accepted, {wb['records_rejected']} rejected, "
+            f"{wb['underrun_periods']} underrun periods"
+            + (f", answer latency median {lat['median']:.1f} us" if lat["median"] is not None else "")
+        )
+    lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
     return "\n".join(lines)

@@ -95,6 +95,41 @@ class PointToPoint:
 
 
 @dataclass(frozen=True)
+class PlannerConfig:
+    """The PC planner process."""
+
+    lookahead: float
+    """motion time kept queued on the card ahead of execution [s]; 0 = no limit"""
+    heartbeat_timeout: float
+    """wall-clock time without a planner heartbeat before the DSP declares it lost [s]"""
+    start_timeout: float
+    """wall-clock time allowed for the planner process to start and attach [s]"""
+
+
+@dataclass(frozen=True)
+class WhiteboardConfig:
+    words: int
+    """RAM size [16-bit words]"""
+    chunk_words: int
+    """most FIFO words the planner writes per exchange"""
+
+
+@dataclass(frozen=True)
+class FaultInjection:
+    """One injected fault. ``at`` is simulated time [s]; other fields as the kind needs."""
+
+    kind: str
+    """planner_stall | planner_delay | planner_kill | record_bitflip"""
+    at: float
+    duration: float = 0.0
+    """planner_stall: wall-clock stall [s]; planner_delay: simulated window [s]"""
+    delay: float = 0.0
+    """planner_delay: wall-clock delay of each answer [s]"""
+    bit: int = 0
+    """record_bitflip: bit index in the record (wraps to its length)"""
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A validated scenario, SI units throughout. Build with :func:`load_scenario`."""
 
@@ -112,6 +147,11 @@ class Scenario:
     program: PointToPoint
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
+    planner: PlannerConfig
+    whiteboard: WhiteboardConfig
+    faults: tuple[FaultInjection, ...]
+    max_time: float | None
+    """cap on simulated time [s]; None = twice the planned program plus 5 s"""
 
     def axis(self, name: str) -> AxisConfig:
         return self.axes[AXES.index(name)]

@@ -13,6 +13,14 @@ column              unit    meaning
 ``ferr_<axis>``     counts  following error, command - actual
 ``dac_<axis>``      code    DAC code, -2048..2047 (x 10/2048 V)
 ``pad_force``       N       load cell through the ADC, tared at servo-on
+``state``           -       controller state (0 IDLE, 1 RUNNING, 2 FEED_HOLD, 3 STOPPING,
+                            4 FAULT, 5 FINISHED), per interpolation period
+``fault``           -       fault code (0 none, 1 PLANNER_LOST, 2 PLANNER_START, 3 RUN_TIMEOUT)
+``fifo_fill``       words   command FIFO fill after the period's exchange
+``feed_override``   -       effective feed scale of the running move (0 while held)
+``missed_exchanges`` -      periods so far whose exchange the planner missed (real-time mode)
+``records_rejected`` -      records rejected so far (CRC, framing, sequence)
+``last_seq_executed`` -     sequence number of the last record executed
 ==================  ======  ===========================================================
 
 A run directory holds ``scenario.yaml`` (the file as written), ``trace.parquet`` and
@@ -35,7 +43,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from cnc_twin.axes import AXES
-from cnc_twin.dsp.servo import FRAME_FIELDS
+from cnc_twin.dsp.servo import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.config import Scenario
 
 TRACE_FILE = "trace.parquet"
@@ -44,11 +52,21 @@ SCENARIO_FILE = "scenario.yaml"
 
 
 class FrameBuffer:
-    """Preallocated ``(n_ticks, frame_width)`` float64 rows, filled one per servo tick."""
+    """Preallocated ``(n_ticks, frame_width)`` float64 rows, filled one per servo tick.
+
+    Sized for the planned run; :meth:`grow` adds half again when a run takes longer (feed holds,
+    missed exchanges), so a run never stops for lack of room.
+    """
 
     def __init__(self, n_ticks: int, frame_width: int):
-        self.rows = np.zeros((n_ticks, frame_width), dtype=np.float64)
+        self.rows = np.zeros((max(1, n_ticks), frame_width), dtype=np.float64)
         self.count = 0
+
+    def grow(self) -> np.ndarray:
+        """Enlarge by half (at least one period's worth); returns the new rows array."""
+        extra = np.zeros((max(64, len(self.rows) // 2), self.rows.shape[1]), dtype=np.float64)
+        self.rows = np.concatenate((self.rows, extra))
+        return self.rows
 
 
 @dataclass
@@ -62,6 +80,7 @@ class Trace:
     dac : (n, 6) int16 codes
     pad_force : (n,) [N]
     counts_per_unit : (6,) counts per m or rad, to convert counts to SI
+    period_signals : per-period columns (state, fault, fifo_fill, ...), each (n,)
     """
 
     time: np.ndarray
@@ -72,6 +91,7 @@ class Trace:
     dac: np.ndarray
     pad_force: np.ndarray
     counts_per_unit: np.ndarray
+    period_signals: dict[str, np.ndarray]
 
     @classmethod
     def from_frames(cls, frames: FrameBuffer, *, servo_period: float, ticks_per_period: int,
@@ -91,6 +111,11 @@ class Trace:
             dac=groups["dac"].astype(np.int16),
             pad_force=np.ascontiguousarray(rows[:, len(FRAME_FIELDS) * n_axes]),
             counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64),
+            period_signals={
+                name: (rows[:, len(FRAME_FIELDS) * n_axes + 1 + i].astype(np.float64 if name == "feed_override"
+                                                                          else np.int64))
+                for i, name in enumerate(PERIOD_FIELDS)
+            },
         )
 
     def __len__(self) -> int:
@@ -104,6 +129,7 @@ class Trace:
             for i, axis in enumerate(AXES):
                 cols[f"{prefix}_{axis}"] = array[:, i]
         cols["pad_force"] = self.pad_force
+        cols.update(self.period_signals)
         return cols
 
     def nbytes(self) -> int:
@@ -111,7 +137,8 @@ class Trace:
 
 
 _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",
-          "dac": "code", "pad_force": "N"}
+          "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
+          "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1"}
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:

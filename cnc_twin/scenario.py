@@ -15,7 +15,7 @@ from __future__ import annotations
 import copy
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal, Union
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -26,11 +26,14 @@ from cnc_twin.errors import ScenarioError, format_key_path
 from cnc_twin.plant import ModelInfo, load_model, model_info
 from cnc_twin.config import (
     AxisConfig,
+    FaultInjection,
     ForceSensorConfig,
     Move,
+    PlannerConfig,
     PointToPoint,
     Scenario,
     Timing,
+    WhiteboardConfig,
 )
 from cnc_twin.resources import resolve_model_file
 
@@ -116,12 +119,75 @@ class TimingSpec(_Strict):
     interpolation_period: float = Field(1.0, gt=0, description="PC <-> DSP exchange and interpolation period [ms]")
     servo_period: float = Field(0.25, gt=0, description="DSP servo interrupt period [ms]")
     physics_timestep: float = Field(0.25, gt=0, description="MuJoCo timestep [ms]")
-    mode: Literal["lockstep"] = Field("lockstep", description="lockstep: deterministic, the DSP waits for the planner")
+    mode: Literal["lockstep", "realtime"] = Field(
+        "lockstep",
+        description="lockstep: the DSP waits for every exchange (deterministic); "
+        "realtime: the DSP is paced to the wall clock and never waits (late answers are missed exchanges)",
+    )
 
 
 class MachineRef(_Strict):
     model: str = Field("scene.xml", description="MJCF file, relative to the scenario or bundled in models/")
     parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
+
+
+class PlannerSpec(_Strict):
+    """The PC planner process."""
+
+    lookahead: float = Field(0.0, ge=0, description="motion kept queued on the card ahead of execution [ms]; 0 = no limit")
+    heartbeat_timeout: float = Field(1000.0, gt=0, description="wall-clock time without planner heartbeat before it counts as lost [ms]")
+    start_timeout: float = Field(60.0, gt=0, description="wall-clock time for the planner process to start [s]")
+
+
+class WhiteboardSpec(_Strict):
+    """The emulated dual-port RAM."""
+
+    words: int = Field(8192, description="size [16-bit words]; a power of two from 2048 to 32768")
+    chunk: int = Field(4096, ge=64, description="most bytes of records the planner writes per exchange [bytes]")
+
+    @model_validator(mode="after")
+    def _power_of_two(self) -> "WhiteboardSpec":
+        if not (2048 <= self.words <= 32768 and self.words & (self.words - 1) == 0):
+            raise _KeyedValueError(("words",), f"expected a power of two from 2048 to 32768, got {self.words}")
+        return self
+
+
+class PlannerStallFault(_Strict):
+    """The planner stops answering (and beating) for a while."""
+
+    type: Literal["planner_stall"]
+    at: float = Field(ge=0, description="simulated time of the first status it does not answer in time [s]")
+    duration: float = Field(gt=0, description="wall-clock stall [ms]")
+
+
+class PlannerDelayFault(_Strict):
+    """Every answer of the planner is late by ``delay`` for a simulated time window."""
+
+    type: Literal["planner_delay"]
+    at: float = Field(ge=0, description="[s] simulated")
+    duration: float = Field(gt=0, description="window [s] simulated")
+    delay: float = Field(gt=0, description="wall-clock delay per answer [ms]")
+
+
+class PlannerKillFault(_Strict):
+    """The planner process dies (SIGKILL) when it sees a status at or after ``at``."""
+
+    type: Literal["planner_kill"]
+    at: float = Field(ge=0, description="[s] simulated")
+
+
+class RecordBitflipFault(_Strict):
+    """One bit of the next record written at or after ``at`` is flipped after its CRC was computed."""
+
+    type: Literal["record_bitflip"]
+    at: float = Field(ge=0, description="[s] simulated")
+    bit: int = Field(0, ge=0, description="bit index within the record (wraps to its length)")
+
+
+FaultSpec = Annotated[
+    Union[PlannerStallFault, PlannerDelayFault, PlannerKillFault, RecordBitflipFault], Field(discriminator="type")
+]
+_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip"}
 
 
 class MoveSpec(_Strict):
@@ -155,6 +221,10 @@ class ScenarioFile(_Strict):
     machine: MachineRef = MachineRef()
     axes: AxesSpec
     force_sensor: ForceSensorSpec
+    planner: PlannerSpec = PlannerSpec()
+    whiteboard: WhiteboardSpec = WhiteboardSpec()
+    faults: list[FaultSpec] = Field(default_factory=list)
+    max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
     program: PointToPointProgram
 
 
@@ -232,7 +302,25 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         force_sensor=ForceSensorConfig(spec.force_sensor.range[0], spec.force_sensor.range[1], spec.force_sensor.bits),
         program=program,
         home=info.home,
+        planner=PlannerConfig(
+            lookahead=spec.planner.lookahead * units.MS,
+            heartbeat_timeout=spec.planner.heartbeat_timeout * units.MS,
+            start_timeout=spec.planner.start_timeout,
+        ),
+        whiteboard=WhiteboardConfig(words=spec.whiteboard.words, chunk_words=spec.whiteboard.chunk // 2),
+        faults=tuple(_convert_fault(f) for f in spec.faults),
+        max_time=spec.max_time,
     )
+
+
+def _convert_fault(f: Any) -> FaultInjection:
+    if isinstance(f, PlannerStallFault):
+        return FaultInjection(kind=f.type, at=f.at, duration=f.duration * units.MS)
+    if isinstance(f, PlannerDelayFault):
+        return FaultInjection(kind=f.type, at=f.at, duration=f.duration, delay=f.delay * units.MS)
+    if isinstance(f, RecordBitflipFault):
+        return FaultInjection(kind=f.type, at=f.at, bit=f.bit)
+    return FaultInjection(kind=f.type, at=f.at)
 
 
 def _read(path: Path) -> str:
@@ -279,7 +367,7 @@ def _validate(model_cls: type[BaseModel], data: Any, label: Path, prefix: tuple 
 def _first_error(exc: ValidationError, label: Path, prefix: tuple) -> ScenarioError:
     errors = exc.errors(include_url=False)
     err = errors[0]
-    loc = prefix + tuple(err["loc"])
+    loc = prefix + tuple(part for part in err["loc"] if part not in _UNION_TAGS)
     cause = err.get("ctx", {}).get("error")
     if isinstance(cause, _KeyedValueError):
         loc = loc + cause.loc

@@ -1,20 +1,28 @@
-"""Wiring: build the plant, the card and the planner for a scenario, run the clock, own the run.
+"""Wiring: build the plant, the card and the planner process for a scenario; run the clock.
 
-The clock (lockstep; everything on simulated time)::
+The clock, on simulated time; real-time mode also paces each period to the wall clock::
 
-    for each interpolation period:
-        servo.begin_period(interpolator.next_period())          # PC -> DSP setpoint, once
+    create the whiteboard; start the planner process (spawn); wait until it attached
+    for k = 0, 1, ...:
+        dsp.begin_period(k)                  # whiteboard exchange, records, state, setpoint
         for each of ticks_per_period servo ticks:
             volts = servo.tick(j, plant.axis_positions(), plant.pad_force())
-            plant.apply_volts(volts)                             # DAC -> drives (zero-order hold)
-            plant.step(substeps_per_tick)                        # MuJoCo, drive loops in C
-            frames.rows[k] = servo.frame                         # one preallocated row
+            plant.apply_volts(volts)         # DAC -> drives (zero-order hold)
+            plant.step(substeps_per_tick)    # MuJoCo, drive loops in C
+            frames.rows[t] = servo.frame     # one preallocated row
+        stop when the program finished, a fault stopped the machine, time ran out, or a stop
+        was requested (signal)
+    finally: tell the planner to exit, reap it (terminate/kill if needed), unlink the whiteboard
 
-The planner runs in this process for now: it plans all segments before motion starts.
+In lockstep mode the DSP waits for the planner's answer every period, so the same scenario
+gives the same trace bit for bit. In real-time mode the DSP never waits: a late answer is a
+missed exchange, and a starved card holds (FEED_HOLD) until records arrive again.
 """
 
 from __future__ import annotations
 
+import math
+import multiprocessing
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -23,15 +31,23 @@ from typing import Any
 
 import numpy as np
 
+from cnc_twin.config import Scenario
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
-from cnc_twin.planner.ptp import plan_point_to_point
+from cnc_twin.dsp.task import DspTask
+from cnc_twin.planner.process import PlannerJob, planner_main
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.record import FrameBuffer, Trace, compute_metrics, write_run_dir
-from cnc_twin.config import Scenario
+from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.layout import Layout
+from cnc_twin.whiteboard.ports import DspPort, PlannerLost
+from cnc_twin.whiteboard.status import DspState, FaultCode
 
 ProgressCallback = Callable[[int, int], None]
-"""called as ``progress(periods_done, periods_total)`` a few hundred times per run"""
+"""called as ``progress(periods_done, periods_expected)`` a few hundred times per run"""
+
+FAULT_LINGER = 0.05
+"""simulated time recorded after a fault brought the machine to rest [s]"""
 
 
 @dataclass
@@ -43,6 +59,11 @@ class RunResult:
     metrics: dict[str, Any]
     run_dir: Path | None = field(default=None)
 
+    @property
+    def status(self) -> str:
+        """``complete``, ``fault`` or ``interrupted``."""
+        return self.metrics["status"]
+
     def write(self, run_dir: str | Path) -> Path:
         """Write ``scenario.yaml``, ``trace.parquet`` and ``metrics.json`` to ``run_dir``."""
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics)
@@ -50,7 +71,7 @@ class RunResult:
 
 
 class Twin:
-    """One run's plant, card and program, built from a scenario.
+    """One run's plant, card and planner, built from a scenario.
 
     Parameters
     ----------
@@ -65,68 +86,183 @@ class Twin:
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor
         )
         self.interpolator = SegmentInterpolator(
-            counts_per_unit=[a.counts_per_unit for a in scenario.axes],
-            power_on=scenario.home,
+            axes=scenario.axes, power_on=scenario.home, period=timing.interpolation_period
+        )
+        self.job = PlannerJob(
+            program=scenario.program,
+            axes=scenario.axes,
+            home=scenario.home,
             period=timing.interpolation_period,
+            layout_words=scenario.whiteboard.words,
+            chunk_words=scenario.whiteboard.chunk_words,
+            lookahead_periods=math.ceil(scenario.planner.lookahead / timing.interpolation_period - 1e-9),
+            faults=scenario.faults,
         )
-        self.segments = plan_point_to_point(
-            scenario.program, scenario.axes, start=scenario.home, period=timing.interpolation_period
-        )
-        self.interpolator.extend(self.segments)
-        self.total_periods = sum(seg.periods for seg in self.segments)
-        self.frames = FrameBuffer(self.total_periods * timing.ticks_per_period, len(self.servo.frame))
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
+        self.expected_periods = 0
+        self.frames: FrameBuffer | None = None
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
         self.stop_reason = reason
 
     def run(self, *, progress: ProgressCallback | None = None) -> RunResult:
-        """Run the whole program on the simulated clock and return the result."""
-        timing = self.scenario.timing
+        """Run the program on the simulated clock and return the result."""
+        sc = self.scenario
+        wb = Whiteboard.create(Layout(sc.whiteboard.words))
+        process = None
+        port = None
+        try:
+            process = multiprocessing.get_context("spawn").Process(
+                target=planner_main, args=(wb.name, self.job), name="cnc-twin-planner", daemon=True
+            )
+            process.start()
+            port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=process.is_alive,
+                           heartbeat_timeout=sc.planner.heartbeat_timeout)
+            dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
+                          period=sc.timing.interpolation_period)
+            try:
+                planned = port.wait_ready(sc.planner.start_timeout)
+            except PlannerLost as exc:
+                dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
+                planned = 0
+            wall_time, periods = self._clock(dsp, planned, progress)
+            retransmits = int(wb.retransmits[0])
+        finally:
+            # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
+            try:
+                wb.words[wb.SHUTDOWN] = 1
+            finally:
+                try:
+                    _reap(process)
+                finally:
+                    port = None
+                    wb.close()
+        return self._result(dsp, wall_time, periods, retransmits)
+
+    def _clock(self, dsp: DspTask, planned: int, progress: ProgressCallback | None) -> tuple[float, int]:
+        sc = self.scenario
+        timing = sc.timing
+        period_s = timing.interpolation_period
+        max_time = sc.max_time if sc.max_time is not None else 2.0 * planned * period_s + 5.0
+        max_periods = max(1, round(max_time / period_s))
+        linger = round(FAULT_LINGER / period_s)
+        self.expected_periods = planned + 1
         ticks_per_period = timing.ticks_per_period
         substeps = timing.substeps_per_tick
-        plant, servo, interpolator = self.plant, self.servo, self.interpolator
-        rows = self.frames.rows
+        self.frames = frames = FrameBuffer((planned + 2) * ticks_per_period, len(self.servo.frame))
+        rows = frames.rows
+        plant, servo = self.plant, self.servo
         frame = servo.frame
         axis_positions, pad_force, apply_volts, step = (
             plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
         )
+        tick = servo.tick
         tick_range = range(ticks_per_period)
-        total = self.total_periods
-        report_every = max(1, total // 200)
+        realtime = timing.mode == "realtime"
+        report_every = max(1, self.expected_periods // 200)
+        self.late_periods = 0
         k = 0
+        t = 0
         wall_start = time.perf_counter()
-        for period in range(total):
+        while k < max_periods:
             if self.stop_reason is not None:
                 break
-            servo.begin_period(interpolator.next_period())
+            if realtime:
+                self._pace(wall_start + k * period_s, period_s)
+            dsp.begin_period(k)
+            if t + ticks_per_period > len(rows):
+                rows = frames.grow()
             for j in tick_range:
-                apply_volts(servo.tick(j, axis_positions(), pad_force()))
+                apply_volts(tick(j, axis_positions(), pad_force()))
                 step(substeps)
-                rows[k] = frame
-                k += 1
-            if progress is not None and period % report_every == 0:
-                progress(period, total)
+                rows[t] = frame
+                t += 1
+            k += 1
+            if progress is not None and k % report_every == 0:
+                progress(min(k, self.expected_periods), self.expected_periods)
+            if dsp.done:
+                if dsp.state == DspState.FINISHED:
+                    break
+                linger -= 1
+                if linger < 0:
+                    break
+        else:
+            dsp.raise_fault(FaultCode.RUN_TIMEOUT, f"program not finished after {max_time:g} s simulated", k)
         wall_time = time.perf_counter() - wall_start
-        self.frames.count = k
+        frames.count = t
         if progress is not None and self.stop_reason is None:
-            progress(total, total)
+            progress(self.expected_periods, self.expected_periods)
+        return wall_time, k
+
+    def _pace(self, deadline: float, period_s: float) -> None:
+        """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
+        now = time.perf_counter()
+        if now > deadline + period_s:
+            self.late_periods += 1
+            return
+        if deadline - now > 0.0005:
+            time.sleep(deadline - now - 0.0003)
+        while time.perf_counter() < deadline:
+            pass
+
+    def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
+        sc = self.scenario
+        assert self.frames is not None
         trace = Trace.from_frames(
             self.frames,
-            servo_period=timing.servo_period,
-            ticks_per_period=ticks_per_period,
-            counts_per_unit=np.array([a.counts_per_unit for a in self.scenario.axes]),
+            servo_period=sc.timing.servo_period,
+            ticks_per_period=sc.timing.ticks_per_period,
+            counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]),
         )
         metrics = compute_metrics(
-            trace, self.scenario, wall_time=wall_time, dac_saturations=servo.dac_saturations,
-            warnings=plant.warnings(),
+            trace, sc, wall_time=wall_time, dac_saturations=self.servo.dac_saturations,
+            warnings=self.plant.warnings(),
         )
+        port = dsp.port
+        latency = np.asarray(port.latency_ns, dtype=np.float64) / 1e3
+        metrics["mode"] = sc.timing.mode
+        metrics["final_state"] = DspState.NAMES[dsp.state]
+        metrics["fault"] = None if dsp.fault == FaultCode.NONE else {
+            "code": FaultCode.NAMES[dsp.fault], "message": dsp.fault_message, "time_s": dsp.fault_time,
+        }
+        metrics["whiteboard"] = {
+            "periods": periods,
+            "exchanges": len(port.latency_ns),
+            "missed_exchanges": port.missed_exchanges,
+            "records_accepted": dsp.records_accepted,
+            "records_rejected": dsp.records_rejected,
+            "records_retransmitted": retransmits,
+            "underrun_periods": dsp.underrun_periods,
+            "exchange_latency_us": {
+                "median": float(np.median(latency)) if len(latency) else None,
+                "p99": float(np.percentile(latency, 99)) if len(latency) else None,
+                "max": float(latency.max()) if len(latency) else None,
+            },
+        }
+        if sc.timing.mode == "realtime":
+            metrics["late_periods"] = self.late_periods
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason
-        return RunResult(scenario=self.scenario, trace=trace, metrics=metrics)
+        elif dsp.fault != FaultCode.NONE:
+            metrics["status"] = "fault"
+        return RunResult(scenario=sc, trace=trace, metrics=metrics)
+
+
+def _reap(process: multiprocessing.process.BaseProcess | None) -> None:
+    """Wait briefly for the planner to exit by itself, then terminate, then kill."""
+    if process is None or process.pid is None:
+        return
+    process.join(timeout=2.0)
+    if process.is_alive():
+        process.terminate()
+        process.join(timeout=1.0)
+    if process.is_alive():  # pragma: no cover - a planner ignoring SIGTERM
+        process.kill()
+        process.join()
+    process.close()
 
 
 def run_scenario(scenario: Scenario, *, progress: ProgressCallback | None = None) -> RunResult:

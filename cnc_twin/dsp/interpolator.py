@@ -1,80 +1,179 @@
-"""Coarse interpolation: one setpoint per axis per interpolation period, from segments.
+"""Coarse interpolation: one setpoint per axis per interpolation period, from the record queue.
 
-Inputs: segments (see :mod:`cnc_twin.planner.segments`) in machine positions [m | rad].
+Inputs: records accepted from the FIFO, in sequence order (:mod:`cnc_twin.whiteboard.records`).
+Move records become segments from the programmed position to their end; modal records (feed
+override, force setpoint, spindle) take effect when they reach the head of the queue, in program
+order; end of program finishes the run.
 Output per period: the commanded position at the *end* of the period [counts], relative to the
 encoder's power-on position, for the servo task to fine-interpolate towards.
 
-Algorithm, once per period, in segment ``seg`` at period index ``k`` (0-based)::
+Feed override and hold scale the segment's own clock: ``tau += lambda * T`` per period and
+``p = start + s(tau) * d``. The axis acceleration is then ``d (s'' lambda^2 + s' lambda')``; it
+stays within every axis's limit when ``|s'' lambda^2 + s' lambda'| <= a_lim`` with
+``a_lim = min_i a_max_i / |d_i|``, which bounds how fast lambda may fall (hold) or rise
+(resume)::
 
-    t = (k + 1) * T                    # end of this period
-    s = 1 exactly on the last period, else profile.evaluate(t).s
-    p = start + s * (end - start)      # per axis, [m | rad]
-    counts = (p - power_on) * counts_per_unit
+    lambda' >= -(a_lim + s'' lambda^2) / s'      (decelerate)
+    lambda' <= +(a_lim - s'' lambda^2) / s'      (accelerate)
+
+applied per period with a 0.9 margin for the discrete step. ``lambda`` is also capped so the
+scaled profile stays within the velocity and acceleration limits (override above 1).
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 
-from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
+from cnc_twin.config import AxisConfig
+from cnc_twin.planner.segments import DwellSegment, MoveSegment
+from cnc_twin.whiteboard.records import Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, Record, Spindle
+
+SLEW_MARGIN = 0.9
 
 
 class SegmentInterpolator:
-    """Walks a queue of segments one interpolation period at a time.
+    """Executes the queue of accepted records, one interpolation period at a time.
 
     Parameters
     ----------
-    counts_per_unit : per axis encoder resolution, shape ``(6,)``.
+    axes : the six axes (limits and encoder resolution).
     power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
     period : interpolation period [s].
     """
 
-    def __init__(self, *, counts_per_unit: Sequence[float], power_on: Sequence[float], period: float):
-        self.counts_per_unit = [float(c) for c in counts_per_unit]
+    def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float):
+        self.axes = tuple(axes)
+        self.counts_per_unit = [a.counts_per_unit for a in axes]
         self.power_on = [float(p) for p in power_on]
         self.period = period
-        self._queue: deque[Segment] = deque()
-        self._segment: Segment | None = None
-        self._k = 0
-        self._hold = [0.0] * len(self.counts_per_unit)
-        self.segments_done = 0
+        self.programmed = tuple(self.power_on)
+        """end position of the last move accepted [m | rad]"""
+        self._queue: deque[tuple[int, Record | MoveSegment | DwellSegment]] = deque()
+        self._current: tuple[int, MoveSegment | DwellSegment] | None = None
+        self._tau = 0.0
+        self._dwell_left = 0
+        self._a_lim = self._v_lim = math.inf
+        self.override_target = 1.0
+        self.override = 1.0
+        """effective time scale lambda of the running segment (0 while held)"""
+        self.hold = False
+        """request a controlled stop along the path (lambda -> 0); clearing it resumes"""
+        self.finished = False
+        """end of program reached"""
+        self.last_seq_executed = 0
+        self.force_setpoint = 0.0
+        self.spindle_on = False
+        self.spindle_speed = 0.0
+        self._hold_counts = [0.0] * len(self.counts_per_unit)
 
-    def extend(self, segments: Iterable[Segment]) -> None:
-        """Append segments to the queue."""
-        self._queue.extend(segments)
+    # --- queue -------------------------------------------------------------------------------
+    def push(self, seq: int, record: Record) -> None:
+        """Queue an accepted record; moves start from the programmed position."""
+        if isinstance(record, Move):
+            segment = MoveSegment(start=self.programmed, end=tuple(record.end), profile=record.profile,
+                                  periods=record.periods)
+            self.programmed = segment.end
+            self._queue.append((seq, segment))
+        elif isinstance(record, Dwell):
+            self._queue.append((seq, DwellSegment(position=self.programmed, periods=record.periods)))
+        else:
+            self._queue.append((seq, record))
 
     @property
-    def idle(self) -> bool:
-        """True when no segment is running or queued."""
-        return self._segment is None and not self._queue
+    def starved(self) -> bool:
+        """Nothing running or queued and the program has not ended."""
+        return self._current is None and not self._queue and not self.finished
 
+    @property
+    def in_motion(self) -> bool:
+        return self._current is not None and isinstance(self._current[1], MoveSegment) and self.override > 0.0
+
+    @property
+    def queued_records(self) -> int:
+        return len(self._queue) + (self._current is not None)
+
+    # --- per period --------------------------------------------------------------------------
     def next_period(self) -> list[float]:
-        """Commanded position at the end of the coming period [counts], shape ``(6,)``.
-
-        With nothing to do it holds the last commanded position.
-        """
-        if self._segment is None:
-            if not self._queue:
-                return list(self._hold)
-            self._segment = self._queue.popleft()
-            self._k = 0
-        seg = self._segment
-        self._k += 1
-        if isinstance(seg, MoveSegment):
-            if self._k >= seg.periods:
-                positions = seg.end
-            else:
-                s = seg.profile.evaluate(self._k * self.period)[0]
-                positions = [p0 + s * (p1 - p0) for p0, p1 in zip(seg.start, seg.end)]
-        elif isinstance(seg, DwellSegment):
+        """Commanded position at the end of the coming period [counts], shape ``(6,)``."""
+        if self._current is None:
+            self._start_next()
+        if self._current is None:
+            return list(self._hold_counts)
+        seq, seg = self._current
+        if isinstance(seg, DwellSegment):
+            self._dwell_left -= 1
             positions = seg.position
-        else:  # pragma: no cover - a new segment type without interpolation is a programming error
-            raise TypeError(f"cannot interpolate {type(seg).__name__}")
-        if self._k >= seg.periods:
-            self._segment = None
-            self.segments_done += 1
-        self._hold = [
+            if self._dwell_left <= 0:
+                self._complete(seq)
+        else:
+            positions = self._advance_move(seq, seg)
+        self._hold_counts = [
             (p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)
         ]
-        return list(self._hold)
+        return list(self._hold_counts)
+
+    def _start_next(self) -> None:
+        while self._queue and self._current is None and not self.finished:
+            seq, item = self._queue.popleft()
+            if isinstance(item, MoveSegment):
+                self._begin_move(seq, item)
+            elif isinstance(item, DwellSegment):
+                self._current = (seq, item)
+                self._dwell_left = item.periods
+            else:
+                self._apply_modal(item)
+                self.last_seq_executed = seq
+
+    def _apply_modal(self, record: Record) -> None:
+        if isinstance(record, FeedOverride):
+            self.override_target = max(0.0, record.fraction)
+        elif isinstance(record, ForceSetpoint):
+            self.force_setpoint = record.newtons
+        elif isinstance(record, Spindle):
+            self.spindle_on, self.spindle_speed = record.on, record.speed
+        elif isinstance(record, EndOfProgram):
+            self.finished = True
+
+    def _begin_move(self, seq: int, seg: MoveSegment) -> None:
+        a_lim = v_lim = math.inf
+        for cfg, p0, p1 in zip(self.axes, seg.start, seg.end):
+            d = abs(p1 - p0)
+            if d > 0.0:
+                a_lim = min(a_lim, cfg.max_acceleration / d)
+                v_lim = min(v_lim, cfg.max_velocity / d)
+        self._a_lim = a_lim
+        prof = seg.profile
+        lam_max = math.inf
+        if prof.v_peak > 0.0:
+            lam_max = min(lam_max, v_lim / prof.v_peak)
+        if prof.accel > 0.0:
+            lam_max = min(lam_max, math.sqrt(a_lim / prof.accel))
+        self._lam_max = lam_max
+        self._tau = 0.0
+        self._current = (seq, seg)
+
+    def _advance_move(self, seq: int, seg: MoveSegment) -> tuple[float, ...] | list[float]:
+        prof = seg.profile
+        lam = self.override
+        target = 0.0 if self.hold else min(self.override_target, self._lam_max)
+        if lam != target:
+            _, sd, sdd = prof.evaluate(self._tau)
+            if sd <= 1e-12:  # at rest on the path: any scale is reachable at once
+                lam = target
+            elif lam > target:
+                lam = max(target, lam - SLEW_MARGIN * (self._a_lim + sdd * lam * lam) / sd * self.period)
+            else:
+                lam = min(target, lam + SLEW_MARGIN * (self._a_lim - sdd * lam * lam) / sd * self.period)
+            self.override = lam
+        self._tau += lam * self.period
+        if self._tau >= prof.duration - 1e-9 * self.period:
+            self._complete(seq)
+            return seg.end
+        s = prof.evaluate(self._tau)[0]
+        return [p0 + s * (p1 - p0) for p0, p1 in zip(seg.start, seg.end)]
+
+    def _complete(self, seq: int) -> None:
+        self._current = None
+        self.last_seq_executed = seq

@@ -14,8 +14,9 @@ Per servo tick ``j`` of ``n`` in the period (``tick``), for each axis::
     volts    = DAC.write(volts)                              # 12-bit, saturation counted
     force    = ADC.convert(load cell) - tare                 # [N], tare taken on the first tick
 
-The tick fills ``frame`` (a flat list: command x6, actual x6, DAC code x6, force) for the
-recorder, so nothing is allocated per tick besides the returned voltages.
+The tick fills ``frame`` (a flat list: command x6, actual x6, DAC code x6, force, then the
+per-period fields of ``PERIOD_FIELDS`` that the period task writes) for the recorder, so nothing
+is allocated per tick besides the returned voltages.
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ from cnc_twin.config import AxisConfig, ForceSensorConfig, Timing
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
+PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchanges", "records_rejected",
+                 "last_seq_executed")
+"""per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 
 class ServoTask:
@@ -74,7 +78,9 @@ class ServoTask:
         self._velocity = [0.0] * n
         self._acceleration = [0.0] * n
         self._fractions = [(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)]
-        self.frame = [0.0] * (len(FRAME_FIELDS) * n + 1)
+        self.frame = [0.0] * (len(FRAME_FIELDS) * n + 1 + len(PERIOD_FIELDS))
+        self.period_slot = len(FRAME_FIELDS) * n + 1
+        """index in ``frame`` of the first per-period field"""
         self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
 
     def begin_period(self, setpoint: Sequence[float]) -> None:

@@ -1,0 +1,195 @@
+"""The PC planner as its own OS process: plan, encode, stream records through the whiteboard.
+
+``planner_main`` is the process entry point (started with the ``spawn`` method by
+:mod:`cnc_twin.twin`). Per DSP status it writes as many records as fit, bounded by
+
+- the free FIFO space,
+- the chunk size (the card takes 4 KB per mailbox interrupt),
+- the look-ahead: motion queued on the card ahead of execution (0 = no limit).
+
+When the DSP reports more rejected records than before, the planner goes back to the DSP's
+``expected_seq`` and sends from there again (go-back-N); the DSP flushed the FIFO when it
+rejected, so the resent records are next in line.
+
+Injected faults (scenario ``faults:``) act here, on the PC side: a stall (no answer and no
+heartbeat for a while), a delay on every answer for a time window, a kill (the process dies as
+with SIGKILL), and a bit flip in one record after its CRC was computed.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.config import AxisConfig, FaultInjection, PointToPoint
+from cnc_twin.planner.ptp import plan_point_to_point
+from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
+from cnc_twin.whiteboard import layout as L
+from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.ports import PcPort
+from cnc_twin.whiteboard.records import Dwell, EndOfProgram, Move, Record, encode
+from cnc_twin.whiteboard.status import DspState
+
+
+@dataclass(frozen=True)
+class PlannerJob:
+    """Everything the planner process needs, as plain picklable data."""
+
+    program: PointToPoint
+    axes: tuple[AxisConfig, ...]
+    home: tuple[float, ...]
+    period: float
+    """interpolation period [s]"""
+    layout_words: int
+    chunk_words: int
+    lookahead_periods: int
+    """0 = no limit"""
+    faults: tuple[FaultInjection, ...] = ()
+
+
+def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int]]:
+    """Wire records for planned segments plus end of program, and each record's duration [periods]."""
+    records: list[Record] = []
+    periods: list[int] = []
+    for seg in segments:
+        if isinstance(seg, MoveSegment):
+            records.append(Move(end=seg.end, profile=seg.profile, periods=seg.periods))
+        elif isinstance(seg, DwellSegment):
+            records.append(Dwell(periods=seg.periods))
+        else:  # pragma: no cover
+            raise TypeError(f"cannot stream {type(seg).__name__}")
+        periods.append(seg.periods)
+    records.append(EndOfProgram())
+    periods.append(0)
+    return records, periods
+
+
+class Streamer:
+    """Which records go out in answer to a status. Sequence numbers start at 1.
+
+    Parameters
+    ----------
+    encoded : each record's words, in program order (record i has seq i + 1).
+    periods : each record's duration [interpolation periods].
+    chunk_words, lookahead_periods : limits per exchange (0 look-ahead = none).
+    """
+
+    def __init__(self, encoded: list[np.ndarray], periods: list[int], *, chunk_words: int, lookahead_periods: int):
+        self.encoded = encoded
+        self.cumulative = np.concatenate(([0], np.cumsum(periods))).astype(np.int64)
+        self.chunk_words = chunk_words
+        self.lookahead_periods = lookahead_periods
+        self.next_index = 0
+        self._rejected_seen = 0
+        self.retransmitted = 0
+
+    @property
+    def all_sent(self) -> bool:
+        return self.next_index >= len(self.encoded)
+
+    def answer(self, status: np.ndarray, port: PcPort, *, corrupt=None) -> int:
+        """Write records for one exchange; returns how many were written."""
+        st = status[0]
+        rejected = int(st["records_rejected"])
+        if rejected != self._rejected_seen:
+            self._rejected_seen = rejected
+            resend_from = int(st["expected_seq"]) - 1
+            self.retransmitted += max(0, self.next_index - resend_from)
+            self.next_index = resend_from
+        executed = int(st["last_seq_executed"])
+        budget = self.chunk_words
+        written = 0
+        fifo = port.fifo
+        free = fifo.free()
+        while self.next_index < len(self.encoded):
+            queued = int(self.cumulative[self.next_index] - self.cumulative[executed])
+            if self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed:
+                break
+            words = self.encoded[self.next_index]
+            if len(words) > budget or len(words) > free:
+                break
+            if corrupt is not None:
+                words = corrupt(words)
+            fifo.write(words)
+            budget -= len(words)
+            free -= len(words)
+            self.next_index += 1
+            written += 1
+        return written
+
+
+class FaultSchedule:
+    """The PC-side injected faults, each triggered by the simulated time of a status."""
+
+    def __init__(self, faults: tuple[FaultInjection, ...]):
+        self.faults = list(faults)
+        self._fired: set[int] = set()
+
+    def before_answer(self, sim_time: float) -> None:
+        """Stall, delay or die, as scheduled for this status's time."""
+        for i, f in enumerate(self.faults):
+            if f.kind == "planner_kill" and sim_time >= f.at:
+                os.kill(os.getpid(), signal.SIGKILL)
+            if f.kind == "planner_stall" and sim_time >= f.at and i not in self._fired:
+                self._fired.add(i)
+                time.sleep(f.duration)
+            if f.kind == "planner_delay" and f.at <= sim_time < f.at + f.duration:
+                time.sleep(f.delay)
+
+    def corrupter(self, sim_time: float):
+        """A function flipping the scheduled bit in the next record, or None."""
+        for i, f in enumerate(self.faults):
+            if f.kind == "record_bitflip" and sim_time >= f.at and i not in self._fired:
+                def flip(words: np.ndarray, i=i, bit=f.bit) -> np.ndarray:
+                    self._fired.add(i)
+                    out = words.copy()
+                    b = bit % (16 * len(out))
+                    out[b // 16] ^= np.uint16(1 << (b % 16))
+                    return out
+                return flip
+        return None
+
+
+def planner_main(shm_name: str, job: PlannerJob) -> None:
+    """Process entry point: attach, plan, announce, then answer every DSP status until the end."""
+    # Ctrl-C reaches the whole process group; the DSP side decides how the run ends.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    wb = Whiteboard.attach(shm_name, L.Layout(job.layout_words))
+    port = PcPort(wb)
+    try:
+        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
+        records, periods = segments_to_records(segments)
+        encoded = [encode(r, seq) for seq, r in enumerate(records, start=1)]
+        streamer = Streamer(encoded, periods, chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
+        faults = FaultSchedule(job.faults)
+        port.announce(program_periods=int(sum(periods)))
+        while True:
+            status = port.wait_status()
+            if status is None:
+                break
+            st = status[0]
+            sim_time = float(st["sim_time"])
+            faults.before_answer(sim_time)
+            port.begin()
+            before = streamer.retransmitted
+            streamer.answer(status, port, corrupt=faults.corrupter(sim_time))
+            wb.records_sent[0] = streamer.next_index
+            wb.retransmits[0] = wb.retransmits[0] + (streamer.retransmitted - before)
+            port.end()
+            port.set_state(L.PcState.STREAMING)
+            if int(st["state"]) in (DspState.FINISHED, DspState.FAULT):
+                break
+        port.set_state(L.PcState.DONE)
+    except BaseException:
+        port.set_state(L.PcState.ERROR)
+        traceback.print_exc(file=sys.stderr)
+        raise
+    finally:
+        del port
+        wb.close()

@@ -1,0 +1,206 @@
+"""The exchange protocol: one exchange per interpolation period, pipelined by one period.
+
+Bus hand-over: the DSP owns the bus while it reads the FIFO and writes the status block. It then
+grants the bus (``HOLDA = 1``) and posts the DSP -> PC mailbox. The PC raises ``HOLD``, checks
+the grant, reads the status, writes records and the FIFO write index, drops ``HOLD`` and posts
+the PC -> DSP mailbox (its acknowledgement). The DSP takes the bus back (``HOLDA = 0``) only
+after it has seen that acknowledgement with ``HOLD`` low. Every word has a single writer and each
+side only ever waits for the other's word, so the hand-over is safe with x86 store ordering
+(no two-flag mutual exclusion, which would need memory fences).
+
+Per period ``k`` on the DSP::
+
+    acquire(k):  lockstep  -> wait for the PC's ack of the last status (planner-lost checks while waiting)
+                 real-time -> if no ack yet or HOLD high: missed exchange, skip the rest this period
+    pop_records() -> words of every record the PC published since the last exchange
+    publish(status):  status block; HOLDA = 1; mailbox DSP -> PC = (k + 1) & 0xFFFF
+
+On the PC, in a loop::
+
+    wait_status() -> copy of the status block when the DSP -> PC mailbox changes
+    begin(): HOLD = 1, wait for HOLDA;  [write records through .fifo];  end(): HOLD = 0, ack
+
+The PC answers status ``k`` while the DSP runs period ``k``; the DSP reads the answer at the
+start of period ``k + 1``, as the card does with its exchange interrupt. Mailbox values are
+``period + 1`` modulo 2^16, so 0 means "nothing posted yet".
+"""
+
+from __future__ import annotations
+
+import array
+import os
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from cnc_twin.whiteboard import layout as L
+from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
+from cnc_twin.whiteboard.status import STATUS_DTYPE
+
+BUSY_SPINS = 2000
+"""polls before a waiting side starts yielding its core between polls"""
+
+
+class PlannerLost(RuntimeError):
+    """The planner process exited or its heartbeat stopped."""
+
+
+def mailbox_value(period: int) -> int:
+    return (period + 1) & 0xFFFF
+
+
+class DspPort:
+    """The card's side of the whiteboard.
+
+    Parameters
+    ----------
+    wb : the whiteboard (created by this side).
+    lockstep : wait for the PC's answer every period (deterministic) or never wait (real-time).
+    planner_alive : returns False once the planner process has exited.
+    heartbeat_timeout : wall-clock seconds without a PC heartbeat before the planner is lost.
+    """
+
+    def __init__(self, wb: Whiteboard, *, lockstep: bool, planner_alive: Callable[[], bool],
+                 heartbeat_timeout: float):
+        self.wb = wb
+        self.words = wb.words
+        self.lockstep = lockstep
+        self.planner_alive = planner_alive
+        self.heartbeat_timeout = heartbeat_timeout
+        self.fifo = FifoReader(wb.fifo_ring, wb.fifo_write, wb.fifo_read)
+        self.last_posted: int | None = None
+        self.missed_exchanges = 0
+        self.post_ns = 0
+        self.latency_ns = array.array("q")
+        """per answered exchange: DSP post -> PC acknowledgement, wall clock [ns]"""
+        self._pc_ack_time = np.ndarray((1,), dtype="<u8", buffer=wb.shm.buf, offset=2 * (wb.layout.pc_control + L.PC_ACK_TIME))
+
+    def wait_ready(self, timeout: float) -> int:
+        """Wait until the planner attached and announced its program; returns its length [periods]."""
+        deadline = time.monotonic() + timeout
+        while self.wb.pc_magic[0] != L.MAGIC or self.words[self.wb.PC_STATE] == L.PcState.NONE:
+            if self.words[self.wb.PC_STATE] == L.PcState.ERROR:
+                raise PlannerLost("planner failed while starting (see its error output above)")
+            if not self.planner_alive():
+                raise PlannerLost("planner process exited before it attached")
+            if time.monotonic() > deadline:
+                raise PlannerLost(f"planner did not attach within {timeout:g} s")
+            time.sleep(0.001)
+        return int(self.wb.program_periods[0])
+
+    def acquire(self, period: int) -> bool:
+        """Take the bus for this period's exchange; False when the exchange is missed (real-time)."""
+        if self.last_posted is not None:
+            ack = mailbox_value(self.last_posted)
+            words, hold, mailbox = self.words, self.wb.HOLD, self.wb.MAILBOX_TO_DSP
+            if self.lockstep:
+                if words[mailbox] != ack or words[hold]:
+                    self._wait_ack(ack)
+            elif words[mailbox] != ack or words[hold]:
+                self.missed_exchanges += 1
+                return False
+            self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
+        self.words[self.wb.HOLDA] = 0
+        return True
+
+    def _wait_ack(self, ack: int) -> None:
+        words, hold, mailbox = self.words, self.wb.HOLD, self.wb.MAILBOX_TO_DSP
+        heartbeat = self.wb.pc_heartbeat
+        spins = 0
+        last_beat = int(heartbeat[0])
+        last_change = time.monotonic()
+        while words[mailbox] != ack or words[hold]:
+            spins += 1
+            if spins < BUSY_SPINS:
+                continue
+            os.sched_yield()
+            if spins % 256:
+                continue
+            now = time.monotonic()
+            beat = int(heartbeat[0])
+            if beat != last_beat:
+                last_beat, last_change = beat, now
+            elif now - last_change > self.heartbeat_timeout:
+                raise PlannerLost(f"planner heartbeat stopped for more than {self.heartbeat_timeout * 1e3:g} ms")
+            if not self.planner_alive():
+                raise PlannerLost("planner process exited")
+
+    def pop_records(self) -> list[np.ndarray]:
+        """Words of every record published since the last exchange (see FifoReader.pop_records)."""
+        return self.fifo.pop_records()
+
+    def publish(self, status: np.ndarray, period: int) -> None:
+        """Write the status block, grant the bus, post the mailbox."""
+        self.wb.status[0] = status[0]
+        self.wb.dsp_heartbeat[0] = period & 0xFFFFFFFF
+        self.words[self.wb.HOLDA] = 1
+        self.post_ns = time.perf_counter_ns()
+        self.words[self.wb.MAILBOX_TO_PC] = mailbox_value(period)
+        self.last_posted = period
+
+    def shutdown(self) -> None:
+        """Tell the planner the run is over (it exits at its next poll)."""
+        self.words[self.wb.SHUTDOWN] = 1
+
+
+class PcPort:
+    """The PC's side of the whiteboard."""
+
+    def __init__(self, wb: Whiteboard):
+        self.wb = wb
+        self.words = wb.words
+        self.fifo = FifoWriter(wb.fifo_ring, wb.fifo_write, wb.fifo_read)
+        self.status = np.zeros(1, dtype=STATUS_DTYPE)
+        self._last_seen = 0
+        self._pc_ack_time = np.ndarray((1,), dtype="<u8", buffer=wb.shm.buf, offset=2 * (wb.layout.pc_control + L.PC_ACK_TIME))
+        self._parent = os.getppid()
+
+    def announce(self, program_periods: int) -> None:
+        """Planner attached and planned: publish the program length, then READY."""
+        wb = self.wb
+        wb.program_periods[0] = program_periods
+        self.words[wb.PC_VERSION] = L.VERSION
+        wb.pc_magic[0] = L.MAGIC
+        self.set_state(L.PcState.READY)
+
+    def set_state(self, state: int) -> None:
+        self.words[self.wb.PC_STATE] = state
+
+    def beat(self) -> None:
+        """Advance the heartbeat (the planner is alive and not stalled)."""
+        hb = self.wb.pc_heartbeat
+        hb[0] = (int(hb[0]) + 1) & 0xFFFFFFFF
+
+    def wait_status(self) -> np.ndarray | None:
+        """Block until the DSP posts a new status; a copy of it, or None when the run is over."""
+        words, mailbox = self.words, self.wb.MAILBOX_TO_PC
+        shutdown = self.wb.SHUTDOWN
+        spins = 0
+        while words[mailbox] == self._last_seen:
+            spins += 1
+            if spins < BUSY_SPINS:
+                continue
+            os.sched_yield()
+            if spins % 256:
+                continue
+            self.beat()
+            if words[shutdown] or os.getppid() != self._parent:
+                return None
+        self._last_seen = int(words[mailbox])
+        self.beat()
+        self.status[0] = self.wb.status[0]
+        return self.status
+
+    def begin(self) -> None:
+        """Raise HOLD and wait for the grant."""
+        self.words[self.wb.HOLD] = 1
+        while not self.words[self.wb.HOLDA]:
+            os.sched_yield()
+
+    def end(self) -> None:
+        """Drop HOLD, stamp the time, acknowledge the status just handled."""
+        self.words[self.wb.HOLD] = 0
+        self._pc_ack_time[0] = time.perf_counter_ns()
+        self.words[self.wb.MAILBOX_TO_DSP] = self._last_seen

@@ -1,0 +1,185 @@
+"""Typed command records: what the PC streams to the DSP through the FIFO.
+
+Wire format, 16-bit little-endian words::
+
+    w0        0xA5 << 8 | type          sync byte and record type
+    w1        n                         payload length [words]
+    w2        ~n & 0xFFFF               length check: a flipped length bit never goes unseen
+    w3, w4    seq (u32, low word first) sequence number, +1 per record
+    w5 ..     payload (n words)
+    w5+n      CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) over the bytes of w0 .. w4+n
+
+CRC-16 detects every single-bit and every burst error of up to 16 bits over the span it covers;
+the sync byte, the length check and the fixed payload length of each type make the span itself
+certain, so every single-bit flip anywhere in a record is detected.
+
+Payloads (little-endian; positions in m or rad, absolute machine coordinates):
+
+=====  ===============  =========================================================  ======
+type   record           payload                                                    words
+=====  ===============  =========================================================  ======
+1      Move             end position f64 x6; trapezoid t_acc, t_flat [s],         42
+                        v_peak [1/s], accel [1/s^2] f64 x4; periods u32
+2      Dwell            periods u32                                                2
+3      FeedOverride     fraction f64 (1.0 = programmed feed)                       4
+4      ForceSetpoint    force f64 [N]                                              4
+5      Spindle          on u16, pad u16, speed f64 [rad/s]                         6
+6      EndOfProgram     -                                                          0
+=====  ===============  =========================================================  ======
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.dsp.profiles import Trapezoid
+
+SYNC = 0xA5
+HEADER_WORDS = 5
+TRAILER_WORDS = 1
+OVERHEAD_WORDS = HEADER_WORDS + TRAILER_WORDS
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` (check value of b"123456789" is 0x29B1)."""
+    return binascii.crc_hqx(data, 0xFFFF)
+
+
+@dataclass(frozen=True)
+class Move:
+    """Synchronised point-to-point move from the DSP's programmed position to ``end``."""
+
+    end: tuple[float, ...]
+    profile: Trapezoid
+    periods: int
+
+
+@dataclass(frozen=True)
+class Dwell:
+    periods: int
+
+
+@dataclass(frozen=True)
+class FeedOverride:
+    fraction: float
+
+
+@dataclass(frozen=True)
+class ForceSetpoint:
+    newtons: float
+
+
+@dataclass(frozen=True)
+class Spindle:
+    on: bool
+    speed: float
+    """[rad/s]"""
+
+
+@dataclass(frozen=True)
+class EndOfProgram:
+    pass
+
+
+Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram
+
+_MOVE = struct.Struct("<6d4dI")
+_DWELL = struct.Struct("<I")
+_F64 = struct.Struct("<d")
+_SPINDLE = struct.Struct("<HHd")
+_HEADER = struct.Struct("<HHHI")
+
+_TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6}
+_PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0}
+MAX_RECORD_WORDS = OVERHEAD_WORDS + max(_PAYLOAD_WORDS.values())
+
+
+class RecordError(ValueError):
+    """A record failed a check (sync, length, type, CRC); the DSP rejects it."""
+
+
+def _payload(record: Record) -> bytes:
+    if isinstance(record, Move):
+        p = record.profile
+        return _MOVE.pack(*record.end, p.t_acc, p.t_flat, p.v_peak, p.accel, record.periods)
+    if isinstance(record, Dwell):
+        return _DWELL.pack(record.periods)
+    if isinstance(record, FeedOverride):
+        return _F64.pack(record.fraction)
+    if isinstance(record, ForceSetpoint):
+        return _F64.pack(record.newtons)
+    if isinstance(record, Spindle):
+        return _SPINDLE.pack(1 if record.on else 0, 0, record.speed)
+    if isinstance(record, EndOfProgram):
+        return b""
+    raise TypeError(f"not a record: {record!r}")
+
+
+def encode(record: Record, seq: int) -> np.ndarray:
+    """The record's words, shape ``(OVERHEAD_WORDS + n,)``, dtype uint16."""
+    payload = _payload(record)
+    n = len(payload) // 2
+    body = _HEADER.pack(SYNC << 8 | _TYPE_OF[type(record)], n, ~n & 0xFFFF, seq & 0xFFFFFFFF) + payload
+    return np.frombuffer(body + struct.pack("<H", crc16(body)), dtype="<u2").copy()
+
+
+def record_length(header: np.ndarray) -> int:
+    """Total words of the record whose first three words are ``header``; checks sync and length.
+
+    Raises
+    ------
+    RecordError
+        If the sync byte, the type or the length check is wrong.
+    """
+    w0, n, n_check = int(header[0]), int(header[1]), int(header[2])
+    if w0 >> 8 != SYNC:
+        raise RecordError(f"bad sync byte 0x{w0 >> 8:02X}")
+    if n_check != (~n & 0xFFFF):
+        raise RecordError("length check failed")
+    expected = _PAYLOAD_WORDS.get(w0 & 0xFF)
+    if expected is None:
+        raise RecordError(f"unknown record type {w0 & 0xFF}")
+    if n != expected:
+        raise RecordError(f"record type {w0 & 0xFF} has {expected} payload words, header says {n}")
+    return OVERHEAD_WORDS + n
+
+
+def decode(words: np.ndarray) -> tuple[int, Record]:
+    """``(seq, record)`` from a whole record's words.
+
+    Raises
+    ------
+    RecordError
+        On any failed check; nothing in a rejected record is used.
+    """
+    if len(words) < OVERHEAD_WORDS:
+        raise RecordError("record shorter than its header")
+    total = record_length(words[:3])
+    if len(words) != total:
+        raise RecordError(f"record is {len(words)} words, header says {total}")
+    raw = np.ascontiguousarray(words, dtype="<u2").tobytes()
+    body, crc = raw[:-2], struct.unpack("<H", raw[-2:])[0]
+    if crc16(body) != crc:
+        raise RecordError("CRC mismatch")
+    kind = int(words[0]) & 0xFF
+    seq = struct.unpack_from("<I", body, 6)[0]
+    payload = body[2 * HEADER_WORDS:]
+    if kind == 1:
+        v = _MOVE.unpack(payload)
+        record: Record = Move(end=tuple(v[:6]), profile=Trapezoid(*v[6:10]), periods=v[10])
+    elif kind == 2:
+        record = Dwell(periods=_DWELL.unpack(payload)[0])
+    elif kind == 3:
+        record = FeedOverride(fraction=_F64.unpack(payload)[0])
+    elif kind == 4:
+        record = ForceSetpoint(newtons=_F64.unpack(payload)[0])
+    elif kind == 5:
+        on, _pad, speed = _SPINDLE.unpack(payload)
+        record = Spindle(on=bool(on), speed=speed)
+    else:
+        record = EndOfProgram()
+    return seq, record

@@ -1,0 +1,79 @@
+"""The DSP status block: what the card reports to the PC once per interpolation period.
+
+Written by the DSP into the status area while it owns the bus, then published by the DSP -> PC
+mailbox. One aligned numpy record (``STATUS_DTYPE``); per-axis arrays in ``X Y Z A B C`` order.
+
+=====================  ==========  ===============================================================
+field                  type        meaning
+=====================  ==========  ===============================================================
+period                 u32         interpolation period counter of this status
+state                  u16         controller state (:class:`DspState`)
+fault                  u16         fault code (:class:`FaultCode`), 0 = none
+fifo_fill              u32         words waiting in the command FIFO after this exchange
+expected_seq           u32         sequence number the DSP accepts next
+last_seq_executed      u32         last record whose execution finished (0 = none yet)
+records_accepted       u32         records accepted so far
+records_rejected       u32         records rejected (CRC, framing, sequence) so far
+missed_exchanges       u32         periods the DSP found the PC had not answered in time
+underrun_periods       u32         periods spent starved of commands before the program's end
+sim_time               f64         simulated time at the start of this period [s]
+feed_override          f64         effective feed override (0 while held) [-]
+pad_force              f64         load-cell force, tared [N]
+command                f64 x6      commanded position [counts]
+actual                 i32 x6      encoder position [counts]
+following_error        f64 x6      command - actual [counts]
+dac                    i16 x6      DAC code
+=====================  ==========  ===============================================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STATUS_DTYPE = np.dtype(
+    [
+        ("period", "<u4"),
+        ("state", "<u2"),
+        ("fault", "<u2"),
+        ("fifo_fill", "<u4"),
+        ("expected_seq", "<u4"),
+        ("last_seq_executed", "<u4"),
+        ("records_accepted", "<u4"),
+        ("records_rejected", "<u4"),
+        ("missed_exchanges", "<u4"),
+        ("underrun_periods", "<u4"),
+        ("_pad", "<u4"),
+        ("sim_time", "<f8"),
+        ("feed_override", "<f8"),
+        ("pad_force", "<f8"),
+        ("command", "<f8", (6,)),
+        ("actual", "<i4", (6,)),
+        ("following_error", "<f8", (6,)),
+        ("dac", "<i2", (6,)),
+    ],
+    align=True,
+)
+
+
+class DspState:
+    """Controller states reported in the status block."""
+
+    IDLE = 0        # powered, no program yet
+    RUNNING = 1
+    FEED_HOLD = 2   # starved of commands (FIFO underrun) or told to hold; resumes by itself
+    STOPPING = 3    # controlled stop after a fault
+    FAULT = 4       # stopped after a fault
+    FINISHED = 5    # end of program executed
+
+    NAMES = {0: "IDLE", 1: "RUNNING", 2: "FEED_HOLD", 3: "STOPPING", 4: "FAULT", 5: "FINISHED"}
+
+
+class FaultCode:
+    """Fault codes reported in the status block and ``metrics.json``."""
+
+    NONE = 0
+    PLANNER_LOST = 1       # planner process died or its heartbeat stopped
+    PLANNER_START = 2      # planner never attached
+    RUN_TIMEOUT = 3        # program did not finish within the scenario's time limit
+
+    NAMES = {0: "NONE", 1: "PLANNER_LOST", 2: "PLANNER_START", 3: "RUN_TIMEOUT"}
