@@ -27,3 +27,16 @@ def single_move(axis: str, target: float, *, settle: float = 0.5, **extra) -> di
     """A minimal scenario mapping: one point-to-point move of one axis."""
     return {"name": f"move_{axis}", "program": {"type": "point_to_point", "moves": [{axis: target}], "settle": settle},
             **extra}
+
+
+@pytest.fixture(autouse=True)
+def no_leftover_segments_or_processes():
+    """Every test must leave no whiteboard segment in /dev/shm and no child process behind."""
+    import multiprocessing
+
+    from cnc_twin.whiteboard.block import leftover_segments
+
+    before = set(leftover_segments())
+    yield
+    assert set(leftover_segments()) - before == set(), "shared-memory segment left behind"
+    assert multiprocessing.active_children() == [], "planner process left behind"

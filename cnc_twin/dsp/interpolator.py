@@ -67,6 +67,7 @@ class SegmentInterpolator:
         self.spindle_on = False
         self.spindle_speed = 0.0
         self._hold_counts = [0.0] * len(self.counts_per_unit)
+        self._queued_periods = 0
 
     # --- queue -------------------------------------------------------------------------------
     def push(self, seq: int, record: Record) -> None:
@@ -76,8 +77,10 @@ class SegmentInterpolator:
                                   periods=record.periods)
             self.programmed = segment.end
             self._queue.append((seq, segment))
+            self._queued_periods += record.periods
         elif isinstance(record, Dwell):
             self._queue.append((seq, DwellSegment(position=self.programmed, periods=record.periods)))
+            self._queued_periods += record.periods
         else:
             self._queue.append((seq, record))
 
@@ -93,6 +96,18 @@ class SegmentInterpolator:
     @property
     def queued_records(self) -> int:
         return len(self._queue) + (self._current is not None)
+
+    @property
+    def queued_periods(self) -> int:
+        """Motion time still queued, including what is left of the running segment [periods]."""
+        left = 0
+        if self._current is not None:
+            seg = self._current[1]
+            if isinstance(seg, DwellSegment):
+                left = self._dwell_left
+            else:
+                left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
+        return self._queued_periods + left
 
     # --- per period --------------------------------------------------------------------------
     def next_period(self) -> list[float]:
@@ -117,6 +132,8 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
             seq, item = self._queue.popleft()
+            if isinstance(item, (MoveSegment, DwellSegment)):
+                self._queued_periods -= item.periods
             if isinstance(item, MoveSegment):
                 self._begin_move(seq, item)
             elif isinstance(item, DwellSegment):

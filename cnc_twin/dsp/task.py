@@ -142,6 +142,7 @@ class DspTask:
         st["records_rejected"] = self.records_rejected
         st["missed_exchanges"] = self.port.missed_exchanges
         st["underrun_periods"] = self.underrun_periods
+        st["queued_periods"] = self.interpolator.queued_periods
         st["sim_time"] = k * self.period
         st["feed_override"] = self.interpolator.override
         st["pad_force"] = frame[3 * n]

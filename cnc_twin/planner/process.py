@@ -5,7 +5,8 @@
 
 - the free FIFO space,
 - the chunk size (the card takes 4 KB per mailbox interrupt),
-- the look-ahead: motion queued on the card ahead of execution (0 = no limit).
+- the look-ahead: motion queued ahead of execution (0 = no limit): what the card reports as
+  queued (``queued_periods``, including the rest of the running move) plus what is in flight.
 
 When the DSP reports more rejected records than before, the planner goes back to the DSP's
 ``expected_seq`` and sends from there again (go-back-N); the DSP flushed the FIFO when it
@@ -102,14 +103,16 @@ class Streamer:
             resend_from = int(st["expected_seq"]) - 1
             self.retransmitted += max(0, self.next_index - resend_from)
             self.next_index = resend_from
-        executed = int(st["last_seq_executed"])
+        # Motion queued on the card, as it reported, plus what is in flight (sent, not yet accepted).
+        accepted = int(st["expected_seq"]) - 1
+        on_card = int(st["queued_periods"])
         budget = self.chunk_words
         written = 0
         fifo = port.fifo
         free = fifo.free()
         while self.next_index < len(self.encoded):
-            queued = int(self.cumulative[self.next_index] - self.cumulative[executed])
-            if self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed:
+            queued = on_card + int(self.cumulative[self.next_index] - self.cumulative[accepted])
+            if self.lookahead_periods and queued >= self.lookahead_periods:
                 break
             words = self.encoded[self.next_index]
             if len(words) > budget or len(words) > free:

@@ -16,6 +16,7 @@ records_accepted       u32         records accepted so far
 records_rejected       u32         records rejected (CRC, framing, sequence) so far
 missed_exchanges       u32         periods the DSP found the PC had not answered in time
 underrun_periods       u32         periods spent starved of commands before the program's end
+queued_periods         u32         motion time still queued on the card, incl. the running move [periods]
 sim_time               f64         simulated time at the start of this period [s]
 feed_override          f64         effective feed override (0 while held) [-]
 pad_force              f64         load-cell force, tared [N]
@@ -42,7 +43,7 @@ STATUS_DTYPE = np.dtype(
         ("records_rejected", "<u4"),
         ("missed_exchanges", "<u4"),
         ("underrun_periods", "<u4"),
-        ("_pad", "<u4"),
+        ("queued_periods", "<u4"),
         ("sim_time", "<f8"),
         ("feed_override", "<f8"),
         ("pad_force", "<f8"),

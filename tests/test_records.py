@@ -1,0 +1,125 @@
+"""Whiteboard records and FIFO: round trips, every single-bit flip caught, wrap-around, framing."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cnc_twin.dsp.profiles import Trapezoid
+from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
+from cnc_twin.whiteboard.layout import Layout
+from cnc_twin.whiteboard.records import (
+    MAX_RECORD_WORDS, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, RecordError, Spindle, crc16, decode,
+    encode,
+)
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
+seqs = st.integers(min_value=0, max_value=2**32 - 1)
+
+moves = st.builds(
+    Move,
+    end=st.tuples(finite, finite, finite, finite, finite, finite),
+    profile=st.builds(Trapezoid, finite, finite, finite, finite),
+    periods=st.integers(0, 2**32 - 1),
+)
+records = st.one_of(
+    moves,
+    st.builds(Dwell, periods=st.integers(0, 2**32 - 1)),
+    st.builds(FeedOverride, fraction=finite),
+    st.builds(ForceSetpoint, newtons=finite),
+    st.builds(Spindle, on=st.booleans(), speed=finite),
+    st.just(EndOfProgram()),
+)
+
+
+def test_crc16_check_value():
+    assert crc16(b"123456789") == 0x29B1  # CRC-16/CCITT-FALSE
+
+
+@given(records, seqs)
+def test_encode_decode_round_trip(record, seq):
+    words = encode(record, seq)
+    assert words.dtype == np.dtype("<u2") and len(words) <= MAX_RECORD_WORDS
+    assert decode(words) == (seq, record)
+
+
+@settings(max_examples=300)
+@given(records, seqs, st.data())
+def test_every_single_bit_flip_is_caught(record, seq, data):
+    words = encode(record, seq)
+    bit = data.draw(st.integers(0, 16 * len(words) - 1))
+    bad = words.copy()
+    bad[bit // 16] ^= np.uint16(1 << (bit % 16))
+    with pytest.raises(RecordError):
+        decode(bad)
+
+
+def test_every_bit_of_a_move_record_exhaustively():
+    words = encode(Move(end=(0.1, -0.2, 0.0, 0.5, -0.5, math.pi), profile=Trapezoid(0.1, 0.2, 3.0, 30.0),
+                        periods=400), 7)
+    for bit in range(16 * len(words)):
+        bad = words.copy()
+        bad[bit // 16] ^= np.uint16(1 << (bit % 16))
+        with pytest.raises(RecordError):
+            decode(bad)
+
+
+def _fifo(capacity: int):
+    ring = np.zeros(capacity, dtype="<u2")
+    w = np.zeros(1, dtype="<u4")
+    r = np.zeros(1, dtype="<u4")
+    return FifoWriter(ring, w, r), FifoReader(ring, w, r), w, r
+
+
+def test_fifo_wraps_around_the_ring_and_keeps_records_whole():
+    writer, reader, _, _ = _fifo(100)
+    sent = []
+    for seq in range(1, 40):
+        rec = FeedOverride(fraction=seq / 10)
+        words = encode(rec, seq)
+        if writer.free() < len(words):
+            got = [decode(w) for w in reader.pop_records()]
+            assert got == sent
+            sent = []
+        writer.write(words)
+        sent.append((seq, rec))
+    assert [decode(w) for w in reader.pop_records()] == sent
+    assert reader.fill() == 0 and writer.free() == 100
+
+
+def test_fifo_indices_wrap_at_32_bits():
+    writer, reader, w, r = _fifo(64)
+    w[0] = r[0] = 2**32 - 5
+    words = encode(Dwell(periods=3), 1)
+    writer.write(words)
+    assert int(w[0]) == (2**32 - 5 + len(words)) % 2**32
+    assert decode(reader.pop_records()[0]) == (1, Dwell(periods=3))
+
+
+def test_fifo_refuses_to_overfill():
+    writer, _, _, _ = _fifo(16)
+    with pytest.raises(OverflowError):
+        writer.write(encode(Move(end=(0,) * 6, profile=Trapezoid(0, 0, 0, 0), periods=1), 1))
+
+
+def test_fifo_flushes_on_garbage_so_the_stream_can_resync():
+    writer, reader, _, _ = _fifo(128)
+    writer.write(np.array([0x1234, 5, 7, 0, 0, 0], dtype="<u2"))  # bad sync byte
+    with pytest.raises(RecordError):
+        reader.pop_records()
+    assert reader.fill() == 0
+    writer.write(encode(EndOfProgram(), 1))
+    assert decode(reader.pop_records()[0]) == (1, EndOfProgram())
+
+
+def test_layout_default_map_matches_the_card():
+    lay = Layout()
+    assert lay.words == 8192 and lay.nbytes == 16384
+    assert (lay.mailbox_to_dsp, lay.mailbox_to_pc) == (0x1FFE, 0x1FFF)
+    assert lay.fifo_base + lay.fifo_words == 0x1000 == lay.dsp_control
+    with pytest.raises(ValueError):
+        Layout(words=3000)

@@ -1,0 +1,137 @@
+"""The planner process and the whiteboard, end to end: streaming, faults, modes, cleanup."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cnc_twin import load_scenario, run_scenario
+from cnc_twin.record import read_trace
+from cnc_twin.resources import default_scenario
+from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.whiteboard.block import leftover_segments
+from cnc_twin.whiteboard.status import DspState, FaultCode
+
+JOG = load_scenario(default_scenario())
+
+
+def jog_with(**changes) -> dict:
+    """The default scenario as a mapping, with top-level keys replaced."""
+    import yaml
+
+    raw = yaml.safe_load(default_scenario().read_text())
+    raw.update(changes)
+    return raw
+
+
+def steps_program(n: int = 6, step_mm: float = 10.0, settle: float = 0.1) -> dict:
+    """Short X moves back to back: a program streamed move by move under a look-ahead."""
+    return {"type": "point_to_point", "settle": settle,
+            "moves": [{"X": step_mm * (i + 1)} for i in range(n)]}
+
+
+def test_lockstep_run_is_bit_identical_on_repeat_and_with_planner_delays():
+    clean = run_scenario(JOG).trace.columns()
+    again = run_scenario(JOG).trace.columns()
+    delayed = run_scenario(scenario_from_dict(jog_with(
+        faults=[{"type": "planner_delay", "at": 0.5, "duration": 0.05, "delay": 2.0}]))).trace.columns()
+    for name in clean:
+        assert np.array_equal(clean[name], again[name]), name
+        assert np.array_equal(clean[name], delayed[name]), name  # lockstep: late answers are waited for
+
+
+def test_program_larger_than_the_fifo_is_streamed_in_chunks():
+    """300 moves (14100 words) through a 2048-word RAM (992-word FIFO) in 512-byte chunks."""
+    program = {"type": "point_to_point", "settle": 0.0,
+               "moves": [{"C": 0.036 * ((i % 2) + 1)} for i in range(300)]}
+    sc = scenario_from_dict({"name": "stream", "whiteboard": {"words": 2048, "chunk": 512}, "program": program})
+    result = run_scenario(sc)
+    wb = result.metrics["whiteboard"]
+    assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"
+    assert wb["records_accepted"] == 301 and wb["records_rejected"] == 0
+    fill = result.trace.period_signals["fifo_fill"]
+    assert fill.max() <= 992
+    executed = result.trace.period_signals["last_seq_executed"]
+    assert executed[-1] == 301 and np.all(np.diff(executed) >= 0)
+
+
+def test_bit_flip_is_rejected_never_executed_and_resent():
+    base = jog_with(planner={"lookahead": 200.0})
+    clean = run_scenario(scenario_from_dict(base))
+    flipped = run_scenario(scenario_from_dict({**base, "faults": [{"type": "record_bitflip", "at": 1.0, "bit": 77}]}))
+    wb = flipped.metrics["whiteboard"]
+    assert wb["records_rejected"] == 1 and wb["records_retransmitted"] >= 1
+    assert flipped.status == "complete"
+    # The bad record was caught and resent long before it was due: the machine did exactly the same.
+    for name, column in clean.trace.columns().items():
+        if name != "records_rejected":
+            assert np.array_equal(column, flipped.trace.columns()[name]), name
+    assert flipped.trace.period_signals["records_rejected"][-1] == 1
+
+
+def test_planner_killed_mid_move_stops_the_machine_within_limits():
+    result = run_scenario(scenario_from_dict(jog_with(faults=[{"type": "planner_kill", "at": 1.0}])))
+    assert result.status == "fault"
+    assert result.metrics["fault"]["code"] == "PLANNER_LOST"
+    assert 1.0 <= result.metrics["fault"]["time_s"] <= 1.01
+    assert result.metrics["final_state"] == "FAULT"
+    trace = result.trace
+    state = trace.period_signals["state"]
+    assert DspState.STOPPING in state and state[-1] == DspState.FAULT
+    # Y was moving at 1.0 s; it decelerated to rest along its path within its acceleration limit.
+    y = JOG.axis("Y")
+    tpp = JOG.timing.ticks_per_period
+    cmd = trace.command[tpp - 1::tpp, 1] / y.counts_per_unit
+    v = np.diff(cmd) / JOG.timing.interpolation_period
+    a = np.diff(v) / JOG.timing.interpolation_period
+    k_fault = int(round(1.0 / JOG.timing.interpolation_period))
+    assert abs(v[k_fault]) > 0.05                     # moving when the planner died
+    assert abs(v[-1]) < 1e-9                          # at rest at the end
+    assert np.max(np.abs(a[k_fault - 5:])) <= y.max_acceleration * 1.01
+    assert trace.time[-1] < 1.5                       # stopped, not finished
+
+
+def test_planner_heartbeat_stop_is_detected_in_lockstep():
+    sc = scenario_from_dict(jog_with(planner={"heartbeat_timeout": 200.0},
+                                     faults=[{"type": "planner_stall", "at": 0.5, "duration": 1500.0}]))
+    result = run_scenario(sc)
+    assert result.status == "fault"
+    assert "heartbeat" in result.metrics["fault"]["message"]
+    assert result.metrics["fault"]["time_s"] == pytest.approx(0.501, abs=0.002)
+
+
+def test_realtime_stall_enters_feed_hold_and_finishes_the_program():
+    sc = scenario_from_dict({
+        "name": "rt_stall",
+        "timing": {"mode": "realtime"},
+        "planner": {"lookahead": 20.0},
+        "faults": [{"type": "planner_stall", "at": 0.3, "duration": 50.0}],
+        "program": steps_program(n=20, step_mm=0.5),  # 32 ms moves: shorter than the stall
+    })
+    result = run_scenario(sc)
+    wb = result.metrics["whiteboard"]
+    assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"
+    assert wb["missed_exchanges"] >= 20        # ~50 periods without an answer
+    assert wb["underrun_periods"] > 0          # the card ran dry ...
+    state = result.trace.period_signals["state"]
+    assert DspState.FEED_HOLD in state         # ... held ...
+    assert state[-1] == DspState.FINISHED      # ... and finished the program
+    assert result.trace.actual[-1, 0] == pytest.approx(10000, abs=3)  # X at 10 mm
+
+
+def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_scenario):
+    path = write_scenario(jog_with(faults=[{"type": "planner_kill", "at": 0.5}]))
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 3, proc.stderr
+    assert "PLANNER_LOST" in proc.stderr and "Traceback" not in proc.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["status"] == "fault" and metrics["fault"]["code"] == "PLANNER_LOST"
+    trace = read_trace(out / "trace.parquet")
+    assert trace["state"][-1] == DspState.FAULT and trace["fault"][-1] == FaultCode.PLANNER_LOST
+    assert leftover_segments() == []
