@@ -51,6 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
     bench.add_argument("--repeat", type=int, default=3, help="measurements of each side; the best counts")
     bench.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
+    bench.add_argument("--no-whiteboard", action="store_true",
+                       help="skip the whiteboard figures (exchange round trip, streaming throughput)")
     return parser
 
 
@@ -140,6 +142,19 @@ def _bench(args: argparse.Namespace) -> int:
     if args.repeat < 1:
         raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
     figures = bench_scenario(args.scenario or default_scenario(), repeat=args.repeat)
+    if not args.no_whiteboard:
+        from cnc_twin.bench_whiteboard import exchange_round_trip, stream_throughput
+
+        rt = exchange_round_trip()
+        block = stream_throughput(kind="block")
+        move = stream_throughput(kind="move", count=20000)
+        figures.update({
+            "exchange_round_trip_median_us": rt["median_us"],
+            "exchange_round_trip_p99_us": rt["p99_us"],
+            "stream_4k_blocks_mb_per_s": block["mb_per_s"],
+            "stream_move_records_mb_per_s": move["mb_per_s"],
+            "pci_burst_mb_per_s": block["pci_burst_mb_per_s"],
+        })
     print(format_bench(figures))
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")

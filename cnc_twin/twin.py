@@ -39,6 +39,7 @@ from cnc_twin.planner.process import PlannerJob, planner_main
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.record import FrameBuffer, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.doorbell import Doorbells
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.status import DspState, FaultCode
@@ -110,16 +111,20 @@ class Twin:
     def run(self, *, progress: ProgressCallback | None = None) -> RunResult:
         """Run the program on the simulated clock and return the result."""
         sc = self.scenario
+        ctx = multiprocessing.get_context("spawn")
         wb = Whiteboard.create(Layout(sc.whiteboard.words))
+        bells = None
         process = None
         port = None
         try:
-            process = multiprocessing.get_context("spawn").Process(
-                target=planner_main, args=(wb.name, self.job), name="cnc-twin-planner", daemon=True
+            bells = Doorbells(ctx)
+            process = ctx.Process(
+                target=planner_main, args=(wb.name, self.job, *bells.pc_ends()), name="cnc-twin-planner", daemon=True
             )
             process.start()
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=process.is_alive,
-                           heartbeat_timeout=sc.planner.heartbeat_timeout)
+                           heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
+                           wait_pc=bells.wait_pc)
             dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
                           period=sc.timing.interpolation_period)
             try:
@@ -133,11 +138,15 @@ class Twin:
             # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
             try:
                 wb.words[wb.SHUTDOWN] = 1
+                if bells is not None:
+                    bells.ring_pc.ring()
             finally:
                 try:
                     _reap(process)
                 finally:
                     port = None
+                    if bells is not None:
+                        bells.close()
                     wb.close()
         return self._result(dsp, wall_time, periods, retransmits)
 

@@ -13,7 +13,7 @@ from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.records import (
-    MAX_RECORD_WORDS, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, RecordError, Spindle, crc16, decode,
+    MAX_RECORD_WORDS, DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, RecordError, Spindle, crc16, decode,
     encode,
 )
 
@@ -82,11 +82,13 @@ def test_fifo_wraps_around_the_ring_and_keeps_records_whole():
         rec = FeedOverride(fraction=seq / 10)
         words = encode(rec, seq)
         if writer.free() < len(words):
+            reader.snapshot()
             got = [decode(w) for w in reader.pop_records()]
             assert got == sent
             sent = []
         writer.write(words)
         sent.append((seq, rec))
+    reader.snapshot()
     assert [decode(w) for w in reader.pop_records()] == sent
     assert reader.fill() == 0 and writer.free() == 100
 
@@ -97,6 +99,7 @@ def test_fifo_indices_wrap_at_32_bits():
     words = encode(Dwell(periods=3), 1)
     writer.write(words)
     assert int(w[0]) == (2**32 - 5 + len(words)) % 2**32
+    reader.snapshot()
     assert decode(reader.pop_records()[0]) == (1, Dwell(periods=3))
 
 
@@ -109,10 +112,13 @@ def test_fifo_refuses_to_overfill():
 def test_fifo_flushes_on_garbage_so_the_stream_can_resync():
     writer, reader, _, _ = _fifo(128)
     writer.write(np.array([0x1234, 5, 7, 0, 0, 0], dtype="<u2"))  # bad sync byte
+    reader.snapshot()
     with pytest.raises(RecordError):
         reader.pop_records()
     assert reader.fill() == 0
     writer.write(encode(EndOfProgram(), 1))
+    assert reader.pop() is None  # not visible before the next snapshot (the next exchange)
+    reader.snapshot()
     assert decode(reader.pop_records()[0]) == (1, EndOfProgram())
 
 
@@ -123,3 +129,44 @@ def test_layout_default_map_matches_the_card():
     assert lay.fifo_base + lay.fifo_words == 0x1000 == lay.dsp_control
     with pytest.raises(ValueError):
         Layout(words=3000)
+
+
+blocks = st.builds(lambda xs: DataBlock(words=np.array(xs, dtype="<u2")),
+                   st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=300))
+
+
+@given(blocks, seqs)
+def test_data_block_round_trip(block, seq):
+    got_seq, got = decode(encode(block, seq))
+    assert got_seq == seq and got == block
+
+
+@settings(max_examples=200)
+@given(blocks, seqs, st.data())
+def test_every_single_bit_flip_in_a_variable_length_block_is_caught(block, seq, data):
+    words = encode(block, seq)
+    bit = data.draw(st.integers(0, 16 * len(words) - 1))
+    bad = words.copy()
+    bad[bit // 16] ^= np.uint16(1 << (bit % 16))
+    with pytest.raises(RecordError):
+        decode(bad)
+
+
+def test_data_block_size_limits():
+    with pytest.raises(ValueError):
+        encode(DataBlock(words=np.zeros(0, dtype="<u2")), 1)
+    with pytest.raises(ValueError):
+        encode(DataBlock(words=np.zeros(2049, dtype="<u2")), 1)
+
+
+def test_status_struct_has_the_numpy_layout():
+    from cnc_twin.whiteboard.status import STATUS_DTYPE, STATUS_STRUCT
+
+    assert STATUS_STRUCT.size == STATUS_DTYPE.itemsize
+    values = (7, 1, 0, 100, 12, 11, 11, 0, 3, 2, 480, 0.007, 0.5, 19.5,
+              1.0, 2.0, 3.0, 4.0, 5.0, 6.0, -1, -2, -3, -4, -5, -6, 10, -20, 30, -40, 50, -2048,
+              0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+    rec = np.frombuffer(STATUS_STRUCT.pack(*values), dtype=STATUS_DTYPE)[0]
+    assert rec["period"] == 7 and rec["queued_periods"] == 480 and rec["pad_force"] == 19.5
+    assert list(rec["actual"]) == [-1, -2, -3, -4, -5, -6] and rec["dac"][-1] == -2048
+    assert rec["following_error"][5] == 0.6 and rec["command"][0] == 1.0

@@ -135,3 +135,15 @@ def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_sc
     trace = read_trace(out / "trace.parquet")
     assert trace["state"][-1] == DspState.FAULT and trace["fault"][-1] == FaultCode.PLANNER_LOST
     assert leftover_segments() == []
+
+
+def test_benchmark_paths_move_and_verify_every_record():
+    """The speed benchmarks run the real ports; check they move what they claim (not their speed)."""
+    from cnc_twin.bench_whiteboard import exchange_round_trip, stream_throughput
+
+    rt = exchange_round_trip(200)
+    assert rt["exchanges"] == 200 and 0 < rt["min_us"] <= rt["median_us"] <= rt["p99_us"]
+    block = stream_throughput(kind="block", count=50)
+    assert block["records"] == 51 and block["bytes"] == 50 * 4096 + 12
+    move = stream_throughput(kind="move", count=300)
+    assert move["records"] == 301

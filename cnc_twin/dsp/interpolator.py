@@ -98,6 +98,11 @@ class SegmentInterpolator:
         return len(self._queue) + (self._current is not None)
 
     @property
+    def pending(self) -> int:
+        """Records waiting behind the running one."""
+        return len(self._queue)
+
+    @property
     def queued_periods(self) -> int:
         """Motion time still queued, including what is left of the running segment [periods]."""
         left = 0
@@ -119,15 +124,13 @@ class SegmentInterpolator:
         seq, seg = self._current
         if isinstance(seg, DwellSegment):
             self._dwell_left -= 1
-            positions = seg.position
+            counts = self._counts_of(seg.position)
             if self._dwell_left <= 0:
                 self._complete(seq)
         else:
-            positions = self._advance_move(seq, seg)
-        self._hold_counts = [
-            (p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)
-        ]
-        return list(self._hold_counts)
+            counts = self._advance_move(seq, seg)
+        self._hold_counts = counts
+        return list(counts)
 
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
@@ -170,8 +173,12 @@ class SegmentInterpolator:
         self._lam_max = lam_max
         self._tau = 0.0
         self._current = (seq, seg)
+        # Start and displacement in counts, so each period is one multiply-add per axis.
+        self._start_counts = [(p - z) * c for p, z, c in zip(seg.start, self.power_on, self.counts_per_unit)]
+        self._delta_counts = [(p1 - p0) * c for p0, p1, c in zip(seg.start, seg.end, self.counts_per_unit)]
 
-    def _advance_move(self, seq: int, seg: MoveSegment) -> tuple[float, ...] | list[float]:
+    def _advance_move(self, seq: int, seg: MoveSegment) -> list[float]:
+        """Advance the segment clock one period; the setpoint in counts."""
         prof = seg.profile
         lam = self.override
         target = 0.0 if self.hold else min(self.override_target, self._lam_max)
@@ -187,9 +194,12 @@ class SegmentInterpolator:
         self._tau += lam * self.period
         if self._tau >= prof.duration - 1e-9 * self.period:
             self._complete(seq)
-            return seg.end
+            return self._counts_of(seg.end)
         s = prof.evaluate(self._tau)[0]
-        return [p0 + s * (p1 - p0) for p0, p1 in zip(seg.start, seg.end)]
+        return [c0 + s * dc for c0, dc in zip(self._start_counts, self._delta_counts)]
+
+    def _counts_of(self, positions) -> list[float]:
+        return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]
 
     def _complete(self, seq: int) -> None:
         self._current = None

@@ -78,7 +78,8 @@ class ServoTask:
         self._velocity = [0.0] * n
         self._acceleration = [0.0] * n
         self._fractions = [(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)]
-        self.frame = [0.0] * (len(FRAME_FIELDS) * n + 1 + len(PERIOD_FIELDS))
+        # command floats, actual and DAC codes ints (as the encoders and DACs produce them)
+        self.frame = [0.0] * n + [0] * (2 * n) + [0.0] * (1 + len(PERIOD_FIELDS))
         self.period_slot = len(FRAME_FIELDS) * n + 1
         """index in ``frame`` of the first per-period field"""
         self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))

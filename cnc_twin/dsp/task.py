@@ -2,14 +2,19 @@
 
 Once per interpolation period, before the servo ticks::
 
-    if port.acquire(k):                       # lockstep waits; real-time may miss
-        for words in port.pop_records():
-            seq, record = decode(words)       # CRC, framing
-            if bad or seq != expected_seq:    # reject, count, flush the FIFO: the PC goes back
-                reject; break                 # to expected_seq (it sees records_rejected grow)
-            interpolator.push(seq, record); expected_seq += 1
-        port.publish(status for period k)
+    acquired = port.acquire(k)                # lockstep waits; real-time may miss. Snapshots the
+                                              # FIFO's write index while the DSP owns the bus.
+    top up: while fewer than QUEUE_AHEAD records wait behind the running one, pop one from
+            the FIFO (up to the snapshot):
+        seq, record = decode(words)           # CRC, framing
+        if bad or seq != expected_seq:        # reject, count, flush the FIFO: the PC goes back
+            reject; stop                      # to expected_seq (it sees records_rejected grow)
+        interpolator.push(seq, record); expected_seq += 1
+    if acquired: port.publish(status for period k)
     setpoint = interpolator.next_period()     # honours hold / override
+
+The FIFO is the card's command buffer: records stay there until the card needs them, so its
+fill and free space are real and throttle the planner.
     state: IDLE -> RUNNING <-> FEED_HOLD (starved) -> FINISHED; any -> STOPPING -> FAULT
 
 A lost planner (process exited or heartbeat stopped) makes a controlled stop: the interpolator
@@ -19,13 +24,14 @@ exchanges are attempted, and the state becomes FAULT once the axes are at rest.
 
 from __future__ import annotations
 
-import numpy as np
-
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.records import RecordError, decode
-from cnc_twin.whiteboard.status import STATUS_DTYPE, DspState, FaultCode
+from cnc_twin.whiteboard.status import DspState, FaultCode
+
+QUEUE_AHEAD = 2
+"""records the card keeps decoded behind the running one (the rest wait in the FIFO)"""
 
 
 class DspTask:
@@ -53,7 +59,6 @@ class DspTask:
         self.records_rejected = 0
         self.underrun_periods = 0
         self.planner_lost = False
-        self._status = np.zeros(1, dtype=STATUS_DTYPE)
 
     @property
     def done(self) -> bool:
@@ -62,13 +67,16 @@ class DspTask:
 
     def begin_period(self, k: int) -> None:
         """Exchange, then latch this period's setpoint into the servo task."""
+        acquired = False
         if not self.planner_lost:
             try:
-                if self.port.acquire(k):
-                    self._accept_records()
-                    self._publish(k)
+                acquired = self.port.acquire(k)
             except PlannerLost as exc:
                 self.raise_fault(FaultCode.PLANNER_LOST, str(exc), k)
+        if self.interpolator.pending < QUEUE_AHEAD:
+            self._accept_records()
+        if acquired:
+            self._publish(k)
         interp = self.interpolator
         self.servo.begin_period(interp.next_period())
         self._update_state()
@@ -91,13 +99,13 @@ class DspTask:
         self.state = DspState.STOPPING
 
     def _accept_records(self) -> None:
-        try:
-            raw_records = self.port.pop_records()
-        except RecordError:
-            self.records_rejected += 1
-            return
-        for words in raw_records:
+        """Pop records from the FIFO (up to the snapshot) until QUEUE_AHEAD wait decoded."""
+        fifo, interp = self.port.fifo, self.interpolator
+        while interp.pending < QUEUE_AHEAD:
             try:
+                words = fifo.pop()
+                if words is None:
+                    return
                 seq, record = decode(words)
             except RecordError:
                 seq, record = None, None
@@ -105,9 +113,9 @@ class DspTask:
                 # Bad CRC, bad framing, or out of order: never executed. Drop the rest so the PC
                 # can resend from expected_seq in order.
                 self.records_rejected += 1
-                self.port.fifo.flush()
+                fifo.flush()
                 return
-            self.interpolator.push(seq, record)
+            interp.push(seq, record)
             self.expected_seq += 1
             self.records_accepted += 1
 
@@ -121,7 +129,7 @@ class DspTask:
             return
         if interp.finished:
             self.state = DspState.FINISHED
-        elif interp.starved:
+        elif interp.starved and self.port.fifo.fill() == 0:
             if self.state != DspState.IDLE:
                 self.state = DspState.FEED_HOLD
                 self.underrun_periods += 1
@@ -129,25 +137,14 @@ class DspTask:
             self.state = DspState.RUNNING
 
     def _publish(self, k: int) -> None:
-        st = self._status[0]
         frame = self.servo.frame
         n = self.servo.n_axes
-        st["period"] = k
-        st["state"] = self.state
-        st["fault"] = self.fault
-        st["fifo_fill"] = self.port.fifo.fill()
-        st["expected_seq"] = self.expected_seq
-        st["last_seq_executed"] = self.interpolator.last_seq_executed
-        st["records_accepted"] = self.records_accepted
-        st["records_rejected"] = self.records_rejected
-        st["missed_exchanges"] = self.port.missed_exchanges
-        st["underrun_periods"] = self.underrun_periods
-        st["queued_periods"] = self.interpolator.queued_periods
-        st["sim_time"] = k * self.period
-        st["feed_override"] = self.interpolator.override
-        st["pad_force"] = frame[3 * n]
-        st["command"] = frame[0:n]
-        st["actual"] = frame[n:2 * n]
-        st["following_error"] = [c - a for c, a in zip(frame[0:n], frame[n:2 * n])]
-        st["dac"] = frame[2 * n:3 * n]
-        self.port.publish(self._status, k)
+        interp = self.interpolator
+        port = self.port
+        # frame[0:3n] is command, actual, DAC code: the status block's field order.
+        port.publish(None, k, values=(
+            k, self.state, self.fault, port.fifo.fill(), self.expected_seq, interp.last_seq_executed,
+            self.records_accepted, self.records_rejected, port.missed_exchanges, self.underrun_periods,
+            interp.queued_periods, k * self.period, interp.override, frame[3 * n],
+            *frame[0:3 * n], *map(float.__sub__, frame[0:n], frame[n:2 * n]),
+        ))

@@ -25,6 +25,7 @@ import sys
 import time
 import traceback
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from cnc_twin.planner.ptp import plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.doorbell import Doorbell
 from cnc_twin.whiteboard.ports import PcPort
 from cnc_twin.whiteboard.records import Dwell, EndOfProgram, Move, Record, encode
 from cnc_twin.whiteboard.status import DspState
@@ -159,12 +161,15 @@ class FaultSchedule:
         return None
 
 
-def planner_main(shm_name: str, job: PlannerJob) -> None:
-    """Process entry point: attach, plan, announce, then answer every DSP status until the end."""
+def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp: Connection) -> None:
+    """Process entry point: attach, plan, announce, then answer every DSP status until the end.
+
+    ``wait_dsp`` / ``ring_dsp`` are the planner's ends of the mailbox doorbells.
+    """
     # Ctrl-C reaches the whole process group; the DSP side decides how the run ends.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     wb = Whiteboard.attach(shm_name, L.Layout(job.layout_words))
-    port = PcPort(wb)
+    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
     try:
         segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
         records, periods = segments_to_records(segments)

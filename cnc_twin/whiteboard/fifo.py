@@ -3,7 +3,12 @@
 Indices count words ever written / consumed, modulo 2^32; the ring position is ``index %
 capacity``. The writer copies a record's words (wrapping at the ring's end if needed) and only
 then publishes the new write index; the reader never reads past the published index, so it never
-sees a partly written record. ``fill = write - read``; ``free = capacity - fill``.
+sees a partly written record. ``free = capacity - (write - read)``.
+
+The reader takes a :meth:`~FifoReader.snapshot` of the write index while the DSP owns the bus
+and consumes only up to it, record by record as the card needs them; records the PC writes
+afterwards become visible at the next exchange. In lockstep this makes what the DSP sees, and
+the fill it reports, independent of process timing.
 
 Who writes what: the PC writes the ring words and ``PC_FIFO_WRITE``; the DSP writes
 ``DSP_FIFO_READ``.
@@ -52,17 +57,22 @@ class FifoWriter:
 
 
 class FifoReader:
-    """DSP side: pops whole records' words, or flushes everything after a framing error."""
+    """DSP side: pops whole records up to the last snapshot, or flushes after a framing error."""
 
     def __init__(self, ring: np.ndarray, write_index: np.ndarray, read_index: np.ndarray):
         self.ring = ring
         self.capacity = len(ring)
         self._write = write_index
         self._read = read_index
+        self._limit = int(read_index[0])
+
+    def snapshot(self) -> None:
+        """Take the published write index as the limit of what may be consumed (DSP owns the bus)."""
+        self._limit = int(self._write[0])
 
     def fill(self) -> int:
-        """Words written and not yet consumed."""
-        return (int(self._write[0]) - int(self._read[0])) % _U32
+        """Words published up to the snapshot and not yet consumed."""
+        return (self._limit - int(self._read[0])) % _U32
 
     def _take(self, pos: int, n: int) -> np.ndarray:
         end = pos + n
@@ -70,36 +80,40 @@ class FifoReader:
             return self.ring[pos:end].copy()
         return np.concatenate((self.ring[pos:], self.ring[: end - self.capacity]))
 
-    def pop_records(self) -> list[np.ndarray]:
-        """Every whole record published so far, as word arrays, consuming them.
+    def pop(self) -> np.ndarray | None:
+        """The next whole record's words (consumed), or None when nothing is left to the snapshot.
 
         Raises
         ------
         RecordError
             If a header is malformed or claims more words than were published; the FIFO is
-            then flushed (everything published is consumed) so the stream can resynchronise.
+            then flushed to the snapshot so the stream can resynchronise.
         """
-        out = []
-        read = int(self._read[0])
         available = self.fill()
-        while available >= HEADER_WORDS:
-            pos = read % self.capacity
-            try:
-                total = record_length(self._take(pos, 3))
-                if total > available:
-                    raise RecordError(f"record of {total} words, only {available} published")
-            except RecordError:
-                self.flush()
-                raise
-            out.append(self._take(pos, total))
-            read = (read + total) % _U32
-            available -= total
-            self._read[0] = read
-        if available:
+        if available == 0:
+            return None
+        read = int(self._read[0])
+        pos = read % self.capacity
+        try:
+            if available < HEADER_WORDS:
+                raise RecordError(f"{available} stray words at the end of the FIFO")
+            total = record_length(self._take(pos, 3))
+            if total > available:
+                raise RecordError(f"record of {total} words, only {available} published")
+        except RecordError:
             self.flush()
-            raise RecordError(f"{available} stray words at the end of the FIFO")
+            raise
+        words = self._take(pos, total)
+        self._read[0] = (read + total) % _U32
+        return words
+
+    def pop_records(self) -> list[np.ndarray]:
+        """Every whole record up to the snapshot, consumed (bulk transfers, benchmarks)."""
+        out = []
+        while (words := self.pop()) is not None:
+            out.append(words)
         return out
 
     def flush(self) -> None:
-        """Drop everything published so far."""
-        self._read[0] = int(self._write[0])
+        """Drop everything published up to the snapshot."""
+        self._read[0] = self._limit

@@ -12,7 +12,7 @@ Per period ``k`` on the DSP::
 
     acquire(k):  lockstep  -> wait for the PC's ack of the last status (planner-lost checks while waiting)
                  real-time -> if no ack yet or HOLD high: missed exchange, skip the rest this period
-    pop_records() -> words of every record the PC published since the last exchange
+    (the FIFO's write index is snapshotted: records up to it are consumed as the card needs them)
     publish(status):  status block; HOLDA = 1; mailbox DSP -> PC = (k + 1) & 0xFFFF
 
 On the PC, in a loop::
@@ -36,11 +36,12 @@ import numpy as np
 
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.doorbell import SPIN_POLLS, Doorbell
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
-from cnc_twin.whiteboard.status import STATUS_DTYPE
+from cnc_twin.whiteboard.status import STATUS_DTYPE, STATUS_STRUCT
 
-BUSY_SPINS = 2000
-"""polls before a waiting side starts yielding its core between polls"""
+WAKE_INTERVAL = 0.002
+"""longest a blocked waiter sleeps before re-checking liveness and heartbeat [s]"""
 
 
 class PlannerLost(RuntimeError):
@@ -60,11 +61,14 @@ class DspPort:
     lockstep : wait for the PC's answer every period (deterministic) or never wait (real-time).
     planner_alive : returns False once the planner process has exited.
     heartbeat_timeout : wall-clock seconds without a PC heartbeat before the planner is lost.
+    ring_pc, wait_pc : doorbells: rung after the DSP -> PC mailbox; rung by the PC after its ack.
     """
 
     def __init__(self, wb: Whiteboard, *, lockstep: bool, planner_alive: Callable[[], bool],
-                 heartbeat_timeout: float):
+                 heartbeat_timeout: float, ring_pc: Doorbell, wait_pc: Doorbell):
         self.wb = wb
+        self.ring_pc = ring_pc
+        self.wait_pc = wait_pc
         self.words = wb.words
         self.lockstep = lockstep
         self.planner_alive = planner_alive
@@ -76,6 +80,7 @@ class DspPort:
         self.latency_ns = array.array("q")
         """per answered exchange: DSP post -> PC acknowledgement, wall clock [ns]"""
         self._pc_ack_time = np.ndarray((1,), dtype="<u8", buffer=wb.shm.buf, offset=2 * (wb.layout.pc_control + L.PC_ACK_TIME))
+        self._status_offset = 2 * wb.layout.status_base
 
     def wait_ready(self, timeout: float) -> int:
         """Wait until the planner attached and announced its program; returns its length [periods]."""
@@ -103,21 +108,21 @@ class DspPort:
                 return False
             self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
         self.words[self.wb.HOLDA] = 0
+        self.fifo.snapshot()
         return True
 
     def _wait_ack(self, ack: int) -> None:
         words, hold, mailbox = self.words, self.wb.HOLD, self.wb.MAILBOX_TO_DSP
+        for _ in range(SPIN_POLLS):
+            if words[mailbox] == ack and not words[hold]:
+                return
         heartbeat = self.wb.pc_heartbeat
-        spins = 0
         last_beat = int(heartbeat[0])
         last_change = time.monotonic()
         while words[mailbox] != ack or words[hold]:
-            spins += 1
-            if spins < BUSY_SPINS:
-                continue
-            os.sched_yield()
-            if spins % 256:
-                continue
+            self.wait_pc.wait(WAKE_INTERVAL)
+            if words[mailbox] == ack and not words[hold]:
+                return
             now = time.monotonic()
             beat = int(heartbeat[0])
             if beat != last_beat:
@@ -128,28 +133,45 @@ class DspPort:
                 raise PlannerLost("planner process exited")
 
     def pop_records(self) -> list[np.ndarray]:
-        """Words of every record published since the last exchange (see FifoReader.pop_records)."""
+        """Words of every record published up to this exchange's snapshot (bulk transfers)."""
         return self.fifo.pop_records()
 
-    def publish(self, status: np.ndarray, period: int) -> None:
-        """Write the status block, grant the bus, post the mailbox."""
-        self.wb.status[0] = status[0]
+    def publish(self, status: np.ndarray | None, period: int, *, values: tuple | None = None) -> None:
+        """Write the status block, grant the bus, post the mailbox.
+
+        Pass either a ``STATUS_DTYPE`` record or the flat ``values`` for ``STATUS_STRUCT``
+        (the lean path: one ``pack_into`` straight into the shared memory).
+        """
+        if values is not None:
+            STATUS_STRUCT.pack_into(self.wb.shm.buf, self._status_offset, *values)
+        else:
+            self.wb.status[0] = status[0]
         self.wb.dsp_heartbeat[0] = period & 0xFFFFFFFF
         self.words[self.wb.HOLDA] = 1
         self.post_ns = time.perf_counter_ns()
         self.words[self.wb.MAILBOX_TO_PC] = mailbox_value(period)
+        self.ring_pc.ring()
         self.last_posted = period
 
     def shutdown(self) -> None:
         """Tell the planner the run is over (it exits at its next poll)."""
         self.words[self.wb.SHUTDOWN] = 1
+        self.ring_pc.ring()
 
 
 class PcPort:
-    """The PC's side of the whiteboard."""
+    """The PC's side of the whiteboard.
 
-    def __init__(self, wb: Whiteboard):
+    Parameters
+    ----------
+    wb : the whiteboard (attached).
+    wait_dsp, ring_dsp : doorbells: rung by the DSP after it posts; rung here after each ack.
+    """
+
+    def __init__(self, wb: Whiteboard, *, wait_dsp: Doorbell, ring_dsp: Doorbell):
         self.wb = wb
+        self.wait_dsp = wait_dsp
+        self.ring_dsp = ring_dsp
         self.words = wb.words
         self.fifo = FifoWriter(wb.fifo_ring, wb.fifo_write, wb.fifo_read)
         self.status = np.zeros(1, dtype=STATUS_DTYPE)
@@ -175,19 +197,19 @@ class PcPort:
 
     def wait_status(self) -> np.ndarray | None:
         """Block until the DSP posts a new status; a copy of it, or None when the run is over."""
-        words, mailbox = self.words, self.wb.MAILBOX_TO_PC
-        shutdown = self.wb.SHUTDOWN
-        spins = 0
-        while words[mailbox] == self._last_seen:
-            spins += 1
-            if spins < BUSY_SPINS:
-                continue
-            os.sched_yield()
-            if spins % 256:
-                continue
-            self.beat()
-            if words[shutdown] or os.getppid() != self._parent:
-                return None
+        words, mailbox, shutdown = self.words, self.wb.MAILBOX_TO_PC, self.wb.SHUTDOWN
+        last = self._last_seen
+        for _ in range(SPIN_POLLS):
+            if words[mailbox] != last:
+                break
+        else:
+            while words[mailbox] == last:
+                self.beat()
+                if words[shutdown] or os.getppid() != self._parent:
+                    return None
+                self.wait_dsp.wait(WAKE_INTERVAL)
+        if words[shutdown]:
+            return None
         self._last_seen = int(words[mailbox])
         self.beat()
         self.status[0] = self.wb.status[0]
@@ -196,7 +218,7 @@ class PcPort:
     def begin(self) -> None:
         """Raise HOLD and wait for the grant."""
         self.words[self.wb.HOLD] = 1
-        while not self.words[self.wb.HOLDA]:
+        while not self.words[self.wb.HOLDA]:  # granted with the mailbox: normally already high
             os.sched_yield()
 
     def end(self) -> None:
@@ -204,3 +226,4 @@ class PcPort:
         self.words[self.wb.HOLD] = 0
         self._pc_ack_time[0] = time.perf_counter_ns()
         self.words[self.wb.MAILBOX_TO_DSP] = self._last_seen
+        self.ring_dsp.ring()

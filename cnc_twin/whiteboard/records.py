@@ -25,7 +25,11 @@ type   record           payload                                                 
 4      ForceSetpoint    force f64 [N]                                              4
 5      Spindle          on u16, pad u16, speed f64 [rad/s]                         6
 6      EndOfProgram     -                                                          0
+7      DataBlock        opaque program data (u16 words), e.g. a 4 KB block         1..2048
 =====  ===============  =========================================================  ======
+
+DataBlock is the one variable-length type: its span is fixed by the length and its complement
+(a single flipped bit in either makes them disagree), so the CRC-16 guarantee still holds.
 """
 
 from __future__ import annotations
@@ -85,7 +89,22 @@ class EndOfProgram:
     pass
 
 
-Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram
+@dataclass(frozen=True, eq=False)
+class DataBlock:
+    """Opaque program data moved in bulk (the card's 4 KB block transfers)."""
+
+    words: np.ndarray
+    """uint16, 1 to MAX_BLOCK_WORDS words"""
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, DataBlock) and np.array_equal(self.words, other.words)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+MAX_BLOCK_WORDS = 2048
+
+Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock
 
 _MOVE = struct.Struct("<6d4dI")
 _DWELL = struct.Struct("<I")
@@ -93,9 +112,10 @@ _F64 = struct.Struct("<d")
 _SPINDLE = struct.Struct("<HHd")
 _HEADER = struct.Struct("<HHHI")
 
-_TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6}
+_TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7}
 _PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0}
-MAX_RECORD_WORDS = OVERHEAD_WORDS + max(_PAYLOAD_WORDS.values())
+_DATA_BLOCK = 7
+MAX_RECORD_WORDS = OVERHEAD_WORDS + MAX_BLOCK_WORDS
 
 
 class RecordError(ValueError):
@@ -116,6 +136,10 @@ def _payload(record: Record) -> bytes:
         return _SPINDLE.pack(1 if record.on else 0, 0, record.speed)
     if isinstance(record, EndOfProgram):
         return b""
+    if isinstance(record, DataBlock):
+        if not 1 <= len(record.words) <= MAX_BLOCK_WORDS:
+            raise ValueError(f"a data block holds 1..{MAX_BLOCK_WORDS} words, got {len(record.words)}")
+        return np.ascontiguousarray(record.words, dtype="<u2").tobytes()
     raise TypeError(f"not a record: {record!r}")
 
 
@@ -140,9 +164,14 @@ def record_length(header: np.ndarray) -> int:
         raise RecordError(f"bad sync byte 0x{w0 >> 8:02X}")
     if n_check != (~n & 0xFFFF):
         raise RecordError("length check failed")
-    expected = _PAYLOAD_WORDS.get(w0 & 0xFF)
+    kind = w0 & 0xFF
+    if kind == _DATA_BLOCK:
+        if not 1 <= n <= MAX_BLOCK_WORDS:
+            raise RecordError(f"data block of {n} words")
+        return OVERHEAD_WORDS + n
+    expected = _PAYLOAD_WORDS.get(kind)
     if expected is None:
-        raise RecordError(f"unknown record type {w0 & 0xFF}")
+        raise RecordError(f"unknown record type {kind}")
     if n != expected:
         raise RecordError(f"record type {w0 & 0xFF} has {expected} payload words, header says {n}")
     return OVERHEAD_WORDS + n
@@ -161,9 +190,9 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
     total = record_length(words[:3])
     if len(words) != total:
         raise RecordError(f"record is {len(words)} words, header says {total}")
-    raw = np.ascontiguousarray(words, dtype="<u2").tobytes()
-    body, crc = raw[:-2], struct.unpack("<H", raw[-2:])[0]
-    if crc16(body) != crc:
+    words = np.ascontiguousarray(words, dtype="<u2")
+    body = memoryview(words).cast("B")[:-2]  # no copy: the CRC runs over the words in place
+    if crc16(body) != int(words[-1]):
         raise RecordError("CRC mismatch")
     kind = int(words[0]) & 0xFF
     seq = struct.unpack_from("<I", body, 6)[0]
@@ -180,6 +209,8 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
     elif kind == 5:
         on, _pad, speed = _SPINDLE.unpack(payload)
         record = Spindle(on=bool(on), speed=speed)
+    elif kind == _DATA_BLOCK:
+        record = DataBlock(words=words[HEADER_WORDS:-1])
     else:
         record = EndOfProgram()
     return seq, record

@@ -22,12 +22,14 @@ feed_override          f64         effective feed override (0 while held) [-]
 pad_force              f64         load-cell force, tared [N]
 command                f64 x6      commanded position [counts]
 actual                 i32 x6      encoder position [counts]
-following_error        f64 x6      command - actual [counts]
 dac                    i16 x6      DAC code
+following_error        f64 x6      command - actual [counts]
 =====================  ==========  ===============================================================
 """
 
 from __future__ import annotations
+
+import struct
 
 import numpy as np
 
@@ -49,8 +51,8 @@ STATUS_DTYPE = np.dtype(
         ("pad_force", "<f8"),
         ("command", "<f8", (6,)),
         ("actual", "<i4", (6,)),
-        ("following_error", "<f8", (6,)),
         ("dac", "<i2", (6,)),
+        ("following_error", "<f8", (6,)),
     ],
     align=True,
 )
@@ -78,3 +80,24 @@ class FaultCode:
     RUN_TIMEOUT = 3        # program did not finish within the scenario's time limit
 
     NAMES = {0: "NONE", 1: "PLANNER_LOST", 2: "PLANNER_START", 3: "RUN_TIMEOUT"}
+
+
+def _struct_format(dtype: np.dtype) -> str:
+    """A ``struct`` format with the same byte layout as the aligned numpy ``dtype``."""
+    codes = {("<u4",): "I", ("<u2",): "H", ("<i4",): "i", ("<i2",): "h", ("<f8",): "d"}
+    fmt, offset = "<", 0
+    for name in dtype.names:
+        field, field_offset = dtype.fields[name][:2]
+        if field_offset > offset:
+            fmt += f"{field_offset - offset}x"
+        base = field.base.str
+        count = field.shape[0] if field.shape else 1
+        fmt += (str(count) if count > 1 else "") + codes[(base,)]
+        offset = field_offset + field.itemsize
+    if dtype.itemsize > offset:
+        fmt += f"{dtype.itemsize - offset}x"
+    return fmt
+
+
+STATUS_STRUCT = struct.Struct(_struct_format(STATUS_DTYPE))
+"""packs a status in one call, field order as in ``STATUS_DTYPE`` (per-axis fields flattened)"""
