@@ -47,25 +47,26 @@ def test_encode_decode_round_trip(record, seq):
     assert decode(words) == (seq, record)
 
 
-@settings(max_examples=300)
-@given(records, seqs, st.data())
-def test_every_single_bit_flip_is_caught(record, seq, data):
-    words = encode(record, seq)
-    bit = data.draw(st.integers(0, 16 * len(words) - 1))
+def assert_flip_caught(words: np.ndarray, bit: int) -> None:
+    """Flip one bit of an encoded record; decoding must reject it."""
     bad = words.copy()
     bad[bit // 16] ^= np.uint16(1 << (bit % 16))
     with pytest.raises(RecordError):
         decode(bad)
 
 
+@settings(max_examples=300)
+@given(records, seqs, st.data())
+def test_every_single_bit_flip_is_caught(record, seq, data):
+    words = encode(record, seq)
+    assert_flip_caught(words, data.draw(st.integers(0, 16 * len(words) - 1)))
+
+
 def test_every_bit_of_a_move_record_exhaustively():
     words = encode(Move(end=(0.1, -0.2, 0.0, 0.5, -0.5, math.pi), profile=Trapezoid(0.1, 0.2, 3.0, 30.0),
                         periods=400), 7)
     for bit in range(16 * len(words)):
-        bad = words.copy()
-        bad[bit // 16] ^= np.uint16(1 << (bit % 16))
-        with pytest.raises(RecordError):
-            decode(bad)
+        assert_flip_caught(words, bit)
 
 
 def _fifo(capacity: int):
@@ -145,11 +146,7 @@ def test_data_block_round_trip(block, seq):
 @given(blocks, seqs, st.data())
 def test_every_single_bit_flip_in_a_variable_length_block_is_caught(block, seq, data):
     words = encode(block, seq)
-    bit = data.draw(st.integers(0, 16 * len(words) - 1))
-    bad = words.copy()
-    bad[bit // 16] ^= np.uint16(1 << (bit % 16))
-    with pytest.raises(RecordError):
-        decode(bad)
+    assert_flip_caught(words, data.draw(st.integers(0, 16 * len(words) - 1)))
 
 
 def test_data_block_size_limits():

@@ -147,3 +147,33 @@ def test_benchmark_paths_move_and_verify_every_record():
     assert block["records"] == 51 and block["bytes"] == 50 * 4096 + 12
     move = stream_throughput(kind="move", count=300)
     assert move["records"] == 301
+
+
+def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(monkeypatch):
+    from cnc_twin.twin import Twin
+
+    twin = Twin(JOG)
+    calls = {"n": 0}
+    real_step = twin.plant.step
+
+    def failing_step(n):
+        calls["n"] += 1
+        if calls["n"] == 2000:
+            raise RuntimeError("simulated failure inside the servo loop")
+        real_step(n)
+
+    twin.plant.step = failing_step
+    with pytest.raises(RuntimeError, match="simulated failure"):
+        twin.run()
+    # the autouse fixture checks /dev/shm and child processes after this test too
+    assert leftover_segments() == []
+
+
+def test_memory_map_in_the_docs_matches_the_layout():
+    from pathlib import Path
+
+    from cnc_twin.whiteboard.layout import Layout
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "whiteboard.md").read_text()
+    for address, owner, contents in Layout().memory_map():
+        assert f"| {address} | {owner} | {contents}" in doc, (address, owner, contents)
