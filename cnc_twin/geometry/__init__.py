@@ -1,0 +1,1 @@
+"""Geometry: NURBS curves (and later surfaces) and the machine's kinematics."""

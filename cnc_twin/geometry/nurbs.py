@@ -1,0 +1,213 @@
+"""NURBS curves: validated construction, points and derivatives, curvature, arc length.
+
+A NURBS curve of degree ``p`` with control points ``P_i`` (shape ``(n, d)``), weights ``w_i > 0``
+and a clamped knot vector ``U`` (``n + p + 1`` knots) is the projection of the polynomial
+B-spline ``A(u) = sum_i N_i,p(u) [w_i P_i, w_i]`` in homogeneous coordinates. ``A`` is evaluated
+with scipy's B-spline machinery; the rational derivatives follow from the quotient rule::
+
+    C   = A / w
+    C'  = (A' - w' C) / w
+    C'' = (A'' - 2 w' C' - w'' C) / w
+    C'''= (A''' - 3 w' C'' - 3 w'' C' - w''' C) / w
+
+For the DSP's per-period work, :class:`SpanEvaluator` holds each knot span's power-basis
+coefficients of ``A``, ``A'`` and ``A''`` in one block, so a point with its first two
+derivatives costs one small matrix product.
+
+Units are whatever the control points are in (the twin uses metres).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+import numpy as np
+from scipy.interpolate import BSpline
+
+_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
+
+
+class NurbsError(ValueError):
+    """An invalid NURBS definition; ``key`` names the offending part (for scenario messages)."""
+
+    def __init__(self, key: str, message: str):
+        self.key = key
+        super().__init__(message)
+
+
+class NurbsCurve:
+    """A clamped NURBS curve.
+
+    Parameters
+    ----------
+    control_points : shape ``(n, d)``, d = 2 or 3.
+    weights : shape ``(n,)``, all > 0; None for a non-rational B-spline (all 1).
+    knots : shape ``(n + degree + 1,)``, non-decreasing, first and last ``degree + 1`` equal.
+    degree : >= 1.
+
+    Raises
+    ------
+    NurbsError
+        With ``key`` one of ``degree``, ``control_points``, ``weights``, ``knots``.
+    """
+
+    def __init__(self, control_points, weights, knots, degree: int):
+        p = int(degree)
+        P = np.asarray(control_points, dtype=np.float64)
+        if p < 1:
+            raise NurbsError("degree", f"degree must be >= 1, got {degree}")
+        if P.ndim != 2 or P.shape[1] not in (2, 3):
+            raise NurbsError("control_points", f"expected a list of 2-D or 3-D points, got shape {P.shape}")
+        n = P.shape[0]
+        if n < p + 1:
+            raise NurbsError("control_points", f"degree {p} needs at least {p + 1} control points, got {n}")
+        W = np.ones(n) if weights is None else np.asarray(weights, dtype=np.float64)
+        if W.shape != (n,):
+            raise NurbsError("weights", f"expected {n} weights (one per control point), got {W.size}")
+        if not np.all(np.isfinite(P)):
+            raise NurbsError("control_points", "control points must be finite")
+        if not np.all(np.isfinite(W)) or np.any(W <= 0):
+            raise NurbsError("weights", "weights must be finite and > 0")
+        U = np.asarray(knots, dtype=np.float64)
+        if U.shape != (n + p + 1,):
+            raise NurbsError("knots", f"expected n + degree + 1 = {n + p + 1} knots, got {U.size}")
+        if not np.all(np.isfinite(U)) or np.any(np.diff(U) < 0):
+            raise NurbsError("knots", "knots must be finite and non-decreasing")
+        if np.any(U[: p + 1] != U[0]) or np.any(U[-(p + 1):] != U[-1]):
+            raise NurbsError("knots", f"knot vector must be clamped: first and last {p + 1} knots equal")
+        if not U[-1] > U[0]:
+            raise NurbsError("knots", "knot vector spans no parameter range")
+        if np.any(np.diff(U[p + 1:-(p + 1)] if n > p + 1 else []) < 0):  # pragma: no cover - covered above
+            raise NurbsError("knots", "knots must be non-decreasing")
+        interior = U[p + 1:n]
+        if interior.size and np.max(np.unique(interior, return_counts=True)[1]) > p:
+            raise NurbsError("knots", f"an interior knot repeats more than degree = {p} times")
+        self.degree = p
+        self.control_points = P
+        self.weights = W
+        self.knots = U
+        self.dim = P.shape[1]
+        homogeneous = np.hstack([P * W[:, None], W[:, None]])
+        # Derivatives through __call__(u, nu=k): it differentiates the polynomial piece of the
+        # span holding u, so repeated interior knots (exact conics) are fine; .derivative() is not.
+        self._spline = BSpline(U, homogeneous, p, extrapolate=False)
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        """Parameter range ``(u_start, u_end)``."""
+        return float(self.knots[0]), float(self.knots[-1])
+
+    def _homogeneous(self, u: np.ndarray, order: int) -> list[np.ndarray]:
+        u = np.clip(u, *self.domain)
+        out = []
+        for k in range(order + 1):
+            if k <= self.degree:
+                out.append(self._spline(u, nu=k))
+            else:
+                out.append(np.zeros(u.shape + (self.dim + 1,)))
+        return out
+
+    def derivatives(self, u, order: int = 2) -> list[np.ndarray]:
+        """``[C, C', ..., C^(order)]`` at parameters ``u`` (shape ``(m,)``), each ``(m, d)``; order <= 3."""
+        if order > 3:
+            raise ValueError("derivatives up to third order")
+        u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+        H = self._homogeneous(u, order)
+        A = [h[:, :-1] for h in H]
+        w = [h[:, -1:] for h in H]
+        C = [A[0] / w[0]]
+        if order >= 1:
+            C.append((A[1] - w[1] * C[0]) / w[0])
+        if order >= 2:
+            C.append((A[2] - 2 * w[1] * C[1] - w[2] * C[0]) / w[0])
+        if order >= 3:
+            C.append((A[3] - 3 * w[1] * C[2] - 3 * w[2] * C[1] - w[3] * C[0]) / w[0])
+        return C
+
+    def point(self, u) -> np.ndarray:
+        """Points at ``u``, shape ``(m, d)``."""
+        return self.derivatives(u, 0)[0]
+
+    def curvature(self, u) -> np.ndarray:
+        """Curvature ``|C' x C''| / |C'|^3`` at ``u``, shape ``(m,)`` [1/unit]."""
+        _, d1, d2 = self.derivatives(u, 2)
+        if self.dim == 2:
+            cross = np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+        else:
+            cross = np.linalg.norm(np.cross(d1, d2), axis=1)
+        speed = np.linalg.norm(d1, axis=1)
+        return cross / speed**3
+
+    def arc_length(self, u0: float | None = None, u1: float | None = None) -> float:
+        """Length between parameters (whole curve by default): 16-point Gauss-Legendre per knot span."""
+        a, b = self.domain
+        u0 = a if u0 is None else float(u0)
+        u1 = b if u1 is None else float(u1)
+        if u1 < u0:
+            return -self.arc_length(u1, u0)
+        breaks = [u0] + [k for k in np.unique(self.knots) if u0 < k < u1] + [u1]
+        total = 0.0
+        for lo, hi in zip(breaks[:-1], breaks[1:]):
+            if hi <= lo:
+                continue
+            mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+            d1 = self.derivatives(mid + half * _GAUSS_NODES, 1)[1]
+            total += half * float(np.dot(_GAUSS_WEIGHTS, np.linalg.norm(d1, axis=1)))
+        return total
+
+    def span_evaluator(self) -> "SpanEvaluator":
+        return SpanEvaluator(self)
+
+
+class SpanEvaluator:
+    """Fast scalar evaluation of ``C, C', C''`` for the DSP's per-period interpolation.
+
+    Each knot span ``[u_i, u_i+1)`` stores the power-basis coefficients of ``A``, ``A'``, ``A''``
+    in the local variable ``x = u - u_i`` as one ``(p + 1, 3 (d + 1))`` block, taken exactly from
+    the B-spline's right-hand Taylor coefficients at ``u_i``. One evaluation = one powers vector,
+    one small matrix product, the quotient rule on plain floats.
+    """
+
+    def __init__(self, curve: NurbsCurve):
+        p, d = curve.degree, curve.dim
+        self.degree, self.dim = p, d
+        self.domain = curve.domain
+        starts = [float(k) for k in np.unique(curve.knots)[:-1]]
+        self._starts = starts
+        hom = curve._spline
+        blocks = []
+        for s in starts:
+            # right-hand Taylor coefficients at the span start (the spline evaluates a knot in the
+            # span to its right)
+            taylor = np.array([hom(s, nu=j) / math.factorial(j) for j in range(p + 1)])  # (p+1, d+1)
+            block = np.zeros((p + 1, 3 * (d + 1)))
+            block[:, : d + 1] = taylor
+            for j in range(p):  # A' coefficients
+                block[j, d + 1: 2 * (d + 1)] = (j + 1) * taylor[j + 1]
+            for j in range(p - 1):  # A'' coefficients
+                block[j, 2 * (d + 1):] = (j + 1) * (j + 2) * taylor[j + 2]
+            blocks.append(block)
+        self._blocks = blocks
+
+    def evaluate(self, u: float) -> tuple[list[float], list[float], list[float]]:
+        """``(C, C', C'')`` at scalar ``u`` as plain float lists of length d."""
+        lo, hi = self.domain
+        if u < lo:
+            u = lo
+        elif u > hi:
+            u = hi
+        i = bisect.bisect_right(self._starts, u) - 1
+        x = u - self._starts[i]
+        powers = [1.0]
+        for _ in range(self.degree):
+            powers.append(powers[-1] * x)
+        h = (np.array(powers) @ self._blocks[i]).tolist()
+        d = self.dim
+        n = d + 1
+        w, w1, w2 = h[d], h[n + d], h[2 * n + d]
+        inv = 1.0 / w
+        c = [h[k] * inv for k in range(d)]
+        c1 = [(h[n + k] - w1 * c[k]) * inv for k in range(d)]
+        c2 = [(h[2 * n + k] - 2.0 * w1 * c1[k] - w2 * c[k]) * inv for k in range(d)]
+        return c, c1, c2
