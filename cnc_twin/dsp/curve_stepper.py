@@ -9,7 +9,9 @@ Algorithm (``C1 = C'(u)``, ``C2 = C''(u)`` kept from the previous period)::
         du  = ds / |C1| - ds^2 (C1 . C2) / (2 |C1|^4)
         u_p = u + du
     corrector (one Newton step on  L(u, u') - ds = 0,  dL/du' = |C'(u')|):
-        L     = du / 6 (|C'(u)| + 4 |C'(u + du/2)| + |C'(u_p)|)        Simpson
+        L     = du / 6 (|C'(u)| + 4 |C'(u + du/2)| + |C'(u_p)|)        Simpson, split at a knot
+                                                                      inside [u, u_p] (|C'| may
+                                                                      have a kink there)
         u_new = u_p - (L - ds) / |C'(u_p)|
         point = C(u_p) + C'(u_p) (u_new - u_p)
 
@@ -64,9 +66,13 @@ class CurveStepper:
         cp, c1p, c2p = self.ev.evaluate(u_p)
         speed_p = math.sqrt(sum(x * x for x in c1p))
         if self.correct:
-            _, c1m, _ = self.ev.evaluate(u + 0.5 * du)
-            speed_m = math.sqrt(sum(x * x for x in c1m))
-            length = du / 6.0 * (speed + 4.0 * speed_m + speed_p)
+            knot = self.ev.next_break(u)
+            if knot < u_p:
+                speed_k = self.ev.speed(knot)
+                length = ((knot - u) / 6.0 * (speed + 4.0 * self.ev.speed(0.5 * (u + knot)) + speed_k)
+                          + (u_p - knot) / 6.0 * (speed_k + 4.0 * self.ev.speed(0.5 * (knot + u_p)) + speed_p))
+            else:
+                length = du / 6.0 * (speed + 4.0 * self.ev.speed(u + 0.5 * du) + speed_p)
             delta = -(length - ds) / speed_p
             u_new = u_p + delta
             point = [a + b * delta for a, b in zip(cp, c1p)]

@@ -189,6 +189,31 @@ class SpanEvaluator:
                 block[j, 2 * (d + 1):] = (j + 1) * (j + 2) * taylor[j + 2]
             blocks.append(block)
         self._blocks = blocks
+        self._blocks1 = [np.ascontiguousarray(b[:, : 2 * (d + 1)]) for b in blocks]  # A, A' only
+
+    def next_break(self, u: float) -> float:
+        """The first span boundary (distinct knot) after ``u``; the domain's end if none."""
+        i = bisect.bisect_right(self._starts, u)
+        return self._starts[i] if i < len(self._starts) else self.domain[1]
+
+    def speed(self, u: float) -> float:
+        """``|C'(u)|`` (first derivative only: half the work of :meth:`evaluate`)."""
+        lo, hi = self.domain
+        u = lo if u < lo else hi if u > hi else u
+        i = bisect.bisect_right(self._starts, u) - 1
+        x = u - self._starts[i]
+        powers = [1.0]
+        for _ in range(self.degree):
+            powers.append(powers[-1] * x)
+        h = (np.array(powers) @ self._blocks1[i]).tolist()
+        d = self.dim
+        w, w1 = h[d], h[2 * d + 1]
+        inv = 1.0 / w
+        total = 0.0
+        for k in range(d):
+            v = (h[d + 1 + k] - w1 * h[k] * inv) * inv
+            total += v * v
+        return math.sqrt(total)
 
     def evaluate(self, u: float) -> tuple[list[float], list[float], list[float]]:
         """``(C, C', C'')`` at scalar ``u`` as plain float lists of length d."""

@@ -1,0 +1,175 @@
+"""Look-ahead feed planning for a NURBS tool path: limit curve, critical points, S-curve blocks.
+
+1. Sample the curve densely in arc length ``s`` (``s`` by Gauss-Legendre quadrature). At each
+   sample the feed limit is the smallest of::
+
+       programmed feed F
+       chord error      (2 / T) sqrt(rho^2 - (rho - delta)^2),   rho = 1 / kappa
+       normal accel     sqrt(A_n / kappa)
+       normal jerk      (J_n / kappa^2)^(1/3)
+       axis velocity    v_i / |t_i|                      t = dC/ds (unit tangent)
+       axis accel       sqrt(0.5 a_i / |C_ss,i|)         C_ss = d2C/ds2 (half the budget: normal)
+       axis jerk        (j_i / 3 / |C_sss,i|)^(1/3)  and  j_i / (9 A_t |C_ss,i|)
+
+   with the tangential limits ``A_t = min(A_path, 0.5 min_i a_i)`` and
+   ``J_t = min(J_path, min_i j_i / 3)``, so the tangential and normal parts of every axis's
+   acceleration and jerk add up to at most its limit.
+2. Critical points: the local minima of the limit where it binds, plus start and end (at rest).
+3. Bidirectional scan: each critical speed is lowered until a jerk-limited ramp can reach it
+   from its neighbours within the distance between them.
+4. Each block between critical points gets the fastest S-curve (:mod:`cnc_twin.dsp.scurve`).
+   Where a block's speed would exceed the limit curve, that sample becomes a critical point and
+   steps 3-4 repeat.
+
+The plan is a sequence of S-curve blocks covering the whole curve, starting and ending at rest.
+Units: SI (m, s). The tool axis is held fixed, so X/Y/Z move with the tool tip one to one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.dsp.scurve import SCurve, reachable
+from cnc_twin.geometry.nurbs import NurbsCurve
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
+
+
+@dataclass(frozen=True)
+class PathLimits:
+    """Limits for one path. Speeds [m/s], accelerations [m/s^2], jerks [m/s^3]; axes X, Y, Z."""
+
+    feed: float
+    chord_tolerance: float
+    """[m]"""
+    path_acceleration: float
+    path_jerk: float
+    normal_acceleration: float
+    normal_jerk: float
+    axis_velocity: tuple[float, float, float]
+    axis_acceleration: tuple[float, float, float]
+    axis_jerk: tuple[float, float, float]
+
+    @property
+    def tangential_acceleration(self) -> float:
+        return min(self.path_acceleration, 0.5 * min(self.axis_acceleration))
+
+    @property
+    def tangential_jerk(self) -> float:
+        return min(self.path_jerk, min(self.axis_jerk) / 3.0)
+
+
+@dataclass(frozen=True)
+class FeedPlan:
+    """S-curve blocks along the whole curve, and the sampled limit curve they respect.
+
+    Attributes
+    ----------
+    blocks : consecutive blocks; lengths add up to the curve's length.
+    s, u, limit : the samples: arc length [m], parameter, feed limit [m/s] (each shape (N,)).
+    """
+
+    blocks: tuple[SCurve, ...]
+    s: np.ndarray
+    u: np.ndarray
+    limit: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        return sum(b.duration for b in self.blocks)
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+
+def sample_curve(curve: NurbsCurve, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters ``u`` about ``spacing`` apart in arc length, and their arc lengths ``s``."""
+    a, b = curve.domain
+    breaks = np.unique(curve.knots)
+    us = []
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        length = curve.arc_length(lo, hi)
+        n = max(8, math.ceil(length / spacing))
+        us.append(np.linspace(lo, hi, n + 1)[:-1])
+    u = np.concatenate(us + [[b]])
+    mid, half = 0.5 * (u[1:] + u[:-1]), 0.5 * (u[1:] - u[:-1])
+    nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
+    speed = np.linalg.norm(curve.derivatives(nodes.ravel(), 1)[1], axis=1).reshape(nodes.shape)
+    s = np.concatenate([[0.0], np.cumsum(half * (speed @ _GL_W))])
+    return u, s
+
+
+def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float) -> np.ndarray:
+    """The feed limit [m/s] at each sample (see the module docstring)."""
+    _, d1, d2 = curve.derivatives(u, 2)
+    sigma = np.linalg.norm(d1, axis=1)
+    tangent = d1 / sigma[:, None]
+    c_ss = (d2 - np.sum(tangent * d2, axis=1)[:, None] * tangent) / (sigma**2)[:, None]
+    kappa = np.linalg.norm(c_ss, axis=1)
+    c_sss = np.gradient(c_ss, s, axis=0)
+    tiny = 1e-300
+    f = np.full(len(u), limits.feed)
+    rho = 1.0 / np.maximum(kappa, tiny)
+    delta = limits.chord_tolerance
+    chord = np.where(rho > delta / 2, (2.0 / period) * np.sqrt(np.maximum(2 * rho * delta - delta * delta, 0.0)), np.inf)
+    f = np.minimum(f, chord)
+    f = np.minimum(f, np.sqrt(limits.normal_acceleration / np.maximum(kappa, tiny)))
+    f = np.minimum(f, np.cbrt(limits.normal_jerk / np.maximum(kappa * kappa, tiny)))
+    a_t = limits.tangential_acceleration
+    for i in range(curve.dim):
+        f = np.minimum(f, limits.axis_velocity[i] / np.maximum(np.abs(tangent[:, i]), tiny))
+        f = np.minimum(f, np.sqrt(0.5 * limits.axis_acceleration[i] / np.maximum(np.abs(c_ss[:, i]), tiny)))
+        f = np.minimum(f, np.cbrt(limits.axis_jerk[i] / 3.0 / np.maximum(np.abs(c_sss[:, i]), tiny)))
+        f = np.minimum(f, limits.axis_jerk[i] / (9.0 * a_t * np.maximum(np.abs(c_ss[:, i]), tiny)))
+    return f
+
+
+def _local_minima(limit: np.ndarray, feed: float) -> list[int]:
+    out = []
+    for j in range(1, len(limit) - 1):
+        if limit[j] < feed and limit[j] < limit[j - 1] and limit[j] <= limit[j + 1]:
+            out.append(j)
+    return out
+
+
+def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, max_rounds: int = 200) -> FeedPlan:
+    """Plan the whole curve from rest to rest. See the module docstring."""
+    spacing = min(limits.feed * period, 0.5e-3)
+    u, s = sample_curve(curve, spacing)
+    limit = feed_limit(curve, u, s, limits, period)
+    a_t, j_t = limits.tangential_acceleration, limits.tangential_jerk
+    critical = sorted({0, len(s) - 1, *_local_minima(limit, limits.feed)})
+    for _ in range(max_rounds):
+        speeds = [0.0 if j in (0, len(s) - 1) else float(limit[j]) for j in critical]
+        lengths = [float(s[b] - s[a]) for a, b in zip(critical[:-1], critical[1:])]
+        for i in range(len(lengths)):  # forward scan
+            speeds[i + 1] = min(speeds[i + 1], reachable(speeds[i], lengths[i], a_t, j_t, speeds[i + 1]))
+        for i in range(len(lengths) - 1, -1, -1):  # backward scan
+            speeds[i] = min(speeds[i], reachable(speeds[i + 1], lengths[i], a_t, j_t, speeds[i]))
+        blocks = []
+        violation = None
+        for i, (a, b) in enumerate(zip(critical[:-1], critical[1:])):
+            cap = float(np.max(limit[a:b + 1]))
+            block = SCurve.plan(lengths[i], speeds[i], speeds[i + 1], v_max=min(cap, limits.feed), a_max=a_t, j_max=j_t)
+            blocks.append(block)
+            worst = _worst_excess(block, s[a:b + 1] - s[a], limit[a:b + 1])
+            if worst is not None and violation is None:
+                violation = a + worst
+        if violation is None:
+            return FeedPlan(blocks=tuple(blocks), s=s, u=u, limit=limit)
+        critical = sorted(set(critical) | {violation})
+    raise RuntimeError(f"feed planning did not converge in {max_rounds} rounds")
+
+
+def _worst_excess(block: SCurve, s_local: np.ndarray, limit: np.ndarray) -> int | None:
+    """Index (into the block's samples) where the block's speed most exceeds the limit, or None."""
+    t = np.linspace(0.0, block.duration, max(64, 4 * len(s_local)))
+    states = np.array([block.state(x)[:2] for x in t])
+    v_at = np.interp(s_local, states[:, 0], states[:, 1])
+    excess = v_at - limit * (1.0 + 1e-9)
+    j = int(np.argmax(excess))
+    return j if excess[j] > 0 else None
