@@ -37,6 +37,8 @@ class AxisConfig:
     """[m/s | rad/s]"""
     max_acceleration: float
     """[m/s^2 | rad/s^2]"""
+    max_jerk: float
+    """[m/s^3 | rad/s^3]"""
     counts_per_unit: float
     """encoder counts per m or per rad (4 x lines x gear / lead)"""
     kp: float
@@ -95,6 +97,57 @@ class PointToPoint:
 
 
 @dataclass(frozen=True)
+class PathLimits:
+    """Limits for one tool path. Speeds [m/s], accelerations [m/s^2], jerks [m/s^3]; axes X, Y, Z."""
+
+    feed: float
+    chord_tolerance: float
+    """[m]"""
+    path_acceleration: float
+    path_jerk: float
+    normal_acceleration: float
+    normal_jerk: float
+    axis_velocity: tuple[float, float, float]
+    axis_acceleration: tuple[float, float, float]
+    axis_jerk: tuple[float, float, float]
+
+    @property
+    def tangential_acceleration(self) -> float:
+        """Tangential budget: half of the tightest axis acceleration (the normal part gets the rest)."""
+        return min(self.path_acceleration, 0.5 * min(self.axis_acceleration))
+
+    @property
+    def tangential_jerk(self) -> float:
+        return min(self.path_jerk, min(self.axis_jerk) / 3.0)
+
+
+@dataclass(frozen=True)
+class NurbsProgram:
+    """A tool-tip NURBS curve with the tool axis held, converted to axis space (X/Y/Z, m).
+
+    The curve's control points are the tip path's control points shifted by the constant head
+    offset (NURBS are affine invariant), so the card interpolates X/Y/Z directly.
+    """
+
+    degree: int
+    knots: tuple[float, ...]
+    weights: tuple[float, ...]
+    control_points: tuple[tuple[float, float, float], ...]
+    """axis space X/Y/Z [m]"""
+    hold: tuple[float, float, float]
+    """A, B, C held during the curve [rad]"""
+    limits: PathLimits
+    approach_feed: float | None
+    """X/Y/Z speed cap of the move from home to the curve's start [m/s]; None = rapid"""
+    settle: float
+    """[s]"""
+    tip_shift: tuple[float, float, float]
+    """tip = axes + tip_shift for the held A/B [m] (world frame)"""
+    tool_offset: tuple[float, float, float]
+    """tip - pivot at A = B = 0 [m], for the actual tip from actual A/B"""
+
+
+@dataclass(frozen=True)
 class PlannerConfig:
     """The PC planner process."""
 
@@ -144,7 +197,7 @@ class Scenario:
     axes: tuple[AxisConfig, ...]
     """in X Y Z A B C order"""
     force_sensor: ForceSensorConfig
-    program: PointToPoint
+    program: PointToPoint | NurbsProgram
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
     planner: PlannerConfig

@@ -21,6 +21,8 @@ column              unit    meaning
 ``missed_exchanges`` -      periods so far whose exchange the planner missed (real-time mode)
 ``records_rejected`` -      records rejected so far (CRC, framing, sequence)
 ``last_seq_executed`` -     sequence number of the last record executed
+``path_u``          -       NURBS parameter at the period's end (-1 when not on a curve)
+``path_ds``         m       arc length commanded along the curve in the period
 ==================  ======  ===========================================================
 
 A run directory holds ``scenario.yaml`` (the file as written), ``trace.parquet`` and
@@ -112,8 +114,8 @@ class Trace:
             pad_force=np.ascontiguousarray(rows[:, len(FRAME_FIELDS) * n_axes]),
             counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64),
             period_signals={
-                name: (rows[:, len(FRAME_FIELDS) * n_axes + 1 + i].astype(np.float64 if name == "feed_override"
-                                                                          else np.int64))
+                name: (rows[:, len(FRAME_FIELDS) * n_axes + 1 + i].astype(
+                    np.float64 if name in ("feed_override", "path_u", "path_ds") else np.int64))
                 for i, name in enumerate(PERIOD_FIELDS)
             },
         )
@@ -138,7 +140,8 @@ class Trace:
 
 _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",
           "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
-          "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1"}
+          "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",
+          "path_u": "1", "path_ds": "m"}
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:

@@ -29,6 +29,8 @@ from cnc_twin.config import (
     FaultInjection,
     ForceSensorConfig,
     Move,
+    NurbsProgram,
+    PathLimits,
     PlannerConfig,
     PointToPoint,
     Scenario,
@@ -70,6 +72,7 @@ class AxisSpec(_Strict):
 
     max_velocity: float = Field(gt=0, description="[mm/min] linear, [deg/min] rotary")
     max_acceleration: float = Field(gt=0, description="[mm/s^2] linear, [deg/s^2] rotary")
+    max_jerk: float = Field(gt=0, description="[mm/s^3] linear, [deg/s^3] rotary")
     encoder: EncoderSpec
     servo: ServoSpec
 
@@ -187,7 +190,7 @@ class RecordBitflipFault(_Strict):
 FaultSpec = Annotated[
     Union[PlannerStallFault, PlannerDelayFault, PlannerKillFault, RecordBitflipFault], Field(discriminator="type")
 ]
-_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip"}
+_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip", "point_to_point", "nurbs_curve"}
 
 
 class MoveSpec(_Strict):
@@ -211,6 +214,42 @@ class PointToPointProgram(_Strict):
     settle: float = Field(0.3, ge=0, description="time simulated after the last move [s]")
 
 
+class PathLimitsSpec(_Strict):
+    """Path limits of a curve program (axis limits come from the machine parameters)."""
+
+    path_acceleration: float = Field(2000.0, gt=0, description="tangential acceleration [mm/s^2]")
+    path_jerk: float = Field(50000.0, gt=0, description="tangential jerk [mm/s^3]")
+    normal_acceleration: float = Field(2000.0, gt=0, description="centripetal acceleration [mm/s^2]")
+    normal_jerk: float = Field(50000.0, gt=0, description="normal jerk [mm/s^3]")
+
+
+class ToolAxisSpec(_Strict):
+    """The tool axis, held fixed along the curve, as head angles."""
+
+    A: float = Field(0.0, description="[deg]")
+    B: float = Field(0.0, description="[deg]")
+
+
+class NurbsCurveProgram(_Strict):
+    """A tool-tip NURBS curve in the workpiece frame (origin at the workpiece top centre, mm)."""
+
+    type: Literal["nurbs_curve"]
+    degree: int = Field(ge=1, le=9)
+    control_points: list[list[float]] = Field(min_length=2, description="[[x, y, z], ...] [mm]")
+    weights: list[float] | None = Field(None, description="one per control point, > 0; default all 1")
+    knots: list[float] = Field(description="clamped knot vector, n + degree + 1 values")
+    feed: float = Field(gt=0, description="programmed feed [mm/min]")
+    chord_tolerance: float = Field(0.001, gt=0, description="[mm]")
+    limits: PathLimitsSpec = PathLimitsSpec()
+    tool_axis: ToolAxisSpec = ToolAxisSpec()
+    C: float = Field(0.0, description="spindle angle held along the curve [deg]")
+    approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
+    settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
+
+
+ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram], Field(discriminator="type")]
+
+
 class ScenarioFile(_Strict):
     """A whole scenario file, after the machine parameters were merged in."""
 
@@ -225,7 +264,7 @@ class ScenarioFile(_Strict):
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)
     max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
-    program: PointToPointProgram
+    program: ProgramSpec
 
 
 class _KeyedValueError(ValueError):
@@ -287,7 +326,10 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     model = load_model(model_path)
     info = model_info(model)
     axes = _convert_axes(spec.axes, info)
-    program = _convert_program(spec.program, axes, info, label)
+    if isinstance(spec.program, NurbsCurveProgram):
+        program = _convert_nurbs(spec.program, axes, model, label)
+    else:
+        program = _convert_program(spec.program, axes, info, label)
     if source_text is None:
         source_text = yaml.safe_dump(raw, sort_keys=False)
     return Scenario(
@@ -429,6 +471,7 @@ def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
                 rotary=rotary,
                 max_velocity=a.max_velocity * units.velocity_factor(rotary),
                 max_acceleration=a.max_acceleration * units.position_factor(rotary),
+                max_jerk=a.max_jerk * units.position_factor(rotary),
                 counts_per_unit=_counts_per_unit(axis, a.encoder),
                 kp=a.servo.kp,
                 ki=a.servo.ki,
@@ -442,6 +485,64 @@ def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
             )
         )
     return tuple(out)
+
+
+def _convert_nurbs(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label: Path) -> NurbsProgram:
+    import numpy as np
+
+    from cnc_twin.geometry.kinematics import HeadGeometry, rotation_ab
+    from cnc_twin.geometry.nurbs import NurbsCurve, NurbsError
+
+    for i, point in enumerate(spec.control_points):
+        if len(point) != 3:
+            raise ScenarioError(label, f"program.control_points[{i}]", f"expected [x, y, z] in mm, got {point}")
+    a, b = spec.tool_axis.A * units.DEG, spec.tool_axis.B * units.DEG
+    head = HeadGeometry.from_model(model)
+    tip_world = head.world_from_workpiece(np.array(spec.control_points) * units.MM)
+    axis_points = head.axes_from_tip(tip_world, a, b)
+    try:
+        curve = NurbsCurve(axis_points, spec.weights, spec.knots, spec.degree)
+    except NurbsError as exc:
+        raise ScenarioError(label, f"program.{exc.key}", str(exc)) from None
+    hold = (a, b, spec.C * units.DEG)
+    for cfg, value, name in zip(axes[3:], hold, ("tool_axis.A", "tool_axis.B", "C")):
+        if cfg.travel is not None and not cfg.travel[0] <= value <= cfg.travel[1]:
+            lo, hi = (v * cfg.display_factor for v in cfg.travel)
+            raise ScenarioError(label, f"program.{name}", f"{value * cfg.display_factor:g} deg is outside the "
+                                f"{cfg.name} travel {lo:g}..{hi:g} deg")
+    u = np.linspace(*curve.domain, 4001)
+    path = curve.point(u)
+    for i, cfg in enumerate(axes[:3]):
+        lo, hi = cfg.travel
+        bad = np.flatnonzero((path[:, i] < lo) | (path[:, i] > hi))
+        if bad.size:
+            raise ScenarioError(label, "program.control_points",
+                                f"the path leaves the {cfg.name} travel {lo * 1e3:g}..{hi * 1e3:g} mm at u = {u[bad[0]]:.4g}")
+    limits = spec.limits
+    path_limits = PathLimits(
+        feed=spec.feed * units.MM_PER_MIN,
+        chord_tolerance=spec.chord_tolerance * units.MM,
+        path_acceleration=limits.path_acceleration * units.MM,
+        path_jerk=limits.path_jerk * units.MM,
+        normal_acceleration=limits.normal_acceleration * units.MM,
+        normal_jerk=limits.normal_jerk * units.MM,
+        axis_velocity=tuple(c.max_velocity for c in axes[:3]),
+        axis_acceleration=tuple(c.max_acceleration for c in axes[:3]),
+        axis_jerk=tuple(c.max_jerk for c in axes[:3]),
+    )
+    shift = np.asarray(head.pivot_home) + rotation_ab(a, b) @ np.asarray(head.tool_offset)
+    return NurbsProgram(
+        degree=spec.degree,
+        knots=tuple(float(k) for k in spec.knots),
+        weights=tuple(float(w) for w in curve.weights),
+        control_points=tuple(tuple(float(x) for x in p) for p in axis_points),
+        hold=hold,
+        limits=path_limits,
+        approach_feed=spec.approach_feed * units.MM_PER_MIN if spec.approach_feed is not None else None,
+        settle=spec.settle,
+        tip_shift=tuple(float(x) for x in shift),
+        tool_offset=tuple(float(x) for x in head.tool_offset),
+    )
 
 
 def _convert_program(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], info: ModelInfo, label: Path) -> PointToPoint:

@@ -31,12 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from cnc_twin.config import Scenario
+from cnc_twin.config import NurbsProgram, Scenario
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.task import DspTask
 from cnc_twin.planner.process import PlannerJob, planner_main
 from cnc_twin.plant import Plant, load_model
+from cnc_twin.path_metrics import path_metrics
 from cnc_twin.record import FrameBuffer, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbells
@@ -101,6 +102,7 @@ class Twin:
         )
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
+        self.plan_us = self.plan_blocks = 0
         self.expected_periods = 0
         self.frames: FrameBuffer | None = None
 
@@ -134,6 +136,7 @@ class Twin:
                 planned = 0
             wall_time, periods = self._clock(dsp, planned, progress)
             retransmits = int(wb.retransmits[0])
+            self.plan_us, self.plan_blocks = int(wb.plan_us[0]), int(wb.plan_blocks[0])
         finally:
             # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
             try:
@@ -252,6 +255,9 @@ class Twin:
         }
         if sc.timing.mode == "realtime":
             metrics["late_periods"] = self.late_periods
+        if isinstance(sc.program, NurbsProgram):
+            metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
+                                           plan_us=self.plan_us, plan_blocks=self.plan_blocks)
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason

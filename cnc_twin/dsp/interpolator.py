@@ -18,6 +18,14 @@ stays within every axis's limit when ``|s'' lambda^2 + s' lambda'| <= a_lim`` wi
 
 applied per period with a 0.9 margin for the discrete step. ``lambda`` is also capped so the
 scaled profile stays within the velocity and acceleration limits (override above 1).
+
+Curves (CurveGeometry + CurveBlock records): the block clock runs the same way; each period the
+path advances ``ds = s(tau_new) - s(tau)`` of the block's S-curve (continuing into the next queued
+block within the period), and :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` turns that arc
+length into the next point on the NURBS curve. The hold slew uses the block's own speed ``v``,
+acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. A block that would end
+at speed with no next block queued (the FIFO ran dry) starts a hold early enough to stop inside
+it, and resumes when the next block arrives.
 """
 
 from __future__ import annotations
@@ -27,10 +35,45 @@ from collections import deque
 from collections.abc import Sequence
 
 from cnc_twin.config import AxisConfig
+from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.dsp.scurve import SCurve
+from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.planner.segments import DwellSegment, MoveSegment
-from cnc_twin.whiteboard.records import Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, Record, Spindle
+from cnc_twin.whiteboard.records import (
+    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, Record, Spindle,
+)
 
 SLEW_MARGIN = 0.9
+STOP_MARGIN = 1.5
+"""a starved curve block starts holding when its remaining length is within 1.5x the stopping distance"""
+
+
+class _Curve:
+    """A curve ready to run: its stepper and the held A, B, C."""
+
+    def __init__(self, record: CurveGeometry):
+        curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
+        self.stepper = CurveStepper(curve.span_evaluator(), curve.domain[0])
+        self.hold = tuple(record.hold)
+        self.end = tuple(float(x) for x in curve.point(curve.domain[1])[0]) + self.hold
+
+
+class _Block:
+    """A queued curve block: the S-curve and the curve it runs on."""
+
+    def __init__(self, record: CurveBlock, curve: _Curve, period: float):
+        self.profile = SCurve(record.length, record.v0, record.vp, record.v1, record.a_max, record.j_max)
+        self.curve = curve
+        self.periods = math.ceil(self.profile.duration / period)
+
+
+def _slew(lam: float, target: float, v: float, a: float, a_lim: float, dt: float) -> float:
+    """Move the time scale toward ``target`` as fast as ``|a lam^2 + v lam'| <= a_lim`` allows."""
+    if v <= 1e-12:
+        return target
+    if lam > target:
+        return max(target, lam - SLEW_MARGIN * (a_lim + a * lam * lam) / v * dt)
+    return min(target, lam + SLEW_MARGIN * (a_lim - a * lam * lam) / v * dt)
 
 
 class SegmentInterpolator:
@@ -68,6 +111,14 @@ class SegmentInterpolator:
         self.spindle_speed = 0.0
         self._hold_counts = [0.0] * len(self.counts_per_unit)
         self._queued_periods = 0
+        self._pending_curve: _Curve | None = None
+        self._curve: _Curve | None = None
+        self._s = 0.0
+        self._starved_hold = False
+        self.path_u = -1.0
+        """curve parameter at the end of the last period; -1 when not on a curve"""
+        self.path_ds = 0.0
+        """arc length commanded in the last period [m]"""
 
     # --- queue -------------------------------------------------------------------------------
     def push(self, seq: int, record: Record) -> None:
@@ -81,6 +132,15 @@ class SegmentInterpolator:
         elif isinstance(record, Dwell):
             self._queue.append((seq, DwellSegment(position=self.programmed, periods=record.periods)))
             self._queued_periods += record.periods
+        elif isinstance(record, CurveGeometry):
+            # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
+            self._pending_curve = _Curve(record)
+            self.programmed = self._pending_curve.end
+            self._queue.append((seq, self._pending_curve))
+        elif isinstance(record, CurveBlock):
+            block = _Block(record, self._pending_curve, self.period)
+            self._queue.append((seq, block))
+            self._queued_periods += block.periods
         else:
             self._queue.append((seq, record))
 
@@ -91,11 +151,19 @@ class SegmentInterpolator:
 
     @property
     def in_motion(self) -> bool:
-        return self._current is not None and isinstance(self._current[1], MoveSegment) and self.override > 0.0
+        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block))
+                and self.override > 0.0)
 
     @property
     def queued_records(self) -> int:
         return len(self._queue) + (self._current is not None)
+
+    @property
+    def on_curve(self) -> bool:
+        """A curve block is running or next in line."""
+        if self._current is not None and isinstance(self._current[1], _Block):
+            return True
+        return bool(self._queue) and isinstance(self._queue[0][1], (_Block, _Curve))
 
     @property
     def pending(self) -> int:
@@ -110,7 +178,7 @@ class SegmentInterpolator:
             seg = self._current[1]
             if isinstance(seg, DwellSegment):
                 left = self._dwell_left
-            else:
+            else:  # move or curve block
                 left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
         return self._queued_periods + left
 
@@ -122,12 +190,17 @@ class SegmentInterpolator:
         if self._current is None:
             return list(self._hold_counts)
         seq, seg = self._current
-        if isinstance(seg, DwellSegment):
+        self.path_ds = 0.0
+        if isinstance(seg, _Block):
+            counts = self._advance_block(seq, seg)
+        elif isinstance(seg, DwellSegment):
+            self.path_u = -1.0
             self._dwell_left -= 1
             counts = self._counts_of(seg.position)
             if self._dwell_left <= 0:
                 self._complete(seq)
         else:
+            self.path_u = -1.0
             counts = self._advance_move(seq, seg)
         self._hold_counts = counts
         return list(counts)
@@ -135,9 +208,16 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
             seq, item = self._queue.popleft()
-            if isinstance(item, (MoveSegment, DwellSegment)):
+            if isinstance(item, (MoveSegment, DwellSegment, _Block)):
                 self._queued_periods -= item.periods
-            if isinstance(item, MoveSegment):
+            if isinstance(item, _Block):
+                self._current = (seq, item)
+                self._tau = 0.0
+                self._s = 0.0
+            elif isinstance(item, _Curve):
+                self._curve = item
+                self.last_seq_executed = seq
+            elif isinstance(item, MoveSegment):
                 self._begin_move(seq, item)
             elif isinstance(item, DwellSegment):
                 self._current = (seq, item)
@@ -184,12 +264,7 @@ class SegmentInterpolator:
         target = 0.0 if self.hold else min(self.override_target, self._lam_max)
         if lam != target:
             _, sd, sdd = prof.evaluate(self._tau)
-            if sd <= 1e-12:  # at rest on the path: any scale is reachable at once
-                lam = target
-            elif lam > target:
-                lam = max(target, lam - SLEW_MARGIN * (self._a_lim + sdd * lam * lam) / sd * self.period)
-            else:
-                lam = min(target, lam + SLEW_MARGIN * (self._a_lim - sdd * lam * lam) / sd * self.period)
+            lam = _slew(lam, target, sd, sdd, self._a_lim, self.period)
             self.override = lam
         self._tau += lam * self.period
         if self._tau >= prof.duration - 1e-9 * self.period:
@@ -197,6 +272,48 @@ class SegmentInterpolator:
             return self._counts_of(seg.end)
         s = prof.evaluate(self._tau)[0]
         return [c0 + s * dc for c0, dc in zip(self._start_counts, self._delta_counts)]
+
+    def _advance_block(self, seq: int, block: _Block) -> list[float]:
+        """One period along a curve block; the setpoint in counts."""
+        prof = block.profile
+        tau = self._tau
+        s_now, v, a = prof.state(tau)
+        if prof.v1 > 0.0:  # will the block end at speed with nothing queued behind it?
+            nxt = self._queue[0][1] if self._queue else None
+            if isinstance(nxt, _Block):
+                self._starved_hold = False
+            else:
+                speed = self.override * v
+                stop = speed * speed / (2.0 * prof.a_max) * STOP_MARGIN + speed * self.period
+                self._starved_hold = prof.length - s_now <= stop
+        lam = self.override
+        target = 0.0 if (self.hold or self._starved_hold) else self.override_target
+        if lam != target:
+            lam = _slew(lam, target, v, a, prof.a_max, self.period)
+            self.override = lam
+        tau += lam * self.period
+        if tau < prof.duration:
+            s_new = prof.state(tau)[0]
+            ds = s_new - self._s
+            self._s = s_new
+            self._tau = tau
+        else:  # block done within this period: finish it, continue into the next block if queued
+            ds = prof.length - self._s
+            self._complete(seq)
+            nxt = self._queue[0][1] if self._queue else None
+            if isinstance(nxt, _Block):
+                seq_next, nxt = self._queue.popleft()
+                self._queued_periods -= nxt.periods
+                self._current = (seq_next, nxt)
+                self._tau = tau - prof.duration
+                self._s = nxt.profile.state(self._tau)[0]
+                ds += self._s
+        stepper = block.curve.stepper
+        point = stepper.step(ds) if ds > 0.0 else stepper.point
+        self.path_u = stepper.u
+        self.path_ds = ds
+        hold = block.curve.hold
+        return self._counts_of((point[0], point[1], point[2], hold[0], hold[1], hold[2]))
 
     def _counts_of(self, positions) -> list[float]:
         return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]

@@ -32,7 +32,7 @@ from cnc_twin.config import AxisConfig, ForceSensorConfig, Timing
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
 PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchanges", "records_rejected",
-                 "last_seq_executed")
+                 "last_seq_executed", "path_u", "path_ds")
 """per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 

@@ -24,6 +24,9 @@ exchanges are attempted, and the state becomes FAULT once the axes are at rest.
 
 from __future__ import annotations
 
+from array import array
+from time import perf_counter_ns
+
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
@@ -59,6 +62,8 @@ class DspTask:
         self.records_rejected = 0
         self.underrun_periods = 0
         self.planner_lost = False
+        self.interpolator_ns = array("q")
+        """wall-clock cost of each coarse interpolation period on a curve [ns] (metrics only)"""
 
     @property
     def done(self) -> bool:
@@ -78,7 +83,13 @@ class DspTask:
         if acquired:
             self._publish(k)
         interp = self.interpolator
-        self.servo.begin_period(interp.next_period())
+        if interp.path_u >= 0.0 or interp.on_curve:
+            started = perf_counter_ns()
+            setpoint = interp.next_period()
+            self.interpolator_ns.append(perf_counter_ns() - started)
+        else:
+            setpoint = interp.next_period()
+        self.servo.begin_period(setpoint)
         self._update_state()
         frame, base = self.servo.frame, self.servo.period_slot
         frame[base] = self.state
@@ -88,6 +99,8 @@ class DspTask:
         frame[base + 4] = self.port.missed_exchanges
         frame[base + 5] = self.records_rejected
         frame[base + 6] = interp.last_seq_executed
+        frame[base + 7] = interp.path_u
+        frame[base + 8] = interp.path_ds
 
     def raise_fault(self, code: int, message: str, k: int) -> None:
         """Record a fault and start a controlled stop (the first fault wins)."""

@@ -32,34 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_twin.config import PathLimits
 from cnc_twin.dsp.scurve import SCurve, reachable
 from cnc_twin.geometry.nurbs import NurbsCurve
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
-
-
-@dataclass(frozen=True)
-class PathLimits:
-    """Limits for one path. Speeds [m/s], accelerations [m/s^2], jerks [m/s^3]; axes X, Y, Z."""
-
-    feed: float
-    chord_tolerance: float
-    """[m]"""
-    path_acceleration: float
-    path_jerk: float
-    normal_acceleration: float
-    normal_jerk: float
-    axis_velocity: tuple[float, float, float]
-    axis_acceleration: tuple[float, float, float]
-    axis_jerk: tuple[float, float, float]
-
-    @property
-    def tangential_acceleration(self) -> float:
-        return min(self.path_acceleration, 0.5 * min(self.axis_acceleration))
-
-    @property
-    def tangential_jerk(self) -> float:
-        return min(self.path_jerk, min(self.axis_jerk) / 3.0)
 
 
 @dataclass(frozen=True)

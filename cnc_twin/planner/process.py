@@ -29,14 +29,14 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from cnc_twin.config import AxisConfig, FaultInjection, PointToPoint
-from cnc_twin.planner.ptp import plan_point_to_point
+from cnc_twin.config import AxisConfig, FaultInjection, NurbsProgram, PointToPoint
+from cnc_twin.planner.ptp import plan_move, plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbell
 from cnc_twin.whiteboard.ports import PcPort
-from cnc_twin.whiteboard.records import Dwell, EndOfProgram, Move, Record, encode
+from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, Dwell, EndOfProgram, Move, Record, encode
 from cnc_twin.whiteboard.status import DspState
 
 
@@ -44,7 +44,7 @@ from cnc_twin.whiteboard.status import DspState
 class PlannerJob:
     """Everything the planner process needs, as plain picklable data."""
 
-    program: PointToPoint
+    program: PointToPoint | NurbsProgram
     axes: tuple[AxisConfig, ...]
     home: tuple[float, ...]
     period: float
@@ -71,6 +71,47 @@ def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int
     records.append(EndOfProgram())
     periods.append(0)
     return records, periods
+
+
+def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
+    """Plan ``job``: wire records, each record's duration [periods], and the number of motion blocks."""
+    if isinstance(job.program, NurbsProgram):
+        return nurbs_records(job)
+    segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
+    records, periods = segments_to_records(segments)
+    return records, periods, sum(isinstance(s, MoveSegment) for s in segments)
+
+
+def nurbs_records(job: PlannerJob) -> tuple[list[Record], list[int], int]:
+    """Approach move, the curve, its S-curve blocks, settle, end of program."""
+    import math
+
+    from cnc_twin.geometry.nurbs import NurbsCurve
+    from cnc_twin.planner.feed import plan_feed
+
+    prog = job.program
+    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
+    start = tuple(float(x) for x in curve.point(curve.domain[0])[0]) + tuple(prog.hold)
+    records: list[Record] = []
+    periods: list[int] = []
+    approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
+    if approach is not None:
+        records.append(Move(end=approach.end, profile=approach.profile, periods=approach.periods))
+        periods.append(approach.periods)
+    records.append(CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
+                                 control_points=prog.control_points, hold=prog.hold))
+    periods.append(0)
+    plan = plan_feed(curve, prog.limits, period=job.period)
+    for b in plan.blocks:
+        records.append(CurveBlock(b.length, b.v0, b.vp, b.v1, b.a_max, b.j_max))
+        periods.append(math.ceil(b.duration / job.period))
+    if prog.settle > 0:
+        n = max(1, math.ceil(prog.settle / job.period - 1e-9))
+        records.append(Dwell(periods=n))
+        periods.append(n)
+    records.append(EndOfProgram())
+    periods.append(0)
+    return records, periods, len(plan.blocks) + (approach is not None)
 
 
 class Streamer:
@@ -171,9 +212,11 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp:
     wb = Whiteboard.attach(shm_name, L.Layout(job.layout_words))
     port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
     try:
-        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
-        records, periods = segments_to_records(segments)
+        started = time.perf_counter()
+        records, periods, blocks = build_program(job)
         encoded = [encode(r, seq) for seq, r in enumerate(records, start=1)]
+        wb.plan_us[0] = min(int((time.perf_counter() - started) * 1e6), 0xFFFFFFFF)
+        wb.plan_blocks[0] = blocks
         streamer = Streamer(encoded, periods, chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
         faults = FaultSchedule(job.faults)
         port.announce(program_periods=int(sum(periods)))

@@ -47,6 +47,8 @@ class Whiteboard:
         self.program_periods = self._u32(pc + L.PC_PROGRAM_PERIODS)
         self.records_sent = self._u32(pc + L.PC_RECORDS_SENT)
         self.retransmits = self._u32(pc + L.PC_RETRANSMITS)
+        self.plan_us = self._u32(pc + L.PC_PLAN_US)
+        self.plan_blocks = self._u32(pc + L.PC_PLAN_BLOCKS)
         self.fifo_read = self._u32(dsp + L.DSP_FIFO_READ)
         self.dsp_heartbeat = self._u32(dsp + L.DSP_HEARTBEAT)
         self.status = np.ndarray((1,), dtype=STATUS_DTYPE, buffer=buf, offset=2 * layout.status_base)
@@ -84,7 +86,8 @@ class Whiteboard:
     def close(self) -> None:
         """Drop the views, close the mapping, and unlink the segment if this side created it."""
         for attr in ("words", "fifo_ring", "status", "pc_magic", "pc_heartbeat", "fifo_write",
-                     "program_periods", "records_sent", "retransmits", "fifo_read", "dsp_heartbeat"):
+                     "program_periods", "records_sent", "retransmits", "plan_us", "plan_blocks", "fifo_read",
+                     "dsp_heartbeat"):
             self.__dict__.pop(attr, None)
         try:
             self.shm.close()

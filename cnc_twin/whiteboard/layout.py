@@ -46,6 +46,8 @@ PC_PROGRAM_PERIODS = 10  # u32, planned duration of the whole program [interpola
 PC_RECORDS_SENT = 12  # u32
 PC_RETRANSMITS = 14   # u32, records sent again after the DSP rejected one
 PC_ACK_TIME = 16      # u64, monotonic clock [ns] when the PC acknowledged the last status
+PC_PLAN_US = 20       # u32, wall-clock time the planner spent planning the program [us]
+PC_PLAN_BLOCKS = 22   # u32, motion blocks (moves, curve blocks) it planned
 
 # DSP control block, word offsets from the DSP half's base.
 DSP_HOLDA = 0         # u16, 1 while the bus is granted to the PC

@@ -26,10 +26,14 @@ type   record           payload                                                 
 5      Spindle          on u16, pad u16, speed f64 [rad/s]                         6
 6      EndOfProgram     -                                                          0
 7      DataBlock        opaque program data (u16 words), e.g. a 4 KB block         1..2048
+8      CurveGeometry    degree u16, n u16, pad u16 x2; held A, B, C f64 x3;        varies
+                        knots f64 x (n + degree + 1); weights f64 x n;
+                        control points (X, Y, Z axis space) f64 x 3n
+9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6      24
 =====  ===============  =========================================================  ======
 
-DataBlock is the one variable-length type: its span is fixed by the length and its complement
-(a single flipped bit in either makes them disagree), so the CRC-16 guarantee still holds.
+DataBlock and CurveGeometry have variable length: their span is fixed by the length and its
+complement (a single flipped bit in either makes them disagree), so the CRC-16 guarantee holds.
 """
 
 from __future__ import annotations
@@ -104,7 +108,31 @@ class DataBlock:
 
 MAX_BLOCK_WORDS = 2048
 
-Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock
+
+@dataclass(frozen=True)
+class CurveGeometry:
+    """A NURBS tool path in axis space (X/Y/Z, m), with A, B, C held [rad] along it."""
+
+    degree: int
+    knots: tuple[float, ...]
+    weights: tuple[float, ...]
+    control_points: tuple[tuple[float, float, float], ...]
+    hold: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CurveBlock:
+    """One S-curve block of the path's feed plan (see cnc_twin.dsp.scurve.SCurve)."""
+
+    length: float
+    v0: float
+    vp: float
+    v1: float
+    a_max: float
+    j_max: float
+
+
+Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock
 
 _MOVE = struct.Struct("<6d4dI")
 _DWELL = struct.Struct("<I")
@@ -112,9 +140,15 @@ _F64 = struct.Struct("<d")
 _SPINDLE = struct.Struct("<HHd")
 _HEADER = struct.Struct("<HHHI")
 
-_TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7}
-_PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0}
+_TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7,
+            CurveGeometry: 8, CurveBlock: 9}
+_CURVE_HEAD = struct.Struct("<HHHH3d")
+_CURVE_BLOCK = struct.Struct("<6d")
+_PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0,
+                  9: _CURVE_BLOCK.size // 2}
 _DATA_BLOCK = 7
+_CURVE_GEOMETRY = 8
+_VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY}
 MAX_RECORD_WORDS = OVERHEAD_WORDS + MAX_BLOCK_WORDS
 
 
@@ -140,6 +174,16 @@ def _payload(record: Record) -> bytes:
         if not 1 <= len(record.words) <= MAX_BLOCK_WORDS:
             raise ValueError(f"a data block holds 1..{MAX_BLOCK_WORDS} words, got {len(record.words)}")
         return np.ascontiguousarray(record.words, dtype="<u2").tobytes()
+    if isinstance(record, CurveGeometry):
+        n = len(record.control_points)
+        body = _CURVE_HEAD.pack(record.degree, n, 0, 0, *record.hold) + np.concatenate(
+            [np.asarray(record.knots, "<f8"), np.asarray(record.weights, "<f8"),
+             np.asarray(record.control_points, "<f8").ravel()]).tobytes()
+        if len(body) // 2 > MAX_BLOCK_WORDS:
+            raise ValueError(f"curve of {n} control points exceeds one record ({MAX_BLOCK_WORDS} words)")
+        return body
+    if isinstance(record, CurveBlock):
+        return _CURVE_BLOCK.pack(record.length, record.v0, record.vp, record.v1, record.a_max, record.j_max)
     raise TypeError(f"not a record: {record!r}")
 
 
@@ -165,9 +209,9 @@ def record_length(header: np.ndarray) -> int:
     if n_check != (~n & 0xFFFF):
         raise RecordError("length check failed")
     kind = w0 & 0xFF
-    if kind == _DATA_BLOCK:
+    if kind in _VARIABLE:
         if not 1 <= n <= MAX_BLOCK_WORDS:
-            raise RecordError(f"data block of {n} words")
+            raise RecordError(f"variable record of {n} words")
         return OVERHEAD_WORDS + n
     expected = _PAYLOAD_WORDS.get(kind)
     if expected is None:
@@ -175,6 +219,20 @@ def record_length(header: np.ndarray) -> int:
     if n != expected:
         raise RecordError(f"record type {w0 & 0xFF} has {expected} payload words, header says {n}")
     return OVERHEAD_WORDS + n
+
+
+def _decode_curve(payload: bytes) -> CurveGeometry:
+    if len(payload) < _CURVE_HEAD.size:
+        raise RecordError("curve record shorter than its header")
+    degree, n, _, _, *hold = _CURVE_HEAD.unpack_from(payload)
+    values = np.frombuffer(payload, dtype="<f8", offset=_CURVE_HEAD.size)
+    n_knots = n + degree + 1
+    if len(values) != n_knots + 4 * n:
+        raise RecordError(f"curve record of {len(values)} values for {n} control points of degree {degree}")
+    knots = tuple(values[:n_knots].tolist())
+    weights = tuple(values[n_knots:n_knots + n].tolist())
+    points = tuple(tuple(p) for p in values[n_knots + n:].reshape(n, 3).tolist())
+    return CurveGeometry(degree=degree, knots=knots, weights=weights, control_points=points, hold=tuple(hold))
 
 
 def decode(words: np.ndarray) -> tuple[int, Record]:
@@ -211,6 +269,10 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
         record = Spindle(on=bool(on), speed=speed)
     elif kind == _DATA_BLOCK:
         record = DataBlock(words=words[HEADER_WORDS:-1])
+    elif kind == _CURVE_GEOMETRY:
+        record = _decode_curve(bytes(payload))
+    elif kind == 9:
+        record = CurveBlock(*_CURVE_BLOCK.unpack(payload))
     else:
         record = EndOfProgram()
     return seq, record

@@ -1,0 +1,70 @@
+"""Head kinematics with the tool axis held fixed: tool-tip position <-> X/Y/Z, for given A/B.
+
+The linear axes carry the A/B pivot; A turns about x, then B about y (in A's frame); the tool tip
+sits at a fixed offset from the pivot in B's frame. With A and B held the tip moves with X/Y/Z
+one to one, so an axis-space path is the tip path shifted by a constant::
+
+    pivot(X, Y, Z)  = pivot_home + (X, Y, Z)
+    tip             = pivot(X, Y, Z) + Rx(A) Ry(B) offset
+    (X, Y, Z)       = tip - pivot_home - Rx(A) Ry(B) offset
+
+``pivot_home`` and ``offset`` are read from the MJCF at the home keyframe (body ``a_yoke``,
+site ``tool_site``), and the workpiece frame's origin from site ``workpiece_site``. Positions in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from cnc_twin.plant import HOME_KEYFRAME
+
+PIVOT_BODY = "a_yoke"
+TOOL_SITE = "tool_site"
+WORKPIECE_SITE = "workpiece_site"
+
+
+def rotation_ab(a: float, b: float) -> np.ndarray:
+    """``Rx(a) @ Ry(b)``, shape (3, 3); angles [rad]."""
+    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    return rx @ ry
+
+
+@dataclass(frozen=True)
+class HeadGeometry:
+    """Offsets of the reference machine read from its MJCF (all in the world frame, m)."""
+
+    pivot_home: tuple[float, float, float]
+    tool_offset: tuple[float, float, float]
+    """tip - pivot at A = B = 0"""
+    workpiece_origin: tuple[float, float, float]
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> "HeadGeometry":
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, model.key(HOME_KEYFRAME).id)
+        pad = model.joint("pad_joint")
+        data.qpos[pad.qposadr[0]] = 0.0  # nominal, undeflected pad
+        mujoco.mj_kinematics(model, data)
+        pivot = data.body(PIVOT_BODY).xpos.copy()
+        tip = data.site(TOOL_SITE).xpos.copy()
+        origin = data.site(WORKPIECE_SITE).xpos.copy()
+        return cls(tuple(pivot), tuple(tip - pivot), tuple(origin))
+
+    def axes_from_tip(self, tip_world: np.ndarray, a: float, b: float) -> np.ndarray:
+        """X/Y/Z [m] that put the tool tip at ``tip_world`` (shape (..., 3)) with A, B [rad] held."""
+        shift = np.asarray(self.pivot_home) + rotation_ab(a, b) @ np.asarray(self.tool_offset)
+        return np.asarray(tip_world) - shift
+
+    def tip_from_axes(self, xyz: np.ndarray, a: float, b: float) -> np.ndarray:
+        """Tool tip [m] in the world frame for axis positions X/Y/Z (shape (..., 3)) and A, B."""
+        shift = np.asarray(self.pivot_home) + rotation_ab(a, b) @ np.asarray(self.tool_offset)
+        return np.asarray(xyz) + shift
+
+    def world_from_workpiece(self, points: np.ndarray) -> np.ndarray:
+        """Workpiece-frame points (origin at the workpiece top centre, axes as the world's) -> world."""
+        return np.asarray(points) + np.asarray(self.workpiece_origin)
