@@ -132,7 +132,10 @@ def _validate(args: argparse.Namespace) -> int:
 
     for path in args.scenarios:
         scenario = load_scenario(path)
-        print(f"{path}: ok ({scenario.name}, {len(scenario.program.moves)} moves)")
+        program = scenario.program
+        what = (f"{len(program.moves)} moves" if hasattr(program, "moves")
+                else f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points")
+        print(f"{path}: ok ({scenario.name}, {what})")
     return EXIT_OK
 
 
