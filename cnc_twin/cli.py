@@ -197,6 +197,13 @@ def summary_table(metrics: dict) -> str:
             f"{wb['underrun_periods']} underrun periods"
             + (f", answer latency median {lat['median']:.1f} us" if lat["median"] is not None else "")
         )
+    path = metrics.get("path")
+    if path and "contour_error_um" in path:
+        lines.append(
+            f"path: {path['length_mm']:.1f} mm, contour error max {path['contour_error_um']['max']:.2f} um "
+            f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
+            f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
+        )
     lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")

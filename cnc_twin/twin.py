@@ -97,7 +97,7 @@ class Twin:
             period=timing.interpolation_period,
             layout_words=scenario.whiteboard.words,
             chunk_words=scenario.whiteboard.chunk_words,
-            lookahead_periods=math.ceil(scenario.planner.lookahead / timing.interpolation_period - 1e-9),
+            lookahead_periods=_lookahead_periods(scenario),
             faults=scenario.faults,
         )
         self.stop_reason: str | None = None
@@ -264,6 +264,22 @@ class Twin:
         elif dsp.fault != FaultCode.NONE:
             metrics["status"] = "fault"
         return RunResult(scenario=sc, trace=trace, metrics=metrics)
+
+
+def _lookahead_periods(scenario: Scenario) -> int:
+    """The planner's look-ahead [periods]; 0 = no limit.
+
+    On a curve the card must always hold enough path to stop in, so a look-ahead is never less
+    than twice the time to stop from the programmed feed (jerk-limited).
+    """
+    period = scenario.timing.interpolation_period
+    periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
+    if periods and isinstance(scenario.program, NurbsProgram):
+        lim = scenario.program.limits
+        a, j = lim.tangential_acceleration, lim.tangential_jerk
+        stop_time = lim.feed / a + a / j
+        periods = max(periods, math.ceil(2.0 * stop_time / period))
+    return periods
 
 
 def _reap(process: multiprocessing.process.BaseProcess | None) -> None:

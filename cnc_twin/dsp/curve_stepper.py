@@ -53,7 +53,9 @@ class CurveStepper:
             return self.point
         c1, c2, speed = self._c1, self._c2, self._speed
         sp2 = speed * speed
-        dot12 = sum(a * b for a, b in zip(c1, c2))
+        dot12 = 0.0
+        for a, b in zip(c1, c2):
+            dot12 += a * b
         du = ds / speed - ds * ds * dot12 / (2.0 * sp2 * sp2)
         u = self.u
         u_p = u + du
@@ -64,7 +66,10 @@ class CurveStepper:
             self._speed = math.sqrt(sum(x * x for x in c1n))
             return c
         cp, c1p, c2p = self.ev.evaluate(u_p)
-        speed_p = math.sqrt(sum(x * x for x in c1p))
+        sq = 0.0
+        for x in c1p:
+            sq += x * x
+        speed_p = math.sqrt(sq)
         if self.correct:
             knot = self.ev.next_break(u)
             if knot < u_p:

@@ -23,9 +23,11 @@ Curves (CurveGeometry + CurveBlock records): the block clock runs the same way; 
 path advances ``ds = s(tau_new) - s(tau)`` of the block's S-curve (continuing into the next queued
 block within the period), and :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` turns that arc
 length into the next point on the NURBS curve. The hold slew uses the block's own speed ``v``,
-acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. A block that would end
-at speed with no next block queued (the FIFO ran dry) starts a hold early enough to stop inside
-it, and resumes when the next block arrives.
+acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. When the queued path
+(the rest of the running block plus every queued block) ends at speed and is no longer than the
+stopping distance (the FIFO is running dry), the card holds, across block boundaries, and stops
+inside what it has; it resumes once new blocks have made the queued path longer than a full-speed
+stop again.
 """
 
 from __future__ import annotations
@@ -115,6 +117,14 @@ class SegmentInterpolator:
         self._curve: _Curve | None = None
         self._s = 0.0
         self._starved_hold = False
+        self._queued_path = 0.0
+        """length of the curve blocks queued behind the running one [m]"""
+        self._path_open = False
+        """the last queued record is a curve block ending at speed: the path continues beyond it"""
+        self._arrivals = 0
+        self._arrivals_at_latch = 0
+        self._stop_reserve = 0.0
+        self._block_state: tuple[float, float, float] | None = None
         self.path_u = -1.0
         """curve parameter at the end of the last period; -1 when not on a curve"""
         self.path_ds = 0.0
@@ -141,8 +151,14 @@ class SegmentInterpolator:
             block = _Block(record, self._pending_curve, self.period)
             self._queue.append((seq, block))
             self._queued_periods += block.periods
+            self._queued_path += block.profile.length
+            self._path_open = block.profile.v1 > 0.0
+            self._arrivals += 1
+            vp, a_stop = block.profile.vp, SLEW_MARGIN * block.profile.a_max
+            self._stop_reserve = 2.0 * (vp * vp / (2.0 * a_stop) * STOP_MARGIN + 2.0 * vp * self.period)
         else:
             self._queue.append((seq, record))
+            self._path_open = False
 
     @property
     def starved(self) -> bool:
@@ -157,6 +173,18 @@ class SegmentInterpolator:
     @property
     def queued_records(self) -> int:
         return len(self._queue) + (self._current is not None)
+
+    def wants_records(self, ahead: int) -> bool:
+        """Decode more records? ``ahead`` behind the running one, and on an open curve path
+        enough blocks to cover twice a full-speed stop (the rest stay in the FIFO)."""
+        if len(self._queue) < ahead:
+            return True
+        return self._path_open and self._queued_path < self._stop_reserve
+
+    @property
+    def holding_for_data(self) -> bool:
+        """Holding on a curve because the queued path ran short (a FIFO underrun feed hold)."""
+        return self._starved_hold and self._current is not None
 
     @property
     def on_curve(self) -> bool:
@@ -188,6 +216,7 @@ class SegmentInterpolator:
         if self._current is None:
             self._start_next()
         if self._current is None:
+            self.path_ds = 0.0
             return list(self._hold_counts)
         seq, seg = self._current
         self.path_ds = 0.0
@@ -211,9 +240,11 @@ class SegmentInterpolator:
             if isinstance(item, (MoveSegment, DwellSegment, _Block)):
                 self._queued_periods -= item.periods
             if isinstance(item, _Block):
+                self._queued_path -= item.profile.length
                 self._current = (seq, item)
                 self._tau = 0.0
                 self._s = 0.0
+                self._block_state = None
             elif isinstance(item, _Curve):
                 self._curve = item
                 self.last_seq_executed = seq
@@ -277,15 +308,24 @@ class SegmentInterpolator:
         """One period along a curve block; the setpoint in counts."""
         prof = block.profile
         tau = self._tau
-        s_now, v, a = prof.state(tau)
-        if prof.v1 > 0.0:  # will the block end at speed with nothing queued behind it?
-            nxt = self._queue[0][1] if self._queue else None
-            if isinstance(nxt, _Block):
+        s_now, v, a = self._block_state if self._block_state is not None else prof.state(tau)
+        # Running dry? The queued path ends at speed and is no longer than the stopping distance.
+        remaining = prof.length - s_now + self._queued_path
+        open_end = self._path_open if self._queue else prof.v1 > 0.0
+        a_stop = SLEW_MARGIN * prof.a_max
+        if not open_end:
+            self._starved_hold = False
+        elif not self._starved_hold:
+            speed = self.override * v
+            if remaining <= speed * speed / (2.0 * a_stop) * STOP_MARGIN + 2.0 * speed * self.period:
+                self._starved_hold = True
+                self._arrivals_at_latch = self._arrivals
+        elif self._arrivals != self._arrivals_at_latch:  # new blocks came: resume if a full stop fits
+            full = max(v, prof.vp)
+            if remaining > full * full / (2.0 * a_stop) * STOP_MARGIN + 2.0 * full * self.period:
                 self._starved_hold = False
             else:
-                speed = self.override * v
-                stop = speed * speed / (2.0 * prof.a_max) * STOP_MARGIN + speed * self.period
-                self._starved_hold = prof.length - s_now <= stop
+                self._arrivals_at_latch = self._arrivals
         lam = self.override
         target = 0.0 if (self.hold or self._starved_hold) else self.override_target
         if lam != target:
@@ -293,17 +333,21 @@ class SegmentInterpolator:
             self.override = lam
         tau += lam * self.period
         if tau < prof.duration:
-            s_new = prof.state(tau)[0]
+            state = prof.state(tau)  # the next period starts from this state
+            self._block_state = state
+            s_new = state[0]
             ds = s_new - self._s
             self._s = s_new
             self._tau = tau
         else:  # block done within this period: finish it, continue into the next block if queued
             ds = prof.length - self._s
+            self._block_state = None
             self._complete(seq)
             nxt = self._queue[0][1] if self._queue else None
             if isinstance(nxt, _Block):
                 seq_next, nxt = self._queue.popleft()
                 self._queued_periods -= nxt.periods
+                self._queued_path -= nxt.profile.length
                 self._current = (seq_next, nxt)
                 self._tau = tau - prof.duration
                 self._s = nxt.profile.state(self._tau)[0]

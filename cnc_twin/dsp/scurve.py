@@ -16,6 +16,7 @@ L is cruised at vp.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -105,6 +106,7 @@ class SCurve:
             a += jk * dt
             t += dt
         object.__setattr__(self, "_starts", tuple(starts))
+        object.__setattr__(self, "_times", [st[0] for st in starts])
         object.__setattr__(self, "duration", t)
         object.__setattr__(self, "_end", (s, v, a))
 
@@ -114,10 +116,8 @@ class SCurve:
             return self.length, self.v1, 0.0
         if t <= 0.0:
             return 0.0, self.v0, 0.0
-        for t0, s0, v0, a0, jk in reversed(self._starts):
-            if t >= t0:
-                dt = t - t0
-                return (s0 + v0 * dt + a0 * dt * dt / 2 + jk * dt**3 / 6,
-                        v0 + a0 * dt + jk * dt * dt / 2,
-                        a0 + jk * dt)
-        raise AssertionError("unreachable")  # pragma: no cover
+        t0, s0, v0, a0, jk = self._starts[bisect.bisect_right(self._times, t) - 1]
+        dt = t - t0
+        return (s0 + dt * (v0 + dt * (0.5 * a0 + dt * jk / 6.0)),
+                v0 + dt * (a0 + 0.5 * jk * dt),
+                a0 + jk * dt)

@@ -34,7 +34,8 @@ from cnc_twin.whiteboard.records import RecordError, decode
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 QUEUE_AHEAD = 2
-"""records the card keeps decoded behind the running one (the rest wait in the FIFO)"""
+"""records the card keeps decoded behind the running one (the rest wait in the FIFO); on a curve
+it decodes blocks until their path covers twice a full-speed stop"""
 
 
 class DspTask:
@@ -78,7 +79,7 @@ class DspTask:
                 acquired = self.port.acquire(k)
             except PlannerLost as exc:
                 self.raise_fault(FaultCode.PLANNER_LOST, str(exc), k)
-        if self.interpolator.pending < QUEUE_AHEAD:
+        if self.interpolator.wants_records(QUEUE_AHEAD):
             self._accept_records()
         if acquired:
             self._publish(k)
@@ -112,9 +113,9 @@ class DspTask:
         self.state = DspState.STOPPING
 
     def _accept_records(self) -> None:
-        """Pop records from the FIFO (up to the snapshot) until QUEUE_AHEAD wait decoded."""
+        """Pop records from the FIFO (up to the snapshot) while the interpolator wants more."""
         fifo, interp = self.port.fifo, self.interpolator
-        while interp.pending < QUEUE_AHEAD:
+        while interp.wants_records(QUEUE_AHEAD):
             try:
                 words = fifo.pop()
                 if words is None:
@@ -142,7 +143,7 @@ class DspTask:
             return
         if interp.finished:
             self.state = DspState.FINISHED
-        elif interp.starved and self.port.fifo.fill() == 0:
+        elif interp.holding_for_data or (interp.starved and self.port.fifo.fill() == 0):
             if self.state != DspState.IDLE:
                 self.state = DspState.FEED_HOLD
                 self.underrun_periods += 1

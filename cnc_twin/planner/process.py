@@ -6,7 +6,8 @@
 - the free FIFO space,
 - the chunk size (the card takes 4 KB per mailbox interrupt),
 - the look-ahead: motion queued ahead of execution (0 = no limit): what the card reports as
-  queued (``queued_periods``, including the rest of the running move) plus what is in flight.
+  queued (``queued_periods``, including the rest of the running move) plus what is in flight;
+  the record right after the running one is always sent.
 
 When the DSP reports more rejected records than before, the planner goes back to the DSP's
 ``expected_seq`` and sends from there again (go-back-N); the DSP flushed the FIFO when it
@@ -147,7 +148,10 @@ class Streamer:
             self.retransmitted += max(0, self.next_index - resend_from)
             self.next_index = resend_from
         # Motion queued on the card, as it reported, plus what is in flight (sent, not yet accepted).
+        # The record after the running one always goes, whatever the look-ahead: a card holding
+        # because it ran dry does not drain its queue, and must not wait for itself.
         accepted = int(st["expected_seq"]) - 1
+        executed = int(st["last_seq_executed"])
         on_card = int(st["queued_periods"])
         budget = self.chunk_words
         written = 0
@@ -155,7 +159,8 @@ class Streamer:
         free = fifo.free()
         while self.next_index < len(self.encoded):
             queued = on_card + int(self.cumulative[self.next_index] - self.cumulative[accepted])
-            if self.lookahead_periods and queued >= self.lookahead_periods:
+            if (self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed + 1
+                    and int(st["state"]) != DspState.FEED_HOLD):  # a card holding for data gets data
                 break
             words = self.encoded[self.next_index]
             if len(words) > budget or len(words) > free:
