@@ -99,6 +99,7 @@ class Twin:
             chunk_words=scenario.whiteboard.chunk_words,
             lookahead_periods=_lookahead_periods(scenario),
             faults=scenario.faults,
+            lockstep=timing.mode == "lockstep",
         )
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""

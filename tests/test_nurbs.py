@@ -193,3 +193,19 @@ def test_feed_plan_respects_chord_error_and_every_axis_limit():
     assert np.all(np.max(np.abs(acc), axis=0) <= np.array(limits.axis_acceleration) * 1.01)
     assert np.all(np.max(np.abs(jerk), axis=0) <= np.array(limits.axis_jerk) * 1.01)
     assert np.max(np.linalg.norm(v, axis=1)) <= limits.feed * 1.01
+
+
+def test_windowed_planning_commits_the_same_blocks_as_the_whole_plan():
+    curve = NurbsCurve(**FREEFORM)
+    limits = PathLimits(feed=0.1, chord_tolerance=1e-6, path_acceleration=2.0, path_jerk=50.0,
+                        normal_acceleration=2.0, normal_jerk=50.0, axis_velocity=(0.4, 0.4, 0.4),
+                        axis_acceleration=(2.0, 2.0, 2.0), axis_jerk=(50.0, 50.0, 50.0))
+    whole = plan_feed(curve, limits, period=1e-3)
+    windowed = plan_feed(curve, limits, period=1e-3, window=0.03)
+    assert sum(b.length for b in windowed.blocks) == pytest.approx(curve.arc_length(), rel=1e-9)
+    assert windowed.blocks[0].v0 == 0 and windowed.blocks[-1].v1 == 0
+    # same profile: the duration differs only by blocks split at window boundaries (none here
+    # change speed), well within a millisecond on a 2.5 s curve
+    assert windowed.duration == pytest.approx(whole.duration, abs=1e-3)
+    for a, b in zip(windowed.blocks[:-1], windowed.blocks[1:]):
+        assert a.v1 == pytest.approx(b.v0)  # continuous speed across every block boundary

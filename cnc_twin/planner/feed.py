@@ -22,6 +22,8 @@
    steps 3-4 repeat.
 
 The plan is a sequence of S-curve blocks covering the whole curve, starting and ending at rest.
+Long curves are planned in windows (:func:`plan_feed_windows`), committing only blocks that a
+later window cannot change, so the planner streams while it plans.
 Units: SI (m, s). The tool axis is held fixed, so X/Y/Z move with the tool tip one to one.
 """
 
@@ -33,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_twin.config import PathLimits
-from cnc_twin.dsp.scurve import SCurve, reachable
+from cnc_twin.dsp.scurve import SCurve, ramp_distance, reachable
 from cnc_twin.geometry.nurbs import NurbsCurve
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
@@ -113,33 +115,77 @@ def _local_minima(limit: np.ndarray, feed: float) -> list[int]:
     return out
 
 
-def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, max_rounds: int = 200) -> FeedPlan:
-    """Plan the whole curve from rest to rest. See the module docstring."""
-    spacing = min(limits.feed * period, 0.5e-3)
-    u, s = sample_curve(curve, spacing)
-    limit = feed_limit(curve, u, s, limits, period)
+def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_b: float,
+                limits: PathLimits, max_rounds: int) -> tuple[list[SCurve], list[int], list[float]]:
+    """Plan samples a..b from speed v_a to v_b: (blocks, critical indices, critical speeds)."""
     a_t, j_t = limits.tangential_acceleration, limits.tangential_jerk
-    critical = sorted({0, len(s) - 1, *_local_minima(limit, limits.feed)})
+    inner = [a + j for j in _local_minima(limit[a:b + 1], limits.feed)]
+    critical = sorted({a, b, *inner})
     for _ in range(max_rounds):
-        speeds = [0.0 if j in (0, len(s) - 1) else float(limit[j]) for j in critical]
-        lengths = [float(s[b] - s[a]) for a, b in zip(critical[:-1], critical[1:])]
+        speeds = [v_a if j == a else v_b if j == b else float(limit[j]) for j in critical]
+        lengths = [float(s[q] - s[p]) for p, q in zip(critical[:-1], critical[1:])]
         for i in range(len(lengths)):  # forward scan
             speeds[i + 1] = min(speeds[i + 1], reachable(speeds[i], lengths[i], a_t, j_t, speeds[i + 1]))
         for i in range(len(lengths) - 1, -1, -1):  # backward scan
             speeds[i] = min(speeds[i], reachable(speeds[i + 1], lengths[i], a_t, j_t, speeds[i]))
         blocks = []
         violation = None
-        for i, (a, b) in enumerate(zip(critical[:-1], critical[1:])):
-            cap = float(np.max(limit[a:b + 1]))
+        for i, (p, q) in enumerate(zip(critical[:-1], critical[1:])):
+            cap = float(np.max(limit[p:q + 1]))
             block = SCurve.plan(lengths[i], speeds[i], speeds[i + 1], v_max=min(cap, limits.feed), a_max=a_t, j_max=j_t)
             blocks.append(block)
-            worst = _worst_excess(block, s[a:b + 1] - s[a], limit[a:b + 1])
+            worst = _worst_excess(block, s[p:q + 1] - s[p], limit[p:q + 1])
             if worst is not None and violation is None:
-                violation = a + worst
+                violation = p + worst
         if violation is None:
-            return FeedPlan(blocks=tuple(blocks), s=s, u=u, limit=limit)
+            return blocks, critical, speeds
         critical = sorted(set(critical) | {violation})
     raise RuntimeError(f"feed planning did not converge in {max_rounds} rounds")
+
+
+def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
+                      max_rounds: int = 200):
+    """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
+
+    Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
+    critical point farther from the window's end than the stopping distance from full feed are
+    unaffected by that forced stop (the backward scan cannot reach them), so they are final and
+    identical to a whole-curve plan's; the next window starts there at the committed speed.
+    """
+    spacing = min(limits.feed * period, 0.5e-3)
+    u, s = sample_curve(curve, spacing)
+    limit = feed_limit(curve, u, s, limits, period)
+    stop = ramp_distance(limits.feed, 0.0, limits.tangential_acceleration, limits.tangential_jerk)
+    last = len(s) - 1
+    a, v_a = 0, 0.0
+    span = max(window, 3.0 * stop)
+    while True:
+        b = min(last, int(np.searchsorted(s, s[a] + span)))
+        blocks, critical, speeds = _plan_range(s, limit, a, b, v_a, 0.0, limits, max_rounds)
+        if b == last:
+            yield blocks
+            return
+        keep = [i for i, j in enumerate(critical) if i > 0 and s[b] - s[j] >= stop]
+        if not keep:
+            span *= 2.0  # the window held no committable block: widen it
+            continue
+        k = keep[-1]
+        yield blocks[:k]
+        a, v_a = critical[k], speeds[k]
+
+
+def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
+              max_rounds: int = 200) -> FeedPlan:
+    """Plan the whole curve from rest to rest (in windows when ``window`` is given [m])."""
+    spacing = min(limits.feed * period, 0.5e-3)
+    u, s = sample_curve(curve, spacing)
+    limit = feed_limit(curve, u, s, limits, period)
+    if window is None:
+        blocks = _plan_range(s, limit, 0, len(s) - 1, 0.0, 0.0, limits, max_rounds)[0]
+    else:
+        blocks = [b for chunk in plan_feed_windows(curve, limits, period=period, window=window,
+                                                   max_rounds=max_rounds) for b in chunk]
+    return FeedPlan(blocks=tuple(blocks), s=s, u=u, limit=limit)
 
 
 def _worst_excess(block: SCurve, s_local: np.ndarray, limit: np.ndarray) -> int | None:

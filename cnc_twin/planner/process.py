@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -55,6 +56,10 @@ class PlannerJob:
     lookahead_periods: int
     """0 = no limit"""
     faults: tuple[FaultInjection, ...] = ()
+    lockstep: bool = True
+    """plan windows inside the exchange loop (deterministic); False: in a background thread"""
+    window: float = 0.05
+    """curve length planned per window [m]"""
 
 
 def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int]]:
@@ -74,21 +79,20 @@ def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int
     return records, periods
 
 
-def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
-    """Plan ``job``: wire records, each record's duration [periods], and the number of motion blocks."""
-    if isinstance(job.program, NurbsProgram):
-        return nurbs_records(job)
-    segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
-    records, periods = segments_to_records(segments)
-    return records, periods, sum(isinstance(s, MoveSegment) for s in segments)
+def program_chunks(job: PlannerJob):
+    """The program as successive ``(records, periods)`` chunks, planned as they are asked for.
 
-
-def nurbs_records(job: PlannerJob) -> tuple[list[Record], list[int], int]:
-    """Approach move, the curve, its S-curve blocks, settle, end of program."""
+    Point-to-point: one chunk. Curves: the approach move and the curve, then the S-curve blocks
+    window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`), then settle and end.
+    """
+    if not isinstance(job.program, NurbsProgram):
+        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
+        yield segments_to_records(segments)
+        return
     import math
 
     from cnc_twin.geometry.nurbs import NurbsCurve
-    from cnc_twin.planner.feed import plan_feed
+    from cnc_twin.planner.feed import plan_feed_windows
 
     prog = job.program
     curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
@@ -102,41 +106,141 @@ def nurbs_records(job: PlannerJob) -> tuple[list[Record], list[int], int]:
     records.append(CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
                                  control_points=prog.control_points, hold=prog.hold))
     periods.append(0)
-    plan = plan_feed(curve, prog.limits, period=job.period)
-    for b in plan.blocks:
-        records.append(CurveBlock(b.length, b.v0, b.vp, b.v1, b.a_max, b.j_max))
-        periods.append(math.ceil(b.duration / job.period))
+    yield records, periods
+    for blocks in plan_feed_windows(curve, prog.limits, period=job.period, window=job.window):
+        yield ([CurveBlock(b.length, b.v0, b.vp, b.v1, b.a_max, b.j_max) for b in blocks],
+               [math.ceil(b.duration / job.period) for b in blocks])
+    tail: list[Record] = []
+    tail_periods: list[int] = []
     if prog.settle > 0:
         n = max(1, math.ceil(prog.settle / job.period - 1e-9))
-        records.append(Dwell(periods=n))
-        periods.append(n)
-    records.append(EndOfProgram())
-    periods.append(0)
-    return records, periods, len(plan.blocks) + (approach is not None)
+        tail.append(Dwell(periods=n))
+        tail_periods.append(n)
+    yield tail + [EndOfProgram()], tail_periods + [0]
+
+
+def estimated_periods(job: PlannerJob) -> int:
+    """Program length announced before planning [periods]: exact for moves, estimated for curves."""
+    if not isinstance(job.program, NurbsProgram):
+        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
+        return sum(seg.periods for seg in segments)
+    import math
+
+    from cnc_twin.geometry.nurbs import NurbsCurve
+
+    prog = job.program
+    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
+    start = tuple(float(x) for x in curve.point(curve.domain[0])[0]) + tuple(prog.hold)
+    approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
+    curve_time = 1.2 * curve.arc_length() / prog.limits.feed
+    return (approach.periods if approach else 0) + math.ceil((curve_time + prog.settle) / job.period)
+
+
+def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
+    """The whole program at once: records, their durations [periods], motion blocks."""
+    records: list[Record] = []
+    periods: list[int] = []
+    for chunk, chunk_periods in program_chunks(job):
+        records += chunk
+        periods += chunk_periods
+    return records, periods, sum(isinstance(r, (Move, CurveBlock)) for r in records)
+
+
+class Feeder:
+    """Moves planned chunks into the streamer: in the exchange loop (lockstep) or from a thread.
+
+    Lockstep plans the next chunk only when fewer than ``BACKLOG`` records wait unsent, a decision
+    that depends on the exchange sequence alone, so the stream is the same on every run.
+    """
+
+    BACKLOG = 8
+
+    def __init__(self, job: PlannerJob, streamer: "Streamer"):
+        self.streamer = streamer
+        self.chunks = program_chunks(job)
+        self.plan_seconds = 0.0
+        self.blocks = 0
+        self._lock = threading.Lock()
+        self._ready: list[tuple[list[Record], list[int]]] = []
+        self._done = False
+        self._error: BaseException | None = None
+        self.threaded = not job.lockstep
+        if self.threaded:
+            threading.Thread(target=self._run, name="planner-windows", daemon=True).start()
+
+    def _next(self) -> tuple[list[Record], list[int]] | None:
+        started = time.perf_counter()
+        try:
+            chunk = next(self.chunks)
+        except StopIteration:
+            return None
+        finally:
+            self.plan_seconds += time.perf_counter() - started
+        self.blocks += sum(isinstance(r, (Move, CurveBlock)) for r in chunk[0])
+        return chunk
+
+    def _run(self) -> None:
+        try:
+            while (chunk := self._next()) is not None:
+                with self._lock:
+                    self._ready.append(chunk)
+        except BaseException as exc:  # reported from the exchange loop
+            self._error = exc
+        self._done = True
+
+    def top_up(self) -> None:
+        """Hand planned records to the streamer (planning one chunk now, in lockstep mode)."""
+        if self.threaded:
+            if self._error is not None:
+                raise self._error
+            with self._lock:
+                ready, self._ready = self._ready, []
+            for chunk in ready:
+                self.streamer.add(*chunk)
+            if self._done and not self._ready:
+                self.streamer.complete = True
+            return
+        while not self.streamer.complete and self.streamer.backlog < self.BACKLOG:
+            chunk = self._next()
+            if chunk is None:
+                self.streamer.complete = True
+            else:
+                self.streamer.add(*chunk)
 
 
 class Streamer:
     """Which records go out in answer to a status. Sequence numbers start at 1.
 
+    Records are added as they are planned (:meth:`add`); ``complete`` is set after the last.
+
     Parameters
     ----------
-    encoded : each record's words, in program order (record i has seq i + 1).
-    periods : each record's duration [interpolation periods].
     chunk_words, lookahead_periods : limits per exchange (0 look-ahead = none).
     """
 
-    def __init__(self, encoded: list[np.ndarray], periods: list[int], *, chunk_words: int, lookahead_periods: int):
-        self.encoded = encoded
-        self.cumulative = np.concatenate(([0], np.cumsum(periods))).astype(np.int64)
+    def __init__(self, *, chunk_words: int, lookahead_periods: int):
+        self.encoded: list[np.ndarray] = []
+        self.cumulative: list[int] = [0]
         self.chunk_words = chunk_words
         self.lookahead_periods = lookahead_periods
         self.next_index = 0
+        self.complete = False
         self._rejected_seen = 0
         self.retransmitted = 0
 
+    def add(self, records: list[Record], periods: list[int]) -> None:
+        for record, n in zip(records, periods):
+            self.encoded.append(encode(record, len(self.encoded) + 1))
+            self.cumulative.append(self.cumulative[-1] + n)
+
+    @property
+    def backlog(self) -> int:
+        """Records planned and not yet sent."""
+        return len(self.encoded) - self.next_index
+
     @property
     def all_sent(self) -> bool:
-        return self.next_index >= len(self.encoded)
+        return self.complete and self.next_index >= len(self.encoded)
 
     def answer(self, status: np.ndarray, port: PcPort, *, corrupt=None) -> int:
         """Write records for one exchange; returns how many were written."""
@@ -158,7 +262,7 @@ class Streamer:
         fifo = port.fifo
         free = fifo.free()
         while self.next_index < len(self.encoded):
-            queued = on_card + int(self.cumulative[self.next_index] - self.cumulative[accepted])
+            queued = on_card + (self.cumulative[self.next_index] - self.cumulative[accepted])
             if (self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed + 1
                     and int(st["state"]) != DspState.FEED_HOLD):  # a card holding for data gets data
                 break
@@ -217,14 +321,10 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp:
     wb = Whiteboard.attach(shm_name, L.Layout(job.layout_words))
     port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
     try:
-        started = time.perf_counter()
-        records, periods, blocks = build_program(job)
-        encoded = [encode(r, seq) for seq, r in enumerate(records, start=1)]
-        wb.plan_us[0] = min(int((time.perf_counter() - started) * 1e6), 0xFFFFFFFF)
-        wb.plan_blocks[0] = blocks
-        streamer = Streamer(encoded, periods, chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
+        streamer = Streamer(chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
+        feeder = Feeder(job, streamer)
         faults = FaultSchedule(job.faults)
-        port.announce(program_periods=int(sum(periods)))
+        port.announce(program_periods=estimated_periods(job))
         while True:
             status = port.wait_status()
             if status is None:
@@ -232,6 +332,9 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp:
             st = status[0]
             sim_time = float(st["sim_time"])
             faults.before_answer(sim_time)
+            feeder.top_up()
+            wb.plan_us[0] = min(int(feeder.plan_seconds * 1e6), 0xFFFFFFFF)
+            wb.plan_blocks[0] = feeder.blocks
             port.begin()
             before = streamer.retransmitted
             streamer.answer(status, port, corrupt=faults.corrupter(sim_time))
