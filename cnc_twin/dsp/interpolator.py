@@ -38,7 +38,6 @@ from collections.abc import Sequence
 
 from cnc_twin.config import AxisConfig
 from cnc_twin.dsp.curve_stepper import CurveStepper
-from cnc_twin.dsp.scurve import SCurve
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.planner.segments import DwellSegment, MoveSegment
 from cnc_twin.whiteboard.records import (
@@ -64,7 +63,7 @@ class _Block:
     """A queued curve block: the S-curve and the curve it runs on."""
 
     def __init__(self, record: CurveBlock, curve: _Curve, period: float):
-        self.profile = SCurve(record.length, record.v0, record.vp, record.v1, record.a_max, record.j_max)
+        self.profile = record.profile
         self.curve = curve
         self.periods = math.ceil(self.profile.duration / period)
 

@@ -196,8 +196,8 @@ class SpanEvaluator:
         i = bisect.bisect_right(self._starts, u)
         return self._starts[i] if i < len(self._starts) else self.domain[1]
 
-    def speed(self, u: float) -> float:
-        """``|C'(u)|`` (first derivative only: half the work of :meth:`evaluate`)."""
+    def _homogeneous(self, u: float, blocks: list[np.ndarray]) -> list[float]:
+        """The block product at ``u`` (clamped to the domain): A (and derivatives) as floats."""
         lo, hi = self.domain
         u = lo if u < lo else hi if u > hi else u
         i = bisect.bisect_right(self._starts, u) - 1
@@ -205,7 +205,11 @@ class SpanEvaluator:
         powers = [1.0]
         for _ in range(self.degree):
             powers.append(powers[-1] * x)
-        h = (np.array(powers) @ self._blocks1[i]).tolist()
+        return (np.array(powers) @ blocks[i]).tolist()
+
+    def speed(self, u: float) -> float:
+        """``|C'(u)|`` (first derivative only: half the work of :meth:`evaluate`)."""
+        h = self._homogeneous(u, self._blocks1)
         d = self.dim
         w, w1 = h[d], h[2 * d + 1]
         inv = 1.0 / w
@@ -217,17 +221,7 @@ class SpanEvaluator:
 
     def evaluate(self, u: float) -> tuple[list[float], list[float], list[float]]:
         """``(C, C', C'')`` at scalar ``u`` as plain float lists of length d."""
-        lo, hi = self.domain
-        if u < lo:
-            u = lo
-        elif u > hi:
-            u = hi
-        i = bisect.bisect_right(self._starts, u) - 1
-        x = u - self._starts[i]
-        powers = [1.0]
-        for _ in range(self.degree):
-            powers.append(powers[-1] * x)
-        h = (np.array(powers) @ self._blocks[i]).tolist()
+        h = self._homogeneous(u, self._blocks)
         d = self.dim
         n = d + 1
         w, w1, w2 = h[d], h[n + d], h[2 * n + d]

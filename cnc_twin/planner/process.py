@@ -108,7 +108,7 @@ def program_chunks(job: PlannerJob):
     periods.append(0)
     yield records, periods
     for blocks in plan_feed_windows(curve, prog.limits, period=job.period, window=job.window):
-        yield ([CurveBlock(b.length, b.v0, b.vp, b.v1, b.a_max, b.j_max) for b in blocks],
+        yield ([CurveBlock(b) for b in blocks],
                [math.ceil(b.duration / job.period) for b in blocks])
     tail: list[Record] = []
     tail_periods: list[int] = []

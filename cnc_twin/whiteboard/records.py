@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_twin.dsp.profiles import Trapezoid
+from cnc_twin.dsp.scurve import SCurve
 
 SYNC = 0xA5
 HEADER_WORDS = 5
@@ -122,14 +123,9 @@ class CurveGeometry:
 
 @dataclass(frozen=True)
 class CurveBlock:
-    """One S-curve block of the path's feed plan (see cnc_twin.dsp.scurve.SCurve)."""
+    """One S-curve block of the path's feed plan."""
 
-    length: float
-    v0: float
-    vp: float
-    v1: float
-    a_max: float
-    j_max: float
+    profile: SCurve
 
 
 Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock
@@ -183,7 +179,8 @@ def _payload(record: Record) -> bytes:
             raise ValueError(f"curve of {n} control points exceeds one record ({MAX_BLOCK_WORDS} words)")
         return body
     if isinstance(record, CurveBlock):
-        return _CURVE_BLOCK.pack(record.length, record.v0, record.vp, record.v1, record.a_max, record.j_max)
+        p = record.profile
+        return _CURVE_BLOCK.pack(p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
     raise TypeError(f"not a record: {record!r}")
 
 
@@ -272,7 +269,7 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
     elif kind == _CURVE_GEOMETRY:
         record = _decode_curve(bytes(payload))
     elif kind == 9:
-        record = CurveBlock(*_CURVE_BLOCK.unpack(payload))
+        record = CurveBlock(SCurve(*_CURVE_BLOCK.unpack(payload)))
     else:
         record = EndOfProgram()
     return seq, record
