@@ -122,6 +122,17 @@ class PathLimits:
 
 
 @dataclass(frozen=True)
+class AxisCurve:
+    """The tool axis along a curve: a NURBS of direction vectors (world frame, tip -> spindle),
+    sharing the tool-tip curve's parameter."""
+
+    degree: int
+    knots: tuple[float, ...]
+    weights: tuple[float, ...]
+    control_points: tuple[tuple[float, float, float], ...]
+
+
+@dataclass(frozen=True)
 class NurbsProgram:
     """A tool-tip NURBS curve with the tool axis held, converted to axis space (X/Y/Z, m).
 
@@ -145,6 +156,13 @@ class NurbsProgram:
     """tip = axes + tip_shift for the held A/B [m] (world frame)"""
     tool_offset: tuple[float, float, float]
     """tip - pivot at A = B = 0 [m], for the actual tip from actual A/B"""
+    pivot_home: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """A/B pivot at X = Y = Z = 0 [m] (world frame)"""
+    axis_curve: AxisCurve | None = None
+    """the tool axis along the path; None = held at ``hold``. When set, ``control_points`` are
+    tool-tip positions in the world frame and the card solves the kinematics every period"""
+    rotary_limits: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    """(velocity, acceleration, jerk) of A and B [rad/s, rad/s^2, rad/s^3] when the axis varies"""
 
 
 @dataclass(frozen=True)

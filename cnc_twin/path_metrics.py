@@ -13,6 +13,10 @@ length commanded ``ds_k``; positions come from the commanded and encoder counts.
 - contour error: distance of the actual tool tip (encoders, through the kinematics) from the
   ideal curve, per period: nearest of dense curve samples (KD-tree), refined on the segment to its
   neighbours.
+
+Everything is measured on the tool tip in the world frame: commanded and actual tips come from
+the axes through the forward kinematics, so a varying tool axis is measured the same way as a
+held one. Axis peaks cover X/Y/Z, and A/B when the tool axis varies.
 """
 
 from __future__ import annotations
@@ -60,7 +64,10 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     """The contour metrics of a curve run (see the module docstring); lengths in um."""
     prog = scenario.program
     assert isinstance(prog, NurbsProgram)
-    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
+    points = np.asarray(prog.control_points)
+    if prog.axis_curve is None:
+        points = points + np.asarray(prog.tip_shift)  # axis space -> tool tip, world frame
+    curve = NurbsCurve(points, prog.weights, prog.knots, prog.degree)
     tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period
     u = trace.period_signals["path_u"][tpp - 1::tpp]
@@ -68,13 +75,14 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     on = u >= 0.0
     cpu = trace.counts_per_unit
     home = np.asarray(scenario.home)
-    command = trace.command[tpp - 1::tpp, :3] / cpu[:3] + home[:3]
+    command_axes = trace.command[tpp - 1::tpp] / cpu + home
     actual_axes = trace.actual[tpp - 1::tpp] / cpu + home
-    # actual tool tip relative to the held head's tip shift: xyz + R(A, B) offset - R(A_h, B_h) offset
-    offset = np.asarray(prog.tool_offset)
-    held = rotation_ab(prog.hold[0], prog.hold[1]) @ offset
-    actual = actual_axes[:, :3] + np.array([rotation_ab(a, b) @ offset - held
-                                            for a, b in zip(actual_axes[:, 3], actual_axes[:, 4])])
+    pivot, offset = np.asarray(prog.pivot_home), np.asarray(prog.tool_offset)
+
+    def tips(q: np.ndarray) -> np.ndarray:
+        return q[:, :3] + pivot + np.array([rotation_ab(a, b) @ offset for a, b in zip(q[:, 3], q[:, 4])])
+
+    command, actual = tips(command_axes), tips(actual_axes)
     out: dict[str, Any] = {"periods_on_curve": int(on.sum()), "length_mm": curve.arc_length() * 1e3}
     if on.sum() < 3:
         return out
@@ -94,16 +102,20 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     chord = np.linalg.norm(pts - (a[:, None, :] + t[..., None] * d[:, None, :]), axis=2).max(axis=1)
     out["chord_error_um"] = {"max": float(chord.max() * 1e6), "tolerance": prog.limits.chord_tolerance * 1e6}
     seg = np.flatnonzero(on)
-    pos = command[seg[0] - 1:seg[-1] + 2]
+    lim = prog.limits
+    names = "XYZ" if prog.axis_curve is None else "XYZAB"
+    limits = [(lim.axis_velocity[i], lim.axis_acceleration[i], lim.axis_jerk[i]) for i in range(3)]
+    if prog.axis_curve is not None:
+        limits += [tuple(group[i] for group in prog.rotary_limits) for i in range(2)]
+    pos = command_axes[seg[0] - 1:seg[-1] + 2, :len(names)]
     v = np.diff(pos, axis=0) / T
     acc = np.diff(v, axis=0) / T
     jerk = np.diff(acc, axis=0) / T
-    lim = prog.limits
     out["axis_peaks"] = {
-        name: {"velocity": float(np.abs(v[:, i]).max()), "velocity_limit": lim.axis_velocity[i],
-               "acceleration": float(np.abs(acc[:, i]).max()), "acceleration_limit": lim.axis_acceleration[i],
-               "jerk": float(np.abs(jerk[:, i]).max()), "jerk_limit": lim.axis_jerk[i]}
-        for i, name in enumerate("XYZ")
+        name: {"velocity": float(np.abs(v[:, i]).max()), "velocity_limit": limits[i][0],
+               "acceleration": float(np.abs(acc[:, i]).max()), "acceleration_limit": limits[i][1],
+               "jerk": float(np.abs(jerk[:, i]).max()), "jerk_limit": limits[i][2]}
+        for i, name in enumerate(names)
     }
     poly = curve.point(np.linspace(*curve.domain, 20001))
     contour = _point_to_polyline(actual[on], poly)

@@ -26,6 +26,7 @@ from cnc_twin.errors import ScenarioError, format_key_path
 from cnc_twin.plant import ModelInfo, load_model, model_info
 from cnc_twin.config import (
     AxisConfig,
+    AxisCurve,
     FaultInjection,
     ForceSensorConfig,
     Move,
@@ -230,6 +231,16 @@ class ToolAxisSpec(_Strict):
     B: float = Field(0.0, description="[deg]")
 
 
+class AxisCurveSpec(_Strict):
+    """The tool axis along the path as a NURBS of direction vectors (workpiece frame, pointing
+    from the tip up the tool), on the same parameter range as the tip curve."""
+
+    degree: int = Field(ge=1, le=9)
+    control_points: list[list[float]] = Field(min_length=2, description="[[i, j, k], ...] directions")
+    weights: list[float] | None = None
+    knots: list[float]
+
+
 class NurbsCurveProgram(_Strict):
     """A tool-tip NURBS curve in the workpiece frame (origin at the workpiece top centre, mm)."""
 
@@ -242,6 +253,7 @@ class NurbsCurveProgram(_Strict):
     chord_tolerance: float = Field(0.001, gt=0, description="[mm]")
     limits: PathLimitsSpec = PathLimitsSpec()
     tool_axis: ToolAxisSpec = ToolAxisSpec()
+    tool_axis_curve: AxisCurveSpec | None = Field(None, description="tool axis varying along the path (replaces tool_axis)")
     C: float = Field(0.0, description="spindle angle held along the curve [deg]")
     approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
     settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
@@ -499,25 +511,38 @@ def _convert_nurbs(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model,
     a, b = spec.tool_axis.A * units.DEG, spec.tool_axis.B * units.DEG
     head = HeadGeometry.from_model(model)
     tip_world = head.world_from_workpiece(np.array(spec.control_points) * units.MM)
-    axis_points = head.axes_from_tip(tip_world, a, b)
-    try:
-        curve = NurbsCurve(axis_points, spec.weights, spec.knots, spec.degree)
-    except NurbsError as exc:
-        raise ScenarioError(label, f"program.{exc.key}", str(exc)) from None
+    axis_curve = None
+    if spec.tool_axis_curve is not None:
+        if "tool_axis" in spec.model_fields_set:
+            raise ScenarioError(label, "program.tool_axis", "give either tool_axis (held) or tool_axis_curve, not both")
+        axis_curve, curve, poses = _oriented_path(spec, tip_world, head, label)
+        a, b = float(poses[0, 3]), float(poses[0, 4])
+        axis_points = tip_world  # tip space: the card solves the kinematics per period
+        checks = zip(axes[:5], poses.T, ("control_points",) * 3 + ("tool_axis_curve",) * 2)
+    else:
+        axis_points = head.axes_from_tip(tip_world, a, b)
+        try:
+            curve = NurbsCurve(axis_points, spec.weights, spec.knots, spec.degree)
+        except NurbsError as exc:
+            raise ScenarioError(label, f"program.{exc.key}", str(exc)) from None
+        u = np.linspace(*curve.domain, 4001)
+        path = curve.point(u)
+        checks = zip(axes[:3], path.T, ("control_points",) * 3)
     hold = (a, b, spec.C * units.DEG)
-    for cfg, value, name in zip(axes[3:], hold, ("tool_axis.A", "tool_axis.B", "C")):
+    held = zip(axes[3:], hold, ("tool_axis.A", "tool_axis.B", "C"))
+    for cfg, value, name in held if axis_curve is None else list(held)[2:]:
         if cfg.travel is not None and not cfg.travel[0] <= value <= cfg.travel[1]:
             lo, hi = (v * cfg.display_factor for v in cfg.travel)
             raise ScenarioError(label, f"program.{name}", f"{value * cfg.display_factor:g} deg is outside the "
                                 f"{cfg.name} travel {lo:g}..{hi:g} deg")
-    u = np.linspace(*curve.domain, 4001)
-    path = curve.point(u)
-    for i, cfg in enumerate(axes[:3]):
+    for cfg, values, key in checks:
         lo, hi = cfg.travel
-        bad = np.flatnonzero((path[:, i] < lo) | (path[:, i] > hi))
+        bad = np.flatnonzero((values < lo) | (values > hi))
         if bad.size:
-            raise ScenarioError(label, "program.control_points",
-                                f"the path leaves the {cfg.name} travel {lo * 1e3:g}..{hi * 1e3:g} mm at u = {u[bad[0]]:.4g}")
+            f, unit = cfg.display_factor, cfg.display_unit
+            raise ScenarioError(label, f"program.{key}",
+                                f"the path leaves the {cfg.name} travel {lo * f:g}..{hi * f:g} {unit} "
+                                f"(reaches {values[bad[0]] * f:g} {unit})")
     limits = spec.limits
     path_limits = PathLimits(
         feed=spec.feed * units.MM_PER_MIN,
@@ -542,7 +567,47 @@ def _convert_nurbs(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model,
         settle=spec.settle,
         tip_shift=tuple(float(x) for x in shift),
         tool_offset=tuple(float(x) for x in head.tool_offset),
+        pivot_home=tuple(float(x) for x in head.pivot_home),
+        axis_curve=axis_curve,
+        rotary_limits=None if axis_curve is None else (
+            tuple(c.max_velocity for c in axes[3:5]), tuple(c.max_acceleration for c in axes[3:5]),
+            tuple(c.max_jerk for c in axes[3:5])),
     )
+
+
+def _oriented_path(spec: NurbsCurveProgram, tip_world, head, label: Path):
+    """Tip curve (world), axis curve, and sampled poses X/Y/Z/A/B, shape (4001, 5)."""
+    import numpy as np
+
+    from cnc_twin.geometry.nurbs import NurbsCurve, NurbsError
+
+    ac = spec.tool_axis_curve
+    for i, point in enumerate(ac.control_points):
+        if len(point) != 3 or not any(point):
+            raise ScenarioError(label, f"program.tool_axis_curve.control_points[{i}]",
+                                f"expected a non-zero direction [i, j, k], got {point}")
+    try:
+        curve = NurbsCurve(tip_world, spec.weights, spec.knots, spec.degree)
+    except NurbsError as exc:
+        raise ScenarioError(label, f"program.{exc.key}", str(exc)) from None
+    try:
+        directions = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree)
+    except NurbsError as exc:
+        raise ScenarioError(label, f"program.tool_axis_curve.{exc.key}", str(exc)) from None
+    if directions.domain != curve.domain:
+        raise ScenarioError(label, "program.tool_axis_curve.knots",
+                            f"parameter range {directions.domain} must equal the tip curve's {curve.domain}")
+    u = np.linspace(*curve.domain, 4001)
+    n = directions.point(u)
+    if np.min(np.linalg.norm(n, axis=1)) < 1e-9:
+        raise ScenarioError(label, "program.tool_axis_curve", "the tool axis curve passes through zero")
+    if np.min(n[:, 2] / np.linalg.norm(n, axis=1)) <= 0.0:
+        raise ScenarioError(label, "program.tool_axis_curve", "the tool must point down: every direction needs k > 0")
+    poses = head.axes_from_pose(curve.point(u), n)
+    axis_curve = AxisCurve(degree=ac.degree, knots=tuple(float(k) for k in ac.knots),
+                           weights=tuple(float(w) for w in directions.weights),
+                           control_points=tuple(tuple(float(x) for x in p) for p in ac.control_points))
+    return axis_curve, curve, poses
 
 
 def _convert_program(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], info: ModelInfo, label: Path) -> PointToPoint:

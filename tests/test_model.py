@@ -90,3 +90,23 @@ def test_load_cell_reads_contact_force_when_pad_pressed_on_workpiece():
         normal += wrench[0]
     assert normal == pytest.approx(spring + 0.15 * 9.81, rel=1e-2)
     assert plant.tool_position()[2] == pytest.approx(0.06, abs=0.5e-3)  # on the workpiece top
+
+
+def test_head_kinematics_match_mujoco_forward_kinematics():
+    """Inverse kinematics from the tool tip and axis recover the joint values MuJoCo posed."""
+    from cnc_twin.geometry.kinematics import HeadGeometry
+
+    model = load_model(models_dir() / "scene.xml")
+    head = HeadGeometry.from_model(model)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        q = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.2, 0.2), rng.uniform(-0.3, 0.0),
+                      rng.uniform(-1.2, 1.2), rng.uniform(-1.2, 1.2)])
+        for name, value in zip(("x_joint", "y_joint", "z_joint", "a_joint", "b_joint"), q):
+            data.qpos[model.joint(name).qposadr[0]] = value
+        data.qpos[model.joint("pad_joint").qposadr[0]] = 0.0
+        mujoco.mj_kinematics(model, data)
+        tip, pivot = data.site("tool_site").xpos.copy(), data.body("a_yoke").xpos.copy()
+        assert np.allclose(head.axes_from_pose(tip[None], (pivot - tip)[None])[0], q, atol=1e-12)
+        assert np.allclose(head.tip_from_axes(q[:3], q[3], q[4]), tip, atol=1e-12)

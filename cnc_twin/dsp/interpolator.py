@@ -50,13 +50,35 @@ STOP_MARGIN = 1.5
 
 
 class _Curve:
-    """A curve ready to run: its stepper and the held A, B, C."""
+    """A curve ready to run: its stepper, and either the held A, B, C or the tool-axis curve with
+    the head geometry for the per-period kinematics (tip + axis -> X, Y, Z, A, B)."""
 
     def __init__(self, record: CurveGeometry):
         curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
         self.stepper = CurveStepper(curve.span_evaluator(), curve.domain[0])
         self.hold = tuple(record.hold)
-        self.end = tuple(float(x) for x in curve.point(curve.domain[1])[0]) + self.hold
+        self.axis = None
+        if record.axis is not None:
+            degree, knots, weights, points = record.axis
+            self.axis = NurbsCurve(points, weights, knots, degree).span_evaluator()
+            self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
+        end = curve.point(curve.domain[1])[0].tolist()
+        self.end = self.pose(end, curve.domain[1])
+
+    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
+        """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""
+        if self.axis is None:
+            return (point[0], point[1], point[2], *self.hold)
+        nx, ny, nz = self.axis.evaluate(u)[0]
+        inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+        b = math.asin(max(-1.0, min(1.0, nx * inv)))
+        a = math.atan2(-ny * inv, nz * inv)
+        ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+        ox, oy, oz = self.offset
+        x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
+        rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
+        px, py, pz = self.pivot
+        return (point[0] - px - rx, point[1] - py - ry, point[2] - pz - rz, a, b, self.hold[2])
 
 
 class _Block:
@@ -355,8 +377,7 @@ class SegmentInterpolator:
         point = stepper.step(ds) if ds > 0.0 else stepper.point
         self.path_u = stepper.u
         self.path_ds = ds
-        hold = block.curve.hold
-        return self._counts_of((point[0], point[1], point[2], hold[0], hold[1], hold[2]))
+        return self._counts_of(block.curve.pose(point, stepper.u))
 
     def _counts_of(self, positions) -> list[float]:
         return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]

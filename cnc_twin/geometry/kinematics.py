@@ -1,4 +1,4 @@
-"""Head kinematics with the tool axis held fixed: tool-tip position <-> X/Y/Z, for given A/B.
+"""Head kinematics: tool-tip position and tool axis <-> X/Y/Z/A/B.
 
 The linear axes carry the A/B pivot; A turns about x, then B about y (in A's frame); the tool tip
 sits at a fixed offset from the pivot in B's frame. With A and B held the tip moves with X/Y/Z
@@ -10,6 +10,10 @@ one to one, so an axis-space path is the tip path shifted by a constant::
 
 ``pivot_home`` and ``offset`` are read from the MJCF at the home keyframe (body ``a_yoke``,
 site ``tool_site``), and the workpiece frame's origin from site ``workpiece_site``. Positions in m.
+
+Tool axis: the unit vector from the tip towards the spindle, ``n = Rx(A) Ry(B) (0, 0, 1)
+= (sin B, -sin A cos B, cos A cos B)``, so ``B = asin(n_x)`` and ``A = atan2(-n_y, n_z)``
+(the branch with |B| < 90 deg and the tool pointing down, n_z cos A > 0).
 """
 
 from __future__ import annotations
@@ -24,6 +28,15 @@ from cnc_twin.plant import HOME_KEYFRAME
 PIVOT_BODY = "a_yoke"
 TOOL_SITE = "tool_site"
 WORKPIECE_SITE = "workpiece_site"
+
+
+def ab_from_axis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Head angles A, B [rad] that point the tool along ``n`` (shape (..., 3), any length > 0)."""
+    n = np.asarray(n, dtype=np.float64)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    b = np.arcsin(np.clip(n[..., 0], -1.0, 1.0))
+    a = np.arctan2(-n[..., 1], n[..., 2])
+    return a, b
 
 
 def rotation_ab(a: float, b: float) -> np.ndarray:
@@ -53,7 +66,8 @@ class HeadGeometry:
         pivot = data.body(PIVOT_BODY).xpos.copy()
         tip = data.site(TOOL_SITE).xpos.copy()
         origin = data.site(WORKPIECE_SITE).xpos.copy()
-        return cls(tuple(pivot), tuple(tip - pivot), tuple(origin))
+        return cls(tuple(float(x) for x in pivot), tuple(float(x) for x in tip - pivot),
+                   tuple(float(x) for x in origin))
 
     def axes_from_tip(self, tip_world: np.ndarray, a: float, b: float) -> np.ndarray:
         """X/Y/Z [m] that put the tool tip at ``tip_world`` (shape (..., 3)) with A, B [rad] held."""
@@ -64,6 +78,18 @@ class HeadGeometry:
         """Tool tip [m] in the world frame for axis positions X/Y/Z (shape (..., 3)) and A, B."""
         shift = np.asarray(self.pivot_home) + rotation_ab(a, b) @ np.asarray(self.tool_offset)
         return np.asarray(xyz) + shift
+
+    def axes_from_pose(self, tip_world: np.ndarray, axis: np.ndarray) -> np.ndarray:
+        """X/Y/Z/A/B (shape (m, 5)) that put the tip at ``tip_world`` with the tool along ``axis``
+        (both shape (m, 3), world frame)."""
+        a, b = ab_from_axis(axis)
+        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+        ox, oy, oz = self.tool_offset
+        # Rx(a) Ry(b) offset, vectorised
+        x1, y1, z1 = cb * ox + sb * oz, np.full_like(a, oy), -sb * ox + cb * oz
+        rotated = np.stack([x1, ca * y1 - sa * z1, sa * y1 + ca * z1], axis=-1)
+        xyz = np.asarray(tip_world) - np.asarray(self.pivot_home) - rotated
+        return np.column_stack([xyz, a, b])
 
     def world_from_workpiece(self, points: np.ndarray) -> np.ndarray:
         """Workpiece-frame points (origin at the workpiece top centre, axes as the world's) -> world."""

@@ -82,8 +82,34 @@ def sample_curve(curve: NurbsCurve, spacing: float) -> tuple[np.ndarray, np.ndar
     return u, s
 
 
-def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float) -> np.ndarray:
-    """The feed limit [m/s] at each sample (see the module docstring)."""
+def axis_derivatives(q: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First three derivatives of axis positions ``q`` (N, k) with respect to arc length ``s``."""
+    d1 = np.gradient(q, s, axis=0)
+    d2 = np.gradient(d1, s, axis=0)
+    return d1, d2, np.gradient(d2, s, axis=0)
+
+
+def tangential_budget(limits: PathLimits, axis_q: np.ndarray | None, s: np.ndarray,
+                      axis_limits) -> tuple[float, float]:
+    """(A_t, J_t): with the axes given, scaled by each axis's largest |dq/ds| (a rotary axis can
+    turn more than one radian per metre of path); else the tool-tip budget of ``limits``."""
+    if axis_q is None:
+        return limits.tangential_acceleration, limits.tangential_jerk
+    d1 = np.abs(axis_derivatives(axis_q, s)[0]).max(axis=0)
+    v_lim, a_lim, j_lim = (np.asarray(x) for x in axis_limits)
+    a_t = min(limits.path_acceleration, float(np.min(0.5 * a_lim / np.maximum(d1, 1e-12))))
+    j_t = min(limits.path_jerk, float(np.min(j_lim / 3.0 / np.maximum(d1, 1e-12))))
+    return a_t, j_t
+
+
+def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float,
+               axis_q: np.ndarray | None = None, axis_limits=None) -> np.ndarray:
+    """The feed limit [m/s] at each sample (see the module docstring).
+
+    With ``axis_q`` (the machine axes along the samples, shape (N, k)) and ``axis_limits``
+    ((velocity, acceleration, jerk) per axis), the axis terms use those axes' derivatives with
+    respect to arc length (numerical) instead of the tool tip's: the limits after kinematics.
+    """
     _, d1, d2 = curve.derivatives(u, 2)
     sigma = np.linalg.norm(d1, axis=1)
     tangent = d1 / sigma[:, None]
@@ -98,12 +124,18 @@ def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimi
     f = np.minimum(f, chord)
     f = np.minimum(f, np.sqrt(limits.normal_acceleration / np.maximum(kappa, tiny)))
     f = np.minimum(f, np.cbrt(limits.normal_jerk / np.maximum(kappa * kappa, tiny)))
-    a_t = limits.tangential_acceleration
-    for i in range(curve.dim):
-        f = np.minimum(f, limits.axis_velocity[i] / np.maximum(np.abs(tangent[:, i]), tiny))
-        f = np.minimum(f, np.sqrt(0.5 * limits.axis_acceleration[i] / np.maximum(np.abs(c_ss[:, i]), tiny)))
-        f = np.minimum(f, np.cbrt(limits.axis_jerk[i] / 3.0 / np.maximum(np.abs(c_sss[:, i]), tiny)))
-        f = np.minimum(f, limits.axis_jerk[i] / (9.0 * a_t * np.maximum(np.abs(c_ss[:, i]), tiny)))
+    if axis_q is None:
+        q1, q2, q3 = tangent, c_ss, c_sss
+        v_lim, a_lim, j_lim = limits.axis_velocity, limits.axis_acceleration, limits.axis_jerk
+    else:
+        q1, q2, q3 = axis_derivatives(axis_q, s)
+        v_lim, a_lim, j_lim = axis_limits
+    a_t = tangential_budget(limits, axis_q, s, axis_limits)[0]
+    for i in range(q1.shape[1]):
+        f = np.minimum(f, v_lim[i] / np.maximum(np.abs(q1[:, i]), tiny))
+        f = np.minimum(f, np.sqrt(0.5 * a_lim[i] / np.maximum(np.abs(q2[:, i]), tiny)))
+        f = np.minimum(f, np.cbrt(j_lim[i] / 3.0 / np.maximum(np.abs(q3[:, i]), tiny)))
+        f = np.minimum(f, j_lim[i] / (9.0 * a_t * np.maximum(np.abs(q2[:, i]), tiny)))
     return f
 
 
@@ -116,9 +148,8 @@ def _local_minima(limit: np.ndarray, feed: float) -> list[int]:
 
 
 def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_b: float,
-                limits: PathLimits, max_rounds: int) -> tuple[list[SCurve], list[int], list[float]]:
+                limits: PathLimits, max_rounds: int, a_t: float, j_t: float) -> tuple[list[SCurve], list[int], list[float]]:
     """Plan samples a..b from speed v_a to v_b: (blocks, critical indices, critical speeds)."""
-    a_t, j_t = limits.tangential_acceleration, limits.tangential_jerk
     inner = [a + j for j in _local_minima(limit[a:b + 1], limits.feed)]
     critical = sorted({a, b, *inner})
     for _ in range(max_rounds):
@@ -144,7 +175,7 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
 
 
 def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
-                      max_rounds: int = 200):
+                      max_rounds: int = 200, axis_path=None, axis_limits=None):
     """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
 
     Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
@@ -154,14 +185,16 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     """
     spacing = min(limits.feed * period, 0.5e-3)
     u, s = sample_curve(curve, spacing)
-    limit = feed_limit(curve, u, s, limits, period)
-    stop = ramp_distance(limits.feed, 0.0, limits.tangential_acceleration, limits.tangential_jerk)
+    axis_q = None if axis_path is None else axis_path(u)
+    limit = feed_limit(curve, u, s, limits, period, axis_q, axis_limits)
+    a_t, j_t = tangential_budget(limits, axis_q, s, axis_limits)
+    stop = ramp_distance(limits.feed, 0.0, a_t, j_t)
     last = len(s) - 1
     a, v_a = 0, 0.0
     span = max(window, 3.0 * stop)
     while True:
         b = min(last, int(np.searchsorted(s, s[a] + span)))
-        blocks, critical, speeds = _plan_range(s, limit, a, b, v_a, 0.0, limits, max_rounds)
+        blocks, critical, speeds = _plan_range(s, limit, a, b, v_a, 0.0, limits, max_rounds, a_t, j_t)
         if b == last:
             yield blocks
             return
@@ -175,16 +208,22 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
-              max_rounds: int = 200) -> FeedPlan:
-    """Plan the whole curve from rest to rest (in windows when ``window`` is given [m])."""
+              max_rounds: int = 200, axis_path=None, axis_limits=None) -> FeedPlan:
+    """Plan the whole curve from rest to rest (in windows when ``window`` is given [m]).
+
+    ``axis_path(u) -> (N, k)`` and ``axis_limits`` plan against the machine axes after
+    kinematics (a varying tool axis); by default the tool tip's X/Y/Z limits apply.
+    """
     spacing = min(limits.feed * period, 0.5e-3)
     u, s = sample_curve(curve, spacing)
-    limit = feed_limit(curve, u, s, limits, period)
+    axis_q = None if axis_path is None else axis_path(u)
+    limit = feed_limit(curve, u, s, limits, period, axis_q, axis_limits)
     if window is None:
-        blocks = _plan_range(s, limit, 0, len(s) - 1, 0.0, 0.0, limits, max_rounds)[0]
+        a_t, j_t = tangential_budget(limits, axis_q, s, axis_limits)
+        blocks = _plan_range(s, limit, 0, len(s) - 1, 0.0, 0.0, limits, max_rounds, a_t, j_t)[0]
     else:
-        blocks = [b for chunk in plan_feed_windows(curve, limits, period=period, window=window,
-                                                   max_rounds=max_rounds) for b in chunk]
+        blocks = [b for chunk in plan_feed_windows(curve, limits, period=period, window=window, max_rounds=max_rounds,
+                                                   axis_path=axis_path, axis_limits=axis_limits) for b in chunk]
     return FeedPlan(blocks=tuple(blocks), s=s, u=u, limit=limit)
 
 

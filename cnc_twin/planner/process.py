@@ -91,23 +91,21 @@ def program_chunks(job: PlannerJob):
         return
     import math
 
-    from cnc_twin.geometry.nurbs import NurbsCurve
     from cnc_twin.planner.feed import plan_feed_windows
 
     prog = job.program
-    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
-    start = tuple(float(x) for x in curve.point(curve.domain[0])[0]) + tuple(prog.hold)
+    curve, start, axis_path, axis_limits, geometry = curve_setup(prog)
     records: list[Record] = []
     periods: list[int] = []
     approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
     if approach is not None:
         records.append(Move(end=approach.end, profile=approach.profile, periods=approach.periods))
         periods.append(approach.periods)
-    records.append(CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
-                                 control_points=prog.control_points, hold=prog.hold))
+    records.append(geometry)
     periods.append(0)
     yield records, periods
-    for blocks in plan_feed_windows(curve, prog.limits, period=job.period, window=job.window):
+    for blocks in plan_feed_windows(curve, prog.limits, period=job.period, window=job.window,
+                                    axis_path=axis_path, axis_limits=axis_limits):
         yield ([CurveBlock(b) for b in blocks],
                [math.ceil(b.duration / job.period) for b in blocks])
     tail: list[Record] = []
@@ -119,6 +117,41 @@ def program_chunks(job: PlannerJob):
     yield tail + [EndOfProgram()], tail_periods + [0]
 
 
+def curve_setup(prog: NurbsProgram):
+    """``(curve, start pose, axis_path, axis_limits, CurveGeometry record)`` for a curve program.
+
+    Held tool axis: the curve is already in axis space. Varying tool axis: the curve is the tool
+    tip's (world frame); ``axis_path(u)`` gives X/Y/Z/A/B through the kinematics, for planning
+    against every axis's limits.
+    """
+    from cnc_twin.geometry.kinematics import HeadGeometry
+    from cnc_twin.geometry.nurbs import NurbsCurve
+
+    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
+    u0 = curve.domain[0]
+    if prog.axis_curve is None:
+        start = tuple(float(x) for x in curve.point(u0)[0]) + tuple(prog.hold)
+        geometry = CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
+                                 control_points=prog.control_points, hold=prog.hold)
+        return curve, start, None, None, geometry
+    ac = prog.axis_curve
+    directions = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree)
+    head = HeadGeometry(pivot_home=prog.pivot_home, tool_offset=prog.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
+
+    def axis_path(u):
+        return head.axes_from_pose(curve.point(u), directions.point(u))
+
+    start = tuple(float(x) for x in axis_path([u0])[0]) + (prog.hold[2],)
+    lim, rot = prog.limits, prog.rotary_limits
+    axis_limits = (tuple(lim.axis_velocity) + tuple(rot[0]), tuple(lim.axis_acceleration) + tuple(rot[1]),
+                   tuple(lim.axis_jerk) + tuple(rot[2]))
+    geometry = CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
+                             control_points=prog.control_points, hold=prog.hold,
+                             axis=(ac.degree, ac.knots, ac.weights, ac.control_points),
+                             pivot=prog.pivot_home, offset=prog.tool_offset)
+    return curve, start, axis_path, axis_limits, geometry
+
+
 def estimated_periods(job: PlannerJob) -> int:
     """Program length announced before planning [periods]: exact for moves, estimated for curves."""
     if not isinstance(job.program, NurbsProgram):
@@ -126,11 +159,8 @@ def estimated_periods(job: PlannerJob) -> int:
         return sum(seg.periods for seg in segments)
     import math
 
-    from cnc_twin.geometry.nurbs import NurbsCurve
-
     prog = job.program
-    curve = NurbsCurve(prog.control_points, prog.weights, prog.knots, prog.degree)
-    start = tuple(float(x) for x in curve.point(curve.domain[0])[0]) + tuple(prog.hold)
+    curve, start, _, _, _ = curve_setup(prog)
     approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
     curve_time = 1.2 * curve.arc_length() / prog.limits.feed
     return (approach.periods if approach else 0) + math.ceil((curve_time + prog.settle) / job.period)

@@ -26,9 +26,12 @@ type   record           payload                                                 
 5      Spindle          on u16, pad u16, speed f64 [rad/s]                         6
 6      EndOfProgram     -                                                          0
 7      DataBlock        opaque program data (u16 words), e.g. a 4 KB block         1..2048
-8      CurveGeometry    degree u16, n u16, pad u16 x2; held A, B, C f64 x3;        varies
+8      CurveGeometry    degree u16, n u16, degree2 u16, n2 u16; held A, B, C f64 x3; varies
                         knots f64 x (n + degree + 1); weights f64 x n;
-                        control points (X, Y, Z axis space) f64 x 3n
+                        control points f64 x 3n (X, Y, Z axis space; or, when n2 > 0,
+                        tool-tip positions, world frame); if n2 > 0: pivot f64 x3,
+                        tool offset f64 x3, then the tool-axis curve's knots,
+                        weights and direction control points
 9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6      24
 =====  ===============  =========================================================  ======
 
@@ -112,13 +115,19 @@ MAX_BLOCK_WORDS = 2048
 
 @dataclass(frozen=True)
 class CurveGeometry:
-    """A NURBS tool path in axis space (X/Y/Z, m), with A, B, C held [rad] along it."""
+    """A NURBS tool path: in axis space (X/Y/Z, m) with A, B, C held [rad]; or, with ``axis``
+    given, tool-tip positions in the world frame plus a NURBS of tool directions on the same
+    parameter, ``pivot`` and ``offset`` being the head geometry the card's kinematics needs."""
 
     degree: int
     knots: tuple[float, ...]
     weights: tuple[float, ...]
     control_points: tuple[tuple[float, float, float], ...]
     hold: tuple[float, float, float]
+    axis: tuple | None = None
+    """(degree, knots, weights, control_points) of the tool-axis curve, or None"""
+    pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -172,9 +181,15 @@ def _payload(record: Record) -> bytes:
         return np.ascontiguousarray(record.words, dtype="<u2").tobytes()
     if isinstance(record, CurveGeometry):
         n = len(record.control_points)
-        body = _CURVE_HEAD.pack(record.degree, n, 0, 0, *record.hold) + np.concatenate(
-            [np.asarray(record.knots, "<f8"), np.asarray(record.weights, "<f8"),
-             np.asarray(record.control_points, "<f8").ravel()]).tobytes()
+        parts = [np.asarray(record.knots, "<f8"), np.asarray(record.weights, "<f8"),
+                 np.asarray(record.control_points, "<f8").ravel()]
+        degree2 = n2 = 0
+        if record.axis is not None:
+            degree2, knots2, weights2, points2 = record.axis
+            n2 = len(points2)
+            parts += [np.asarray(record.pivot, "<f8"), np.asarray(record.offset, "<f8"),
+                      np.asarray(knots2, "<f8"), np.asarray(weights2, "<f8"), np.asarray(points2, "<f8").ravel()]
+        body = _CURVE_HEAD.pack(record.degree, n, degree2, n2, *record.hold) + np.concatenate(parts).tobytes()
         if len(body) // 2 > MAX_BLOCK_WORDS:
             raise ValueError(f"curve of {n} control points exceeds one record ({MAX_BLOCK_WORDS} words)")
         return body
@@ -221,15 +236,27 @@ def record_length(header: np.ndarray) -> int:
 def _decode_curve(payload: bytes) -> CurveGeometry:
     if len(payload) < _CURVE_HEAD.size:
         raise RecordError("curve record shorter than its header")
-    degree, n, _, _, *hold = _CURVE_HEAD.unpack_from(payload)
+    degree, n, degree2, n2, *hold = _CURVE_HEAD.unpack_from(payload)
     values = np.frombuffer(payload, dtype="<f8", offset=_CURVE_HEAD.size)
-    n_knots = n + degree + 1
-    if len(values) != n_knots + 4 * n:
-        raise RecordError(f"curve record of {len(values)} values for {n} control points of degree {degree}")
-    knots = tuple(values[:n_knots].tolist())
-    weights = tuple(values[n_knots:n_knots + n].tolist())
-    points = tuple(tuple(p) for p in values[n_knots + n:].reshape(n, 3).tolist())
-    return CurveGeometry(degree=degree, knots=knots, weights=weights, control_points=points, hold=tuple(hold))
+    n_knots, n_knots2 = n + degree + 1, (n2 + degree2 + 1 if n2 else 0)
+    expected = n_knots + 4 * n + (6 + n_knots2 + 4 * n2 if n2 else 0)
+    if len(values) != expected:
+        raise RecordError(f"curve record of {len(values)} values, expected {expected}")
+
+    def take(count: int) -> np.ndarray:
+        nonlocal values
+        out, values = values[:count], values[count:]
+        return out
+
+    knots, weights = tuple(take(n_knots).tolist()), tuple(take(n).tolist())
+    points = tuple(tuple(p) for p in take(3 * n).reshape(n, 3).tolist())
+    axis, pivot, offset = None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    if n2:
+        pivot, offset = tuple(take(3).tolist()), tuple(take(3).tolist())
+        axis = (degree2, tuple(take(n_knots2).tolist()), tuple(take(n2).tolist()),
+                tuple(tuple(p) for p in take(3 * n2).reshape(n2, 3).tolist()))
+    return CurveGeometry(degree=degree, knots=knots, weights=weights, control_points=points, hold=tuple(hold),
+                         axis=axis, pivot=pivot, offset=offset)
 
 
 def decode(words: np.ndarray) -> tuple[int, Record]:
