@@ -43,6 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="run directory to create (default: runs/<name>-<UTC time>)")
     run.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
+    run.add_argument("--rerun", action="store_true", help="open the run in a spawned rerun viewer when it ends")
+    run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
+    run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
+
+    view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
+    view.add_argument("run_dir", type=Path)
 
     validate = sub.add_parser("validate", help="check scenario files without running them")
     validate.add_argument("scenarios", nargs="+", type=Path)
@@ -65,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
             return _validate(args)
         if args.command == "bench":
             return _bench(args)
+        if args.command == "view":
+            return _view(args)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -89,7 +97,9 @@ def _run(args: argparse.Namespace) -> int:
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar)
-    result.write(run_dir)
+    result.write(run_dir, recording=not args.no_rrd)
+    if args.rrd is not None or args.rerun:
+        result.export_rerun(rrd=args.rrd, spawn=args.rerun)
     if not args.quiet:
         print(summary_table(result.metrics))
     print(f"run directory: {run_dir}")
@@ -125,6 +135,19 @@ class _stop_on_signals:
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
         return False
+
+
+def _view(args: argparse.Namespace) -> int:
+    import subprocess
+
+    from cnc_twin.record import RECORDING_FILE
+
+    path = args.run_dir / RECORDING_FILE if args.run_dir.is_dir() else args.run_dir
+    if not path.is_file():
+        raise ScenarioError(path, "", "no rerun recording here (runs write recording.rrd unless --no-rrd)")
+    viewer = Path(sys.executable).with_name("rerun")
+    command = [str(viewer)] if viewer.exists() else [sys.executable, "-m", "rerun"]
+    return subprocess.call(command + [str(path)])
 
 
 def _validate(args: argparse.Namespace) -> int:

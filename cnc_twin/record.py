@@ -51,6 +51,7 @@ from cnc_twin.config import Scenario
 TRACE_FILE = "trace.parquet"
 METRICS_FILE = "metrics.json"
 SCENARIO_FILE = "scenario.yaml"
+RECORDING_FILE = "recording.rrd"
 
 
 class FrameBuffer:
@@ -198,8 +199,12 @@ def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_s
     }
 
 
-def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: dict[str, Any]) -> Path:
-    """Write the run directory atomically: a hidden temporary folder renamed when complete."""
+def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: dict[str, Any],
+                  extra=None) -> Path:
+    """Write the run directory atomically: a hidden temporary folder renamed when complete.
+
+    ``extra(folder)`` may add files (the rerun recording) before the rename.
+    """
     run_dir = Path(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = run_dir.parent / f".{run_dir.name}.partial-{os.getpid()}"
@@ -209,6 +214,8 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
     try:
         (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8")
         write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+        if extra is not None:
+            extra(tmp)
         (tmp / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
         if run_dir.exists():
             raise FileExistsError(f"run directory {run_dir} already exists")

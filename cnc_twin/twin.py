@@ -38,7 +38,7 @@ from cnc_twin.dsp.task import DspTask
 from cnc_twin.planner.process import PlannerJob, planner_main
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.path_metrics import path_metrics
-from cnc_twin.record import FrameBuffer, Trace, compute_metrics, write_run_dir
+from cnc_twin.record import RECORDING_FILE, FrameBuffer, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbells
 from cnc_twin.whiteboard.layout import Layout
@@ -60,16 +60,30 @@ class RunResult:
     trace: Trace
     metrics: dict[str, Any]
     run_dir: Path | None = field(default=None)
+    model: Any = field(default=None, repr=False)
+    """the compiled MJCF the run used (for exports)"""
 
     @property
     def status(self) -> str:
         """``complete``, ``fault`` or ``interrupted``."""
         return self.metrics["status"]
 
-    def write(self, run_dir: str | Path) -> Path:
-        """Write ``scenario.yaml``, ``trace.parquet`` and ``metrics.json`` to ``run_dir``."""
-        self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics)
+    def write(self, run_dir: str | Path, *, recording: bool = True) -> Path:
+        """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
+        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``."""
+        extra = None
+        if recording:
+            def extra(folder: Path) -> None:
+                self.export_rerun(rrd=folder / RECORDING_FILE)
+        self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
+                                     extra=extra)
         return self.run_dir
+
+    def export_rerun(self, *, rrd: Path | None = None, spawn: bool = False) -> None:
+        """Write a rerun recording of the run and/or open it in a spawned viewer."""
+        from cnc_twin.rerun_export import export_run
+
+        export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model)
 
 
 class Twin:
@@ -264,7 +278,7 @@ class Twin:
             metrics["stop_reason"] = self.stop_reason
         elif dsp.fault != FaultCode.NONE:
             metrics["status"] = "fault"
-        return RunResult(scenario=sc, trace=trace, metrics=metrics)
+        return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model)
 
 
 def _lookahead_periods(scenario: Scenario) -> int:

@@ -1,0 +1,255 @@
+"""A finished run as a rerun recording: the machine posed over time, paths, signals, events.
+
+Entity tree (timelines ``sim_time`` [s] and ``period``)::
+
+    /machine/<body>            Transform3D over time (world from body), from the trace's
+    /machine/<body>/<geom>       encoder positions through MuJoCo's kinematics; geometry static
+    /paths/commanded           tool-tip path the card commanded (LineStrips3D, static)
+    /paths/actual              tool-tip path the machine made (static)
+    /paths/planned             the ideal NURBS curve (curve programs, static)
+    /force/arrow               pad force along the tool axis at the tip (Arrows3D over time)
+    /axes/<X..C>/command, /actual      [mm | deg]
+    /axes/<X..C>/ferr                  [counts]
+    /axes/<X..C>/dac                   [code]
+    /feed/commanded, /feed/actual      tool-tip path speed [mm/min]
+    /force/measured                    load cell, tared [N]
+    /controller/events                 state changes and faults (TextLog)
+    /whiteboard/fifo_fill [words], /whiteboard/missed_exchanges, /whiteboard/records_rejected
+
+Everything time-varying goes in bulk through ``send_columns`` (one call per entity), after the
+run, so recording costs the servo loop nothing. Body poses and series are sampled once per
+interpolation period (decimated further for runs longer than ``MAX_SAMPLES`` periods).
+"""
+
+from __future__ import annotations
+
+import uuid
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from cnc_twin.axes import AXES, joint_name
+from cnc_twin.config import NurbsProgram, Scenario
+from cnc_twin.plant import HOME_KEYFRAME, load_model
+from cnc_twin.record import Trace
+from cnc_twin.whiteboard.status import DspState
+
+MAX_SAMPLES = 20000
+"""most samples per series (one per interpolation period below that)"""
+POSE_INTERVAL = 0.004
+"""3D poses, paths and the force arrow: one sample per 4 ms at most (the eye needs no more)"""
+STATE_NAMES = DspState.NAMES
+
+
+def default_blueprint() -> rrb.Blueprint:
+    """3D machine view and event log on the left; time series grouped by concern on the right."""
+    position = [rrb.TimeSeriesView(name=f"{a} command / actual", origin=f"/axes/{a}",
+                                   contents=[f"/axes/{a}/command", f"/axes/{a}/actual"]) for a in AXES]
+    ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=[f"/axes/{a}/ferr" for a in AXES])
+    dac = rrb.TimeSeriesView(name="DAC [code]", origin="/axes", contents=[f"/axes/{a}/dac" for a in AXES])
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial3DView(name="machine", origin="/", contents=["/machine/**", "/paths/**", "/force/arrow"]),
+                rrb.TextLogView(name="controller", origin="/controller"),
+                row_shares=[3, 1],
+            ),
+            rrb.Vertical(
+                rrb.Grid(*position),
+                rrb.Horizontal(ferr, dac),
+                rrb.Horizontal(
+                    rrb.TimeSeriesView(name="feed [mm/min]", origin="/feed"),
+                    rrb.TimeSeriesView(name="pad force [N]", origin="/force", contents=["/force/measured"]),
+                    rrb.TimeSeriesView(name="whiteboard", origin="/whiteboard"),
+                ),
+                row_shares=[3, 2, 2],
+            ),
+            column_shares=[2, 3],
+        ),
+        collapse_panels=True,
+    )
+
+
+def _samples(trace: Trace, scenario: Scenario) -> np.ndarray:
+    """Tick indices sampled: the last tick of each period, decimated to at most MAX_SAMPLES."""
+    tpp = scenario.timing.ticks_per_period
+    ticks = np.arange(tpp - 1, len(trace), tpp)
+    step = max(1, int(np.ceil(len(ticks) / MAX_SAMPLES)))
+    return ticks[::step]
+
+
+def _timelines(trace: Trace, ticks: np.ndarray) -> list:
+    return [rr.TimeColumn("sim_time", duration=trace.time[ticks]),
+            rr.TimeColumn("period", sequence=trace.period[ticks])]
+
+
+def _axis_positions(trace: Trace, scenario: Scenario, ticks: np.ndarray, signal: np.ndarray) -> np.ndarray:
+    """Axis positions [m | rad] at ``ticks`` from a counts signal (command or actual)."""
+    return signal[ticks] / trace.counts_per_unit + np.asarray(scenario.home)
+
+
+class _Kinematics:
+    """Replays axis positions through the model: body poses and the tool tip."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, self.data, model.key(HOME_KEYFRAME).id)
+        self.adr = [model.joint(joint_name(a)).qposadr[0] for a in AXES]
+        self.tool = model.site("tool_site").id
+
+    def poses(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """For q (n, 6): body positions (n, nbody, 3), quaternions wxyz (n, nbody, 4), tool tips
+        (n, 3) and tool axes (n, 3, unit, tip -> spindle)."""
+        m, d = self.model, self.data
+        n = len(q)
+        pos = np.empty((n, m.nbody, 3))
+        quat = np.empty((n, m.nbody, 4))
+        tips = np.empty((n, 3))
+        axes = np.empty((n, 3))
+        for k in range(n):
+            d.qpos[self.adr] = q[k]
+            mujoco.mj_kinematics(m, d)
+            pos[k], quat[k] = d.xpos, d.xquat
+            tips[k] = d.site_xpos[self.tool]
+            axes[k] = d.site_xmat[self.tool].reshape(3, 3)[:, 2]
+        return pos, quat, tips, axes
+
+
+def log_machine(rec: rr.RecordingStream, model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray,
+                times: list) -> None:
+    """Static geometry per body (visual geoms), and each moving body's pose over time."""
+    for b in range(1, model.nbody):
+        body = model.body(b).name or f"body{b}"
+        path = f"/machine/{body}"
+        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == b and model.geom_group[g] in (2, 3)]
+        for g in geoms:
+            _log_geom(rec, model, g, f"{path}/{model.geom(g).name or f'geom{g}'}")
+        wxyz = quat[:, b]
+        rec.send_columns(path, indexes=times,
+                         columns=rr.Transform3D.columns(translation=pos[:, b], quaternion=wxyz[:, [1, 2, 3, 0]]))
+    for g in range(model.ngeom):  # world geoms (table, floor) are static
+        if model.geom_bodyid[g] == 0 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
+            _log_geom(rec, model, g, f"/machine/world/{model.geom(g).name or f'geom{g}'}")
+
+
+def _log_geom(rec: rr.RecordingStream, model: mujoco.MjModel, g: int, path: str) -> None:
+    size, center = model.geom_size[g], model.geom_pos[g]
+    q = model.geom_quat[g]
+    quaternion = rr.Quaternion(xyzw=[q[1], q[2], q[3], q[0]])
+    color = (np.clip(model.geom_rgba[g], 0, 1) * 255).astype(np.uint8)
+    kind = model.geom_type[g]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        rec.log(path, rr.Boxes3D(half_sizes=[size], centers=[center], quaternions=[quaternion], colors=[color],
+                                 fill_mode="solid"), static=True)
+    elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        rec.log(path, rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], centers=[center],
+                                     quaternions=[quaternion], colors=[color], fill_mode="solid"), static=True)
+    elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        rec.log(path, rr.Ellipsoids3D(half_sizes=[[size[0]] * 3], centers=[center], colors=[color],
+                                      fill_mode="solid"), static=True)
+
+
+def log_paths(rec: rr.RecordingStream, scenario: Scenario, command_tips: np.ndarray, actual_tips: np.ndarray) -> None:
+    """Commanded and actual tool-tip paths, and the planned curve for curve programs."""
+    rec.log("/paths/commanded", rr.LineStrips3D([command_tips], colors=[[60, 120, 255]], radii=[0.0006]), static=True)
+    rec.log("/paths/actual", rr.LineStrips3D([actual_tips], colors=[[255, 140, 0]], radii=[0.0004]), static=True)
+    prog = scenario.program
+    if isinstance(prog, NurbsProgram):
+        from cnc_twin.geometry.nurbs import NurbsCurve
+
+        points = np.asarray(prog.control_points)
+        if prog.axis_curve is None:
+            points = points + np.asarray(prog.tip_shift)
+        curve = NurbsCurve(points, prog.weights, prog.knots, prog.degree)
+        dense = curve.point(np.linspace(*curve.domain, 4000))
+        rec.log("/paths/planned", rr.LineStrips3D([dense], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
+
+
+def log_axes(rec: rr.RecordingStream, trace: Trace, scenario: Scenario, ticks: np.ndarray, times: list) -> None:
+    """Per axis: command and actual [mm | deg], following error [counts], DAC code."""
+    for i, cfg in enumerate(scenario.axes):
+        to_user = cfg.display_factor / cfg.counts_per_unit
+        home = scenario.home[i] * cfg.display_factor
+        for name, values in (("command", trace.command[ticks, i] * to_user + home),
+                             ("actual", trace.actual[ticks, i] * to_user + home),
+                             ("ferr", trace.following_error[ticks, i]),
+                             ("dac", trace.dac[ticks, i].astype(np.float64))):
+            rec.send_columns(f"/axes/{cfg.name}/{name}", indexes=times, columns=rr.Scalars.columns(scalars=values))
+
+
+def log_process(rec: rr.RecordingStream, trace: Trace, ticks: np.ndarray, times: list, pose_ticks: np.ndarray,
+                pose_times: list, command_tips: np.ndarray, actual_tips: np.ndarray, tool_axes: np.ndarray) -> None:
+    """Feed (commanded, actual), pad force (series and arrow), whiteboard signals."""
+    t = trace.time[pose_ticks]
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
+    mm_per_min = 60e3
+    for name, tips in (("commanded", command_tips), ("actual", actual_tips)):
+        speed = np.linalg.norm(np.diff(tips, axis=0, prepend=tips[:1]), axis=1) / dt * mm_per_min
+        rec.send_columns(f"/feed/{name}", indexes=pose_times, columns=rr.Scalars.columns(scalars=speed))
+    force = trace.pad_force[ticks]
+    rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=force))
+    vectors = -tool_axes * (trace.pad_force[pose_ticks] * 1e-3)[:, None]  # 1 mm per N, into the work
+    rec.send_columns("/force/arrow", indexes=pose_times,
+                     columns=rr.Arrows3D.columns(origins=actual_tips, vectors=vectors))
+    for name in ("fifo_fill", "missed_exchanges", "records_rejected"):
+        rec.send_columns(f"/whiteboard/{name}", indexes=times,
+                         columns=rr.Scalars.columns(scalars=trace.period_signals[name][ticks].astype(np.float64)))
+
+
+def log_events(rec: rr.RecordingStream, trace: Trace, metrics: dict) -> None:
+    """Controller state changes (and the fault, if any) as text, at the tick they happened."""
+    state = trace.period_signals["state"]
+    changes = np.flatnonzero(np.diff(state, prepend=-1))
+    if len(changes) == 0:
+        return
+    texts = [f"state {STATE_NAMES.get(int(state[k]), state[k])}" for k in changes]
+    levels = ["WARN" if state[k] in (DspState.FEED_HOLD, DspState.STOPPING) else
+              "ERROR" if state[k] == DspState.FAULT else "INFO" for k in changes]
+    fault = metrics.get("fault")
+    if fault:
+        fault_tick = min(len(trace) - 1, int(np.searchsorted(trace.time, fault["time_s"])))
+        changes = np.append(changes, fault_tick)
+        texts.append(f"fault {fault['code']}: {fault['message']}")
+        levels.append("ERROR")
+        order = np.argsort(changes, kind="stable")
+        changes, texts, levels = changes[order], [texts[i] for i in order], [levels[i] for i in order]
+    rec.send_columns("/controller/events",
+                     indexes=[rr.TimeColumn("sim_time", duration=trace.time[changes]),
+                              rr.TimeColumn("period", sequence=trace.period[changes])],
+                     columns=rr.TextLog.columns(text=texts, level=levels))
+
+
+def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | None = None,
+               spawn: bool = False, model: mujoco.MjModel | None = None) -> Path | None:
+    """Write the run as a recording to ``rrd`` and/or open it in a spawned viewer.
+
+    ``model``: the run's compiled MJCF, if at hand (otherwise compiled again from the scenario).
+    """
+    rec = rr.RecordingStream("cnc-twin", recording_id=str(uuid.uuid4()))
+    blueprint = default_blueprint()
+    if spawn:
+        rec.spawn(default_blueprint=blueprint)
+    if rrd is not None:
+        rec.save(str(rrd), default_blueprint=blueprint)
+    rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    model = model if model is not None else load_model(scenario.model_file)
+    kin = _Kinematics(model)
+    ticks = _samples(trace, scenario)
+    times = _timelines(trace, ticks)
+    stride = max(1, round(POSE_INTERVAL / scenario.timing.interpolation_period))
+    pose_ticks = ticks[::stride]
+    pose_times = _timelines(trace, pose_ticks)
+    pos, quat, actual_tips, tool_axes = kin.poses(_axis_positions(trace, scenario, pose_ticks, trace.actual))
+    command_tips = kin.poses(_axis_positions(trace, scenario, pose_ticks, trace.command))[2]
+    log_machine(rec, model, pos, quat, pose_times)
+    log_paths(rec, scenario, command_tips, actual_tips)
+    log_axes(rec, trace, scenario, ticks, times)
+    log_process(rec, trace, ticks, times, pose_ticks, pose_times, command_tips, actual_tips, tool_axes)
+    log_events(rec, trace, metrics)
+    rec.flush()
+    rec.disconnect()
+    return rrd

@@ -1,0 +1,71 @@
+"""The rerun recording of a run: written into the run directory, readable, complete."""
+
+from __future__ import annotations
+
+import collections
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from cnc_twin.axes import AXES
+from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.twin import run_scenario
+
+
+def rrd_rows(path: Path) -> dict[str, int]:
+    """Rows per entity path, read back with rerun's own CLI (``rerun rrd print``)."""
+    viewer = Path(sys.executable).with_name("rerun")
+    command = [str(viewer)] if viewer.exists() else [sys.executable, "-m", "rerun"]
+    out = subprocess.run(command + ["rrd", "print", str(path)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    rows: dict[str, int] = collections.Counter()
+    for line in out.stdout.splitlines():
+        m = re.match(r"Chunk\(\S+\) with (\d+) rows .* - (\S+) - data columns", line)
+        if m:
+            rows[m.group(2)] += int(m.group(1))
+    return rows
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    scenario = scenario_from_dict({"name": "short", "program": {"type": "point_to_point", "settle": 0.05,
+                                                                "moves": [{"X": 20, "A": 5}]}})
+    result = run_scenario(scenario)
+    return result, result.write(tmp_path_factory.mktemp("runs") / "run")
+
+
+def test_run_directory_holds_a_readable_recording_with_every_entity(short_run):
+    result, run_dir = short_run
+    rows = rrd_rows(run_dir / "recording.rrd")
+    periods = len(result.trace) // result.scenario.timing.ticks_per_period
+    for axis in AXES:
+        for signal in ("command", "actual", "ferr", "dac"):
+            assert rows[f"/axes/{axis}/{signal}"] == periods, (axis, signal)
+    for name in ("/force/measured", "/whiteboard/fifo_fill", "/whiteboard/missed_exchanges"):
+        assert rows[name] == periods, name
+    poses = -(-periods // 4)  # 3D poses every 4 ms
+    for body in ("x_carriage", "y_saddle", "z_ram", "a_yoke", "b_head", "c_spindle", "pad"):
+        assert rows[f"/machine/{body}"] == poses, body
+    assert rows["/paths/commanded"] == 1 and rows["/paths/actual"] == 1
+    assert rows["/force/arrow"] == poses and rows["/feed/commanded"] == poses
+    assert rows["/controller/events"] >= 2  # IDLE -> RUNNING -> ... -> FINISHED
+    assert any(k.startswith("/machine/pad/") for k in rows)  # geometry logged
+
+
+def test_no_rrd_flag_and_rrd_path(tmp_path, write_scenario):
+    path = write_scenario({"name": "tiny", "program": {"type": "point_to_point", "settle": 0.0, "moves": [{"X": 1}]}})
+    out, extra = tmp_path / "run", tmp_path / "extra.rrd"
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(out), "--no-rrd",
+                           "--rrd", str(extra), "--quiet"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / "recording.rrd").exists() and extra.is_file()
+    assert rrd_rows(extra)["/axes/X/command"] > 0
+
+
+def test_view_without_a_recording_is_a_clear_error(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "view", str(tmp_path)], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 2 and "no rerun recording" in proc.stderr
