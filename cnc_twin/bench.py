@@ -42,6 +42,26 @@ def time_twin_run(scenario_file: Path) -> tuple[float, float, int, int]:
     return result.metrics["wall_time_s"], total, result.metrics["physics_steps"], result.trace.nbytes()
 
 
+def time_rerun_export(scenario_file: Path) -> tuple[float, float, float]:
+    """(run loop wall [s], rerun export wall [s] with rerun already imported, import time [s])."""
+    import sys
+    import tempfile
+
+    started = time.perf_counter()
+    already = "rerun" in sys.modules
+    import rerun  # noqa: F401  (one-time cost, measured apart)
+
+    import_s = 0.0 if already else time.perf_counter() - started
+    from cnc_twin.rerun_export import export_run  # noqa: F401
+
+    result = Twin(load_scenario(scenario_file)).run()
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        result.export_rerun(rrd=Path(folder) / "recording.rrd")
+        export = time.perf_counter() - started
+    return result.metrics["wall_time_s"], export, import_s
+
+
 def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
     """Measure twin and bare stepping for ``scenario_file``; returns figures as a flat dict."""
     scenario = load_scenario(scenario_file)
@@ -70,8 +90,14 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "twin_startup_s": min(totals),
         "trace_bytes": trace_bytes,
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        **_rerun_figures(scenario_file),
         "repeat": repeat,
     }
+
+
+def _rerun_figures(scenario_file: Path) -> dict[str, float]:
+    loop, export, import_s = time_rerun_export(scenario_file)
+    return {"rerun_export_s": export, "rerun_export_over_run": export / loop, "rerun_import_s": import_s}
 
 
 def format_bench(figures: dict[str, Any]) -> str:
