@@ -142,12 +142,13 @@ def _view(args: argparse.Namespace) -> int:
 
     from cnc_twin.record import RECORDING_FILE
 
+    from cnc_twin.viewer import rerun_command, viewer_environment
+
     path = args.run_dir / RECORDING_FILE if args.run_dir.is_dir() else args.run_dir
     if not path.is_file():
         raise ScenarioError(path, "", "no rerun recording here (runs write recording.rrd unless --no-rrd)")
-    viewer = Path(sys.executable).with_name("rerun")
-    command = [str(viewer)] if viewer.exists() else [sys.executable, "-m", "rerun"]
-    return subprocess.call(command + [str(path)])
+    with viewer_environment() as env:
+        return subprocess.call(rerun_command() + [str(path)], env=env)
 
 
 def _validate(args: argparse.Namespace) -> int:

@@ -232,7 +232,10 @@ def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | N
     rec = rr.RecordingStream("cnc-twin", recording_id=str(uuid.uuid4()))
     blueprint = default_blueprint()
     if spawn:
-        rec.spawn(default_blueprint=blueprint)
+        from cnc_twin.viewer import viewer_environment
+
+        with viewer_environment():  # the viewer starts with usage analytics disabled
+            rec.spawn(default_blueprint=blueprint)
     if rrd is not None:
         rec.save(str(rrd), default_blueprint=blueprint)
     rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)

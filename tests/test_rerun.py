@@ -69,3 +69,20 @@ def test_view_without_a_recording_is_a_clear_error(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "cnc_twin", "view", str(tmp_path)], capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 2 and "no rerun recording" in proc.stderr
+
+
+def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, monkeypatch):
+    import json
+    import os
+
+    from cnc_twin.viewer import viewer_config_home, viewer_environment
+
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "user-config"))
+    base = viewer_config_home()
+    config = json.loads((base / "rerun" / "analytics.json").read_text())
+    assert config["analytics_enabled"] is False
+    assert base.is_relative_to(tmp_path / "user-config" / "cnc-twin")
+    assert not (tmp_path / "user-config" / "rerun").exists()  # the user's own rerun settings untouched
+    with viewer_environment() as env:
+        assert env["XDG_CONFIG_HOME"] == str(base) == os.environ["XDG_CONFIG_HOME"]
+    assert os.environ["XDG_CONFIG_HOME"] == str(tmp_path / "user-config")
