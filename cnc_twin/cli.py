@@ -93,13 +93,22 @@ def _run(args: argparse.Namespace) -> int:
     twin = Twin(scenario)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
                       stream=None if not args.quiet else _NullStream())
+    live = None
+    if args.rerun:  # a viewer opens now and the run streams into it as it is recorded
+        from cnc_twin.rerun_export import RunExporter
+
+        live = RunExporter(scenario, model=twin.plant.model)
+        live.start(spawn=True)
     with _stop_on_signals(twin):
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
-        result = twin.run(progress=bar)
+        result = twin.run(progress=bar, observer=None if live is None else
+                          (lambda t: live.send(t.partial_trace(), t.frames.count)))
+    if live is not None:
+        live.finish(result.trace, result.metrics, result.exchange_latency)
     result.write(run_dir, recording=not args.no_rrd)
-    if args.rrd is not None or args.rerun:
-        result.export_rerun(rrd=args.rrd, spawn=args.rerun)
+    if args.rrd is not None:
+        result.export_rerun(rrd=args.rrd)
     if not args.quiet:
         print(summary_table(result.metrics))
     print(f"run directory: {run_dir}")

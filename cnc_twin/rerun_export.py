@@ -11,10 +11,12 @@ Entity tree (timelines ``sim_time`` [s] and ``period``)::
     /axes/<X..C>/command, /actual      [mm | deg]
     /axes/<X..C>/ferr                  [counts]
     /axes/<X..C>/dac                   [code]
+    /axes/<X..C>/saturated             1 while the DAC is pinned at -2048 or 2047
     /feed/commanded, /feed/actual      tool-tip path speed [mm/min]
     /force/measured                    load cell, tared [N]
     /controller/events                 state changes and faults (TextLog)
     /whiteboard/fifo_fill [words], /whiteboard/missed_exchanges, /whiteboard/records_rejected
+    /whiteboard/exchange_latency_us    DSP post -> planner answer, wall clock (recording only)
 
 Everything time-varying goes in bulk through ``send_columns`` (one call per entity), after the
 run, so recording costs the servo loop nothing. Body poses and series are sampled once per
@@ -37,8 +39,6 @@ from cnc_twin.plant import HOME_KEYFRAME, load_model
 from cnc_twin.record import Trace
 from cnc_twin.whiteboard.status import DspState
 
-MAX_SAMPLES = 20000
-"""most samples per series (one per interpolation period below that)"""
 POSE_INTERVAL = 0.004
 """3D poses, paths and the force arrow: one sample per 4 ms at most (the eye needs no more)"""
 STATE_NAMES = DspState.NAMES
@@ -49,7 +49,8 @@ def default_blueprint() -> rrb.Blueprint:
     position = [rrb.TimeSeriesView(name=f"{a} command / actual", origin=f"/axes/{a}",
                                    contents=[f"/axes/{a}/command", f"/axes/{a}/actual"]) for a in AXES]
     ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=[f"/axes/{a}/ferr" for a in AXES])
-    dac = rrb.TimeSeriesView(name="DAC [code]", origin="/axes", contents=[f"/axes/{a}/dac" for a in AXES])
+    dac = rrb.TimeSeriesView(name="DAC [code] and saturation", origin="/axes",
+                             contents=[f"/axes/{a}/{s}" for a in AXES for s in ("dac", "saturated")])
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
@@ -63,7 +64,11 @@ def default_blueprint() -> rrb.Blueprint:
                 rrb.Horizontal(
                     rrb.TimeSeriesView(name="feed [mm/min]", origin="/feed"),
                     rrb.TimeSeriesView(name="pad force [N]", origin="/force", contents=["/force/measured"]),
-                    rrb.TimeSeriesView(name="whiteboard", origin="/whiteboard"),
+                    rrb.TimeSeriesView(name="whiteboard", origin="/whiteboard",
+                                       contents=["/whiteboard/fifo_fill", "/whiteboard/missed_exchanges",
+                                                 "/whiteboard/records_rejected"]),
+                    rrb.TimeSeriesView(name="exchange latency [us]", origin="/whiteboard",
+                                       contents=["/whiteboard/exchange_latency_us"]),
                 ),
                 row_shares=[3, 2, 2],
             ),
@@ -71,14 +76,6 @@ def default_blueprint() -> rrb.Blueprint:
         ),
         collapse_panels=True,
     )
-
-
-def _samples(trace: Trace, scenario: Scenario) -> np.ndarray:
-    """Tick indices sampled: the last tick of each period, decimated to at most MAX_SAMPLES."""
-    tpp = scenario.timing.ticks_per_period
-    ticks = np.arange(tpp - 1, len(trace), tpp)
-    step = max(1, int(np.ceil(len(ticks) / MAX_SAMPLES)))
-    return ticks[::step]
 
 
 def _timelines(trace: Trace, ticks: np.ndarray) -> list:
@@ -119,21 +116,27 @@ class _Kinematics:
         return pos, quat, tips, axes
 
 
-def log_machine(rec: rr.RecordingStream, model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray,
-                times: list) -> None:
-    """Static geometry per body (visual geoms), and each moving body's pose over time."""
+def _body_path(model: mujoco.MjModel, b: int) -> str:
+    return f"/machine/{model.body(b).name or f'body{b}'}"
+
+
+def log_geometry(rec: rr.RecordingStream, model: mujoco.MjModel) -> None:
+    """The machine's visual and workpiece geoms, static, under their bodies (world geoms apart)."""
+    for g in range(model.ngeom):
+        b = model.geom_bodyid[g]
+        name = model.geom(g).name or f"geom{g}"
+        if b == 0:
+            if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
+                _log_geom(rec, model, g, f"/machine/world/{name}")
+        elif model.geom_group[g] in (2, 3):
+            _log_geom(rec, model, g, f"{_body_path(model, b)}/{name}")
+
+
+def log_poses(rec: rr.RecordingStream, model: mujoco.MjModel, pos: np.ndarray, quat: np.ndarray, times: list) -> None:
+    """Each body's pose over time (world from body)."""
     for b in range(1, model.nbody):
-        body = model.body(b).name or f"body{b}"
-        path = f"/machine/{body}"
-        geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == b and model.geom_group[g] in (2, 3)]
-        for g in geoms:
-            _log_geom(rec, model, g, f"{path}/{model.geom(g).name or f'geom{g}'}")
-        wxyz = quat[:, b]
-        rec.send_columns(path, indexes=times,
-                         columns=rr.Transform3D.columns(translation=pos[:, b], quaternion=wxyz[:, [1, 2, 3, 0]]))
-    for g in range(model.ngeom):  # world geoms (table, floor) are static
-        if model.geom_bodyid[g] == 0 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
-            _log_geom(rec, model, g, f"/machine/world/{model.geom(g).name or f'geom{g}'}")
+        rec.send_columns(_body_path(model, b), indexes=times,
+                         columns=rr.Transform3D.columns(translation=pos[:, b], quaternion=quat[:, b][:, [1, 2, 3, 0]]))
 
 
 def _log_geom(rec: rr.RecordingStream, model: mujoco.MjModel, g: int, path: str) -> None:
@@ -174,30 +177,13 @@ def log_axes(rec: rr.RecordingStream, trace: Trace, scenario: Scenario, ticks: n
     for i, cfg in enumerate(scenario.axes):
         to_user = cfg.display_factor / cfg.counts_per_unit
         home = scenario.home[i] * cfg.display_factor
+        dac = trace.dac[ticks, i]
         for name, values in (("command", trace.command[ticks, i] * to_user + home),
                              ("actual", trace.actual[ticks, i] * to_user + home),
                              ("ferr", trace.following_error[ticks, i]),
-                             ("dac", trace.dac[ticks, i].astype(np.float64))):
+                             ("dac", dac.astype(np.float64)),
+                             ("saturated", ((dac <= -2048) | (dac >= 2047)).astype(np.float64))):
             rec.send_columns(f"/axes/{cfg.name}/{name}", indexes=times, columns=rr.Scalars.columns(scalars=values))
-
-
-def log_process(rec: rr.RecordingStream, trace: Trace, ticks: np.ndarray, times: list, pose_ticks: np.ndarray,
-                pose_times: list, command_tips: np.ndarray, actual_tips: np.ndarray, tool_axes: np.ndarray) -> None:
-    """Feed (commanded, actual), pad force (series and arrow), whiteboard signals."""
-    t = trace.time[pose_ticks]
-    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if len(t) > 1 else 1.0))
-    mm_per_min = 60e3
-    for name, tips in (("commanded", command_tips), ("actual", actual_tips)):
-        speed = np.linalg.norm(np.diff(tips, axis=0, prepend=tips[:1]), axis=1) / dt * mm_per_min
-        rec.send_columns(f"/feed/{name}", indexes=pose_times, columns=rr.Scalars.columns(scalars=speed))
-    force = trace.pad_force[ticks]
-    rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=force))
-    vectors = -tool_axes * (trace.pad_force[pose_ticks] * 1e-3)[:, None]  # 1 mm per N, into the work
-    rec.send_columns("/force/arrow", indexes=pose_times,
-                     columns=rr.Arrows3D.columns(origins=actual_tips, vectors=vectors))
-    for name in ("fifo_fill", "missed_exchanges", "records_rejected"):
-        rec.send_columns(f"/whiteboard/{name}", indexes=times,
-                         columns=rr.Scalars.columns(scalars=trace.period_signals[name][ticks].astype(np.float64)))
 
 
 def log_events(rec: rr.RecordingStream, trace: Trace, metrics: dict) -> None:
@@ -223,36 +209,108 @@ def log_events(rec: rr.RecordingStream, trace: Trace, metrics: dict) -> None:
                      columns=rr.TextLog.columns(text=texts, level=levels))
 
 
+def log_latency(rec: rr.RecordingStream, scenario: Scenario, exchange_latency) -> None:
+    """Exchange latency per answered exchange, at the period it answered."""
+    if exchange_latency is None or len(exchange_latency[0]) == 0:
+        return
+    periods, latency_us = exchange_latency
+    rec.send_columns("/whiteboard/exchange_latency_us",
+                     indexes=[rr.TimeColumn("sim_time", duration=periods * scenario.timing.interpolation_period),
+                              rr.TimeColumn("period", sequence=periods)],
+                     columns=rr.Scalars.columns(scalars=latency_us))
+
+
+class RunExporter:
+    """Sends a run to a recording in stretches: :meth:`start`, :meth:`send` (any number of times,
+    consecutive tick ranges), :meth:`finish`. ``export_run`` does all three at once; a live
+    viewer gets each stretch as the run records it.
+
+    Series are sampled at the last tick of each interpolation period; 3D poses, tool tips, feed
+    and the force arrow every ``POSE_INTERVAL`` on one global grid, so stretches line up.
+    """
+
+    def __init__(self, scenario: Scenario, *, model: mujoco.MjModel | None = None):
+        self.scenario = scenario
+        self.model = model if model is not None else load_model(scenario.model_file)
+        self.kin = _Kinematics(self.model)
+        self.rec = rr.RecordingStream("cnc-twin", recording_id=str(uuid.uuid4()))
+        timing = scenario.timing
+        self.tpp = timing.ticks_per_period
+        self.stride = max(1, round(POSE_INTERVAL / timing.interpolation_period))
+        self.sent_ticks = 0
+        self._tips: list[np.ndarray] = []
+        self._command_tips: list[np.ndarray] = []
+        self._last = None
+
+    def start(self, *, rrd: Path | None = None, spawn: bool = False) -> None:
+        """Open the sinks, log the blueprint, axes convention and static geometry."""
+        blueprint = default_blueprint()
+        if spawn:
+            from cnc_twin.viewer import viewer_environment
+
+            with viewer_environment():  # the viewer starts with usage analytics disabled
+                self.rec.spawn(default_blueprint=blueprint)
+        if rrd is not None:
+            self.rec.save(str(rrd), default_blueprint=blueprint)
+        self.rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        log_geometry(self.rec, self.model)
+
+    def send(self, trace: Trace, upto: int) -> None:
+        """Send ticks ``sent_ticks .. upto`` of ``trace`` (which must hold them)."""
+        first = self.sent_ticks
+        periods = np.arange(first // self.tpp, upto // self.tpp)
+        if len(periods) == 0:
+            return
+        ticks = periods * self.tpp + self.tpp - 1
+        if len(ticks) and ticks[-1] >= len(trace):
+            ticks = ticks[ticks < len(trace)]
+        self.sent_ticks = (periods[-1] + 1) * self.tpp
+        sc, rec = self.scenario, self.rec
+        times = _timelines(trace, ticks)
+        log_axes(rec, trace, sc, ticks, times)
+        rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=trace.pad_force[ticks]))
+        for name in ("fifo_fill", "missed_exchanges", "records_rejected"):
+            rec.send_columns(f"/whiteboard/{name}", indexes=times,
+                             columns=rr.Scalars.columns(scalars=trace.period_signals[name][ticks].astype(np.float64)))
+        pose_ticks = ticks[(ticks // self.tpp) % self.stride == 0]
+        if len(pose_ticks) == 0:
+            return
+        pose_times = _timelines(trace, pose_ticks)
+        pos, quat, tips, tool_axes = self.kin.poses(_axis_positions(trace, sc, pose_ticks, trace.actual))
+        command_tips = self.kin.poses(_axis_positions(trace, sc, pose_ticks, trace.command))[2]
+        log_poses(rec, self.model, pos, quat, pose_times)
+        vectors = -tool_axes * (trace.pad_force[pose_ticks] * 1e-3)[:, None]  # 1 mm per N, into the work
+        rec.send_columns("/force/arrow", indexes=pose_times, columns=rr.Arrows3D.columns(origins=tips, vectors=vectors))
+        t = trace.time[pose_ticks]
+        for name, pts in (("commanded", command_tips), ("actual", tips)):
+            prev = self._last[name] if self._last else pts[:1]
+            t_prev = self._last["t"] if self._last else t[:1] - self.stride * sc.timing.interpolation_period
+            steps = np.diff(np.vstack([prev, pts]), axis=0)
+            dt = np.diff(np.concatenate([t_prev, t]))
+            speed = np.linalg.norm(steps, axis=1) / dt * 60e3
+            rec.send_columns(f"/feed/{name}", indexes=pose_times, columns=rr.Scalars.columns(scalars=speed))
+        self._last = {"commanded": command_tips[-1:], "actual": tips[-1:], "t": t[-1:]}
+        self._tips.append(tips)
+        self._command_tips.append(command_tips)
+
+    def finish(self, trace: Trace, metrics: dict, exchange_latency=None) -> None:
+        """Send the rest, the paths, controller events and exchange latency; flush and close."""
+        self.send(trace, len(trace))
+        if self._tips:
+            log_paths(self.rec, self.scenario, np.vstack(self._command_tips), np.vstack(self._tips))
+        log_events(self.rec, trace, metrics)
+        log_latency(self.rec, self.scenario, exchange_latency)
+        self.rec.flush()
+        self.rec.disconnect()
+
+
 def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | None = None,
-               spawn: bool = False, model: mujoco.MjModel | None = None) -> Path | None:
+               spawn: bool = False, model: mujoco.MjModel | None = None, exchange_latency=None) -> Path | None:
     """Write the run as a recording to ``rrd`` and/or open it in a spawned viewer.
 
     ``model``: the run's compiled MJCF, if at hand (otherwise compiled again from the scenario).
     """
-    rec = rr.RecordingStream("cnc-twin", recording_id=str(uuid.uuid4()))
-    blueprint = default_blueprint()
-    if spawn:
-        from cnc_twin.viewer import viewer_environment
-
-        with viewer_environment():  # the viewer starts with usage analytics disabled
-            rec.spawn(default_blueprint=blueprint)
-    if rrd is not None:
-        rec.save(str(rrd), default_blueprint=blueprint)
-    rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    model = model if model is not None else load_model(scenario.model_file)
-    kin = _Kinematics(model)
-    ticks = _samples(trace, scenario)
-    times = _timelines(trace, ticks)
-    stride = max(1, round(POSE_INTERVAL / scenario.timing.interpolation_period))
-    pose_ticks = ticks[::stride]
-    pose_times = _timelines(trace, pose_ticks)
-    pos, quat, actual_tips, tool_axes = kin.poses(_axis_positions(trace, scenario, pose_ticks, trace.actual))
-    command_tips = kin.poses(_axis_positions(trace, scenario, pose_ticks, trace.command))[2]
-    log_machine(rec, model, pos, quat, pose_times)
-    log_paths(rec, scenario, command_tips, actual_tips)
-    log_axes(rec, trace, scenario, ticks, times)
-    log_process(rec, trace, ticks, times, pose_ticks, pose_times, command_tips, actual_tips, tool_axes)
-    log_events(rec, trace, metrics)
-    rec.flush()
-    rec.disconnect()
+    exporter = RunExporter(scenario, model=model)
+    exporter.start(rrd=rrd, spawn=spawn)
+    exporter.finish(trace, metrics, exchange_latency)
     return rrd

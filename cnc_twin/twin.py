@@ -62,6 +62,8 @@ class RunResult:
     run_dir: Path | None = field(default=None)
     model: Any = field(default=None, repr=False)
     """the compiled MJCF the run used (for exports)"""
+    exchange_latency: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
 
     @property
     def status(self) -> str:
@@ -83,7 +85,8 @@ class RunResult:
         """Write a rerun recording of the run and/or open it in a spawned viewer."""
         from cnc_twin.rerun_export import export_run
 
-        export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model)
+        export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model,
+                   exchange_latency=self.exchange_latency)
 
 
 class Twin:
@@ -118,6 +121,7 @@ class Twin:
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
         self.plan_us = self.plan_blocks = 0
+        self.observer = None
         self.expected_periods = 0
         self.frames: FrameBuffer | None = None
 
@@ -125,8 +129,15 @@ class Twin:
         """Stop at the next interpolation period; what was recorded so far is kept."""
         self.stop_reason = reason
 
-    def run(self, *, progress: ProgressCallback | None = None) -> RunResult:
-        """Run the program on the simulated clock and return the result."""
+    def run(self, *, progress: ProgressCallback | None = None,
+            observer: Callable[["Twin"], None] | None = None) -> RunResult:
+        """Run the program on the simulated clock and return the result.
+
+        ``observer(twin)`` is called a few hundred times during the run, after whole periods, with
+        ``twin.frames.count`` rows recorded so far (:meth:`partial_trace` reads them), e.g. to
+        stream the run into a live viewer.
+        """
+        self.observer = observer
         sc = self.scenario
         ctx = multiprocessing.get_context("spawn")
         wb = Whiteboard.create(Layout(sc.whiteboard.words))
@@ -207,8 +218,13 @@ class Twin:
                 rows[t] = frame
                 t += 1
             k += 1
-            if progress is not None and k % report_every == 0:
-                progress(min(k, self.expected_periods), self.expected_periods)
+            if k % report_every == 0:
+                if progress is not None:
+                    progress(min(k, self.expected_periods), self.expected_periods)
+                if self.observer is not None:
+                    frames.count = t
+                    self.observer(self)
+                    rows = frames.rows
             if dsp.done:
                 if dsp.state == DspState.FINISHED:
                     break
@@ -222,6 +238,13 @@ class Twin:
         if progress is not None and self.stop_reason is None:
             progress(self.expected_periods, self.expected_periods)
         return wall_time, k
+
+    def partial_trace(self) -> Trace:
+        """The signals recorded so far (a copy), as a :class:`~cnc_twin.record.Trace`."""
+        sc = self.scenario
+        return Trace.from_frames(self.frames, servo_period=sc.timing.servo_period,
+                                 ticks_per_period=sc.timing.ticks_per_period,
+                                 counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
 
     def _pace(self, deadline: float, period_s: float) -> None:
         """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
@@ -278,7 +301,8 @@ class Twin:
             metrics["stop_reason"] = self.stop_reason
         elif dsp.fault != FaultCode.NONE:
             metrics["status"] = "fault"
-        return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model)
+        latency = (np.asarray(port.latency_period, dtype=np.int64), np.asarray(port.latency_ns, dtype=np.float64) / 1e3)
+        return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency)
 
 
 def _lookahead_periods(scenario: Scenario) -> int:

@@ -42,7 +42,7 @@ def test_run_directory_holds_a_readable_recording_with_every_entity(short_run):
     rows = rrd_rows(run_dir / "recording.rrd")
     periods = len(result.trace) // result.scenario.timing.ticks_per_period
     for axis in AXES:
-        for signal in ("command", "actual", "ferr", "dac"):
+        for signal in ("command", "actual", "ferr", "dac", "saturated"):
             assert rows[f"/axes/{axis}/{signal}"] == periods, (axis, signal)
     for name in ("/force/measured", "/whiteboard/fifo_fill", "/whiteboard/missed_exchanges"):
         assert rows[name] == periods, name
@@ -52,6 +52,7 @@ def test_run_directory_holds_a_readable_recording_with_every_entity(short_run):
     assert rows["/paths/commanded"] == 1 and rows["/paths/actual"] == 1
     assert rows["/force/arrow"] == poses and rows["/feed/commanded"] == poses
     assert rows["/controller/events"] >= 2  # IDLE -> RUNNING -> ... -> FINISHED
+    assert rows["/whiteboard/exchange_latency_us"] == result.metrics["whiteboard"]["exchanges"]
     assert any(k.startswith("/machine/pad/") for k in rows)  # geometry logged
 
 
@@ -86,3 +87,29 @@ def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, mon
     with viewer_environment() as env:
         assert env["XDG_CONFIG_HOME"] == str(base) == os.environ["XDG_CONFIG_HOME"]
     assert os.environ["XDG_CONFIG_HOME"] == str(tmp_path / "user-config")
+
+
+def test_streaming_during_the_run_records_what_a_post_run_export_does(tmp_path):
+    """The live path (what --rerun feeds a viewer) sends the same rows, stretch by stretch."""
+    from cnc_twin.rerun_export import RunExporter
+    from cnc_twin.twin import Twin
+
+    scenario = scenario_from_dict({"name": "live", "program": {"type": "point_to_point", "settle": 0.05,
+                                                               "moves": [{"X": 20}, {"Y": -10}]}})
+    twin = Twin(scenario)
+    live = RunExporter(scenario, model=twin.plant.model)
+    live.start(rrd=tmp_path / "live.rrd")
+    stretches = []
+
+    def observe(t):
+        stretches.append(t.frames.count)
+        live.send(t.partial_trace(), t.frames.count)
+
+    result = twin.run(observer=observe)
+    live.finish(result.trace, result.metrics, result.exchange_latency)
+    result.export_rerun(rrd=tmp_path / "after.rrd")
+    assert len(stretches) > 10  # it really streamed, in many stretches
+    streamed, after = rrd_rows(tmp_path / "live.rrd"), rrd_rows(tmp_path / "after.rrd")
+    for path, n in after.items():
+        if not path.startswith(("/container", "/blueprint", "/view", "/__")):
+            assert streamed[path] == n, path

@@ -79,6 +79,8 @@ class DspPort:
         self.post_ns = 0
         self.latency_ns = array.array("q")
         """per answered exchange: DSP post -> PC acknowledgement, wall clock [ns]"""
+        self.latency_period = array.array("q")
+        """the period each latency belongs to (the period whose status was answered)"""
         self._pc_ack_time = np.ndarray((1,), dtype="<u8", buffer=wb.shm.buf, offset=2 * (wb.layout.pc_control + L.PC_ACK_TIME))
         self._status_offset = 2 * wb.layout.status_base
 
@@ -107,6 +109,7 @@ class DspPort:
                 self.missed_exchanges += 1
                 return False
             self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
+            self.latency_period.append(self.last_posted)
         self.words[self.wb.HOLDA] = 0
         self.fifo.snapshot()
         return True
