@@ -290,13 +290,15 @@ class _KeyedValueError(ValueError):
 # --------------------------------------------------------------------------------------------
 # Loading.
 # --------------------------------------------------------------------------------------------
-def load_scenario(path: str | Path) -> Scenario:
-    """Read, validate and convert a scenario file.
+def load_scenario(path: str | Path, *, overrides: dict[str, Any] | None = None) -> Scenario:
+    """Read, validate and convert a scenario file, with optional overrides by dotted path
+    (see :mod:`cnc_twin.overrides`: ``{"servo.X.kp": 60, "program.settle": 0.5}``).
 
     Raises
     ------
     ScenarioError
-        For any problem, naming the file and the key path.
+        For any problem, naming the file and the key path (an override's problem names the
+        override too).
     """
     path = Path(path)
     try:
@@ -305,7 +307,36 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(path, "", "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(path, "", f"cannot read: {exc}") from None
-    return scenario_from_text(text, source_file=path)
+    if not overrides:
+        return scenario_from_text(text, source_file=path)
+    from cnc_twin.overrides import apply_overrides
+
+    raw = _parse_yaml(text, path)
+    if not isinstance(raw, dict):
+        raise ScenarioError(path, "", f"expected a mapping of keys at the top level, got {type(raw).__name__}")
+    changed = apply_overrides(raw, overrides, label=f"{path} (overrides)")
+    try:
+        return scenario_from_dict(changed, source_file=path,
+                                  source_text=yaml.safe_dump(changed, sort_keys=False))
+    except ScenarioError as exc:
+        hit = _override_for(exc.key_path, overrides)
+        if hit is None:
+            raise
+        raise ScenarioError(f"{path} (override {hit!r})", exc.key_path, exc.message) from None
+
+
+def _override_for(key_path: str, overrides: dict[str, Any]) -> str | None:
+    """The override whose expanded path is (a prefix of) ``key_path``, if any."""
+    from cnc_twin.overrides import expand
+
+    for name in overrides:
+        for target in expand(name, {}):
+            shown = ""
+            for p in target:
+                shown += f"[{p}]" if isinstance(p, int) else (f".{p}" if shown else str(p))
+            if key_path == shown or key_path.startswith(shown + ".") or key_path.startswith(shown + "["):
+                return name
+    return None
 
 
 def scenario_from_text(text: str, *, source_file: Path | None = None) -> Scenario:

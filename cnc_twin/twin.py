@@ -70,6 +70,14 @@ class RunResult:
         """``complete``, ``fault`` or ``interrupted``."""
         return self.metrics["status"]
 
+    def dataframe(self):
+        """The trace as a pandas DataFrame (columns as in trace.parquet); needs pandas installed."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
+        return pd.DataFrame(self.trace.columns())
+
     def write(self, run_dir: str | Path, *, recording: bool = True) -> Path:
         """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
         ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``."""
