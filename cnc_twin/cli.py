@@ -47,6 +47,18 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
     run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
 
+    sweep = sub.add_parser("sweep", help="run a scenario over a grid (or random set) of overrides")
+    sweep.add_argument("scenario", type=Path)
+    sweep.add_argument("--param", action="append", required=True,
+                       help="PATH=start:stop:step | PATH=a,b,c | PATH=value (repeatable), e.g. servo.X.kp=20:80:20")
+    sweep.add_argument("--random", type=int, default=None, help="draw N random cases within the ranges instead")
+    sweep.add_argument("--seed", type=int, default=0, help="seed for --random")
+    sweep.add_argument("--workers", type=int, default=None, help="local worker processes (default 2)")
+    sweep.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local processes)")
+    sweep.add_argument("--out", type=Path, default=None, help="folder for sweep.parquet and sweep.csv")
+    sweep.add_argument("--minimize", default=None,
+                       help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_sum)")
+
     view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
     view.add_argument("run_dir", type=Path)
 
@@ -73,6 +85,8 @@ def main(argv: list[str] | None = None) -> int:
             return _bench(args)
         if args.command == "view":
             return _view(args)
+        if args.command == "sweep":
+            return _sweep(args)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -144,6 +158,44 @@ class _stop_on_signals:
         for sig, handler in self.previous.items():
             signal.signal(sig, handler)
         return False
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from cnc_twin.scenario import load_scenario
+    from cnc_twin.sweep import best_row, cases, parse_param, run_dask, run_local, write_table
+
+    params = []
+    for text in args.param:
+        try:
+            params.append(parse_param(text))
+        except ValueError as exc:
+            raise ScenarioError("--param", text, str(exc)) from None
+    todo = cases(params, random=args.random, seed=args.seed)
+    for overrides in {tuple(sorted((k, type(v).__name__) for k, v in c.items())): c for c in todo}.values():
+        load_scenario(args.scenario, overrides=overrides)  # bad paths or types fail here, before any run
+    bar = ProgressBar(f"sweep {args.scenario.stem}", period=1.0)
+    started = time.perf_counter()
+    if args.scheduler:
+        rows = run_dask(str(args.scenario), todo, scheduler=args.scheduler, progress=bar)
+    else:
+        rows = run_local(str(args.scenario), todo, workers=args.workers, progress=bar)
+    seconds = time.perf_counter() - started
+    out = args.out or Path("runs") / f"sweep-{args.scenario.stem}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
+    parquet, csv = write_table(rows, out)
+    minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_sum")
+    best = best_row(rows, minimize)
+    lost = [r for r in rows if r.get("status") == "lost"]
+    print(f"{len(rows)} runs in {seconds:.1f} s ({len(rows) / seconds * 60:.1f} runs/min); table: {parquet}, {csv}")
+    if lost:
+        print(f"lost runs: {len(lost)} ({', '.join(str({k: r[k] for k in params_of(params)}) for r in lost)})")
+    if best is not None:
+        shown = {p.path: best[p.path] for p in params}
+        print(f"best by {minimize}: {best[minimize]:.6g} with {shown}")
+    return EXIT_OK
+
+
+def params_of(params) -> list[str]:
+    return [p.path for p in params]
 
 
 def _view(args: argparse.Namespace) -> int:
