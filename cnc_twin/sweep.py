@@ -110,12 +110,26 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
+def _exit_on_sigterm() -> None:
+    """In a worker's main thread: SIGTERM (a pool shutting down after another worker died) exits
+    through the twin's clean-up (planner reaped, shared memory unlinked) instead of killing it."""
+    import signal
+    import threading
+
+    def leave(signum, _frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, leave)
+
+
 def run_case(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
     """Run one case (in a worker); returns its overrides and flattened metrics, or its error."""
     from cnc_twin.errors import ScenarioError
     from cnc_twin.scenario import load_scenario
     from cnc_twin.twin import run_scenario
 
+    _exit_on_sigterm()
     try:
         result = run_scenario(load_scenario(scenario_file, overrides=overrides))
     except ScenarioError as exc:
