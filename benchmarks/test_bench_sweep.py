@@ -12,7 +12,7 @@ from cnc_twin.sweep import cases, parse_param, run_local, timed
 
 def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
     path = tmp_path / "s.yaml"
-    path.write_text(yaml.safe_dump({"name": "scaling", "program": {"type": "point_to_point", "settle": 0.2,
+    path.write_text(yaml.safe_dump({"name": "scaling", "program": {"type": "point_to_point", "settle": 3.0,
                                                                    "moves": [{"X": 100}, {"X": 0}]}}))
     todo = cases([parse_param("servo.X.kp=20:90:10")])  # 8 runs
 
@@ -25,4 +25,4 @@ def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
     per_min = {1: len(todo) / one * 60, 2: len(todo) / two * 60}
     benchmark.extra_info.update(runs=len(todo), runs_per_min_1=per_min[1], runs_per_min_2=per_min[2],
                                 speedup=one / two)
-    print(f"\\n{len(todo)} runs: {per_min[1]:.0f} runs/min on 1 worker, {per_min[2]:.0f} on 2: speedup {one / two:.2f}")
+    print(f"\n{len(todo)} runs: {per_min[1]:.0f} runs/min on 1 worker, {per_min[2]:.0f} on 2: speedup {one / two:.2f}")

@@ -22,7 +22,7 @@ import numpy as np
 
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.whiteboard.block import Whiteboard
-from cnc_twin.whiteboard.doorbell import Doorbell, Doorbells
+from cnc_twin.whiteboard.doorbell import SPIN_POLLS, Doorbell, Doorbells
 from cnc_twin.whiteboard.layout import Layout, PcState
 from cnc_twin.whiteboard.ports import DspPort, PcPort
 from cnc_twin.whiteboard.records import DataBlock, EndOfProgram, Move, decode, encode
@@ -34,7 +34,7 @@ PCI_BURST_MB_S = 132.0
 def _echo(shm_name: str, wait_dsp, ring_dsp, words: int) -> None:
     """PC side of the round-trip benchmark: acknowledge every status, write nothing."""
     wb = Whiteboard.attach(shm_name, Layout(words))
-    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
+    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp), spin_polls=SPIN_POLLS)
     try:
         port.announce(program_periods=0)
         while port.wait_status() is not None:
@@ -48,7 +48,7 @@ def _echo(shm_name: str, wait_dsp, ring_dsp, words: int) -> None:
 def _source(shm_name: str, wait_dsp, ring_dsp, words: int, chunk_words: int, kind: str, count: int) -> None:
     """PC side of the throughput benchmark: stream ``count`` records, then end of program."""
     wb = Whiteboard.attach(shm_name, Layout(words))
-    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
+    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp), spin_polls=SPIN_POLLS)
     try:
         if kind == "block":
             payload = np.arange(chunk_words - 6, dtype="<u2")

@@ -130,6 +130,7 @@ class Twin:
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
         self.plan_us = self.plan_blocks = 0
         self.observer = None
+        self.port = self.process = None
         self.expected_periods = 0
         self.frames: FrameBuffer | None = None
 
@@ -161,6 +162,7 @@ class Twin:
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=process.is_alive,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
+            self.port, self.process = port, process  # for observers (diagnostics, tests)
             dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
                           period=sc.timing.interpolation_period)
             try:

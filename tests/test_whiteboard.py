@@ -180,3 +180,27 @@ def test_memory_map_in_the_docs_matches_the_layout():
     doc = (Path(__file__).resolve().parent.parent / "docs" / "whiteboard.md").read_text()
     for address, owner, contents in Layout().memory_map():
         assert f"| {address} | {owner} | {contents}" in doc, (address, owner, contents)
+
+
+def test_card_goes_solo_once_the_program_is_streamed_and_still_notices_a_dead_planner():
+    import os
+    import signal
+
+    from cnc_twin.twin import Twin
+
+    result = run_scenario(JOG)
+    wb = result.metrics["whiteboard"]
+    assert wb["exchanges"] < 100 < wb["periods"]  # everything was sent early; no more exchanges
+
+    twin = Twin(JOG)
+    killed = []
+
+    def kill_when_solo(t):
+        if t.port.solo and not killed:
+            os.kill(t.process.pid, signal.SIGKILL)
+            killed.append(t.frames.count)
+
+    faulted = twin.run(observer=kill_when_solo)
+    assert killed and faulted.status == "fault"
+    assert faulted.metrics["fault"]["code"] == "PLANNER_LOST"
+    assert faulted.metrics["final_state"] == "FAULT"

@@ -33,6 +33,9 @@ from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.records import RecordError, decode
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
+SOLO_LIVENESS_PERIODS = 64
+"""while solo, how often the card checks that the planner process is still there [periods]"""
+
 QUEUE_AHEAD = 2
 """records the card keeps decoded behind the running one (the rest wait in the FIFO); on a curve
 it decodes blocks until their path covers twice a full-speed stop"""
@@ -79,6 +82,8 @@ class DspTask:
                 acquired = self.port.acquire(k)
             except PlannerLost as exc:
                 self.raise_fault(FaultCode.PLANNER_LOST, str(exc), k)
+            if self.port.solo and k % SOLO_LIVENESS_PERIODS == 0 and not self.port.planner_alive():
+                self.raise_fault(FaultCode.PLANNER_LOST, "planner process exited", k)
         if self.interpolator.wants_records(QUEUE_AHEAD):
             self._accept_records()
         if acquired:
@@ -125,9 +130,10 @@ class DspTask:
                 seq, record = None, None
             if seq != self.expected_seq:
                 # Bad CRC, bad framing, or out of order: never executed. Drop the rest so the PC
-                # can resend from expected_seq in order.
+                # can resend from expected_seq in order (exchanging again if the card was solo).
                 self.records_rejected += 1
                 fifo.flush()
+                self.port.solo = False
                 return
             interp.push(seq, record)
             self.expected_seq += 1

@@ -327,6 +327,12 @@ class FaultSchedule:
             if f.kind == "planner_delay" and f.at <= sim_time < f.at + f.duration:
                 time.sleep(f.delay)
 
+    @property
+    def idle(self) -> bool:
+        """Nothing scheduled is still to happen (faults need the status stream to keep going)."""
+        return len(self._fired) == len(self.faults) and not any(
+            f.kind in ("planner_kill", "planner_delay") for f in self.faults)
+
     def corrupter(self, sim_time: float):
         """A function flipping the scheduled bit in the next record, or None."""
         for i, f in enumerate(self.faults):
@@ -370,6 +376,7 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp:
             streamer.answer(status, port, corrupt=faults.corrupter(sim_time))
             wb.records_sent[0] = streamer.next_index
             wb.retransmits[0] = wb.retransmits[0] + (streamer.retransmitted - before)
+            port.set_all_sent(streamer.all_sent and faults.idle)
             port.end()
             port.set_state(L.PcState.STREAMING)
             if int(st["state"]) in (DspState.FINISHED, DspState.FAULT):

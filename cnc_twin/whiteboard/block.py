@@ -58,6 +58,7 @@ class Whiteboard:
         self.PC_STATE = pc + L.PC_VERSION + 1
         self.PC_VERSION = pc + L.PC_VERSION
         self.HOLD = pc + L.PC_HOLD
+        self.ALL_SENT = pc + L.PC_ALL_SENT
         self.HOLDA = dsp + L.DSP_HOLDA
         self.SHUTDOWN = dsp + L.DSP_SHUTDOWN
         self.MAILBOX_TO_DSP = layout.mailbox_to_dsp

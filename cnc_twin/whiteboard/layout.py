@@ -48,6 +48,8 @@ PC_RETRANSMITS = 14   # u32, records sent again after the DSP rejected one
 PC_ACK_TIME = 16      # u64, monotonic clock [ns] when the PC acknowledged the last status
 PC_PLAN_US = 20       # u32, wall-clock time the planner spent planning the program [us]
 PC_PLAN_BLOCKS = 22   # u32, motion blocks (moves, curve blocks) it planned
+PC_ALL_SENT = 24      # u16, 1 when the whole program is in the FIFO and no fault is scheduled:
+                      # the card may stop exchanging (it resumes to ask for a resend)
 
 # DSP control block, word offsets from the DSP half's base.
 DSP_HOLDA = 0         # u16, 1 while the bus is granted to the PC

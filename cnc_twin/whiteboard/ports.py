@@ -75,6 +75,8 @@ class DspPort:
         self.heartbeat_timeout = heartbeat_timeout
         self.fifo = FifoReader(wb.fifo_ring, wb.fifo_write, wb.fifo_read)
         self.last_posted: int | None = None
+        self.solo = False
+        """the planner reported the whole program sent: no exchanges until the card needs one"""
         self.missed_exchanges = 0
         self.post_ns = 0
         self.latency_ns = array.array("q")
@@ -98,7 +100,10 @@ class DspPort:
         return int(self.wb.program_periods[0])
 
     def acquire(self, period: int) -> bool:
-        """Take the bus for this period's exchange; False when the exchange is missed (real-time)."""
+        """Take the bus for this period's exchange; False when the exchange is missed (real-time)
+        or not needed (``solo``: the whole program is already in the FIFO)."""
+        if self.solo:
+            return False
         if self.last_posted is not None:
             ack = mailbox_value(self.last_posted)
             words, hold, mailbox = self.words, self.wb.HOLD, self.wb.MAILBOX_TO_DSP
@@ -112,6 +117,9 @@ class DspPort:
             self.latency_period.append(self.last_posted)
         self.words[self.wb.HOLDA] = 0
         self.fifo.snapshot()
+        # Read while the DSP owns the bus, right after the PC's answer: the same period on every
+        # lockstep run, so going solo never changes what the card does.
+        self.solo = bool(self.words[self.wb.ALL_SENT])
         return True
 
     def _wait_ack(self, ack: int) -> None:
@@ -171,8 +179,12 @@ class PcPort:
     wait_dsp, ring_dsp : doorbells: rung by the DSP after it posts; rung here after each ack.
     """
 
-    def __init__(self, wb: Whiteboard, *, wait_dsp: Doorbell, ring_dsp: Doorbell):
+    def __init__(self, wb: Whiteboard, *, wait_dsp: Doorbell, ring_dsp: Doorbell, spin_polls: int = 0):
         self.wb = wb
+        self.spin_polls = spin_polls
+        """polls before sleeping on the doorbell. The twin's planner answers status k while the
+        DSP runs period k, so it has a whole period and need not spin (spinning steals a core
+        from the other runs of a sweep); the round-trip benchmark spins for the fast answer."""
         self.wait_dsp = wait_dsp
         self.ring_dsp = ring_dsp
         self.words = wb.words
@@ -202,7 +214,7 @@ class PcPort:
         """Block until the DSP posts a new status; a copy of it, or None when the run is over."""
         words, mailbox, shutdown = self.words, self.wb.MAILBOX_TO_PC, self.wb.SHUTDOWN
         last = self._last_seen
-        for _ in range(SPIN_POLLS):
+        for _ in range(self.spin_polls):
             if words[mailbox] != last:
                 break
         else:
@@ -230,3 +242,7 @@ class PcPort:
         self._pc_ack_time[0] = time.perf_counter_ns()
         self.words[self.wb.MAILBOX_TO_DSP] = self._last_seen
         self.ring_dsp.ring()
+
+    def set_all_sent(self, value: bool) -> None:
+        """Raise (or drop, before a resend) the "whole program sent" flag; call before :meth:`end`."""
+        self.words[self.wb.ALL_SENT] = 1 if value else 0
