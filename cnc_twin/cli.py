@@ -59,6 +59,14 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--minimize", default=None,
                        help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_sum)")
 
+    tune = sub.add_parser("tune", help="propose an axis's PID gains from its linear loop and check them")
+    tune.add_argument("scenario", type=Path)
+    tune.add_argument("--axis", required=True, choices=list("XYZABC"))
+    tune.add_argument("--phase-margin", type=float, default=45.0, help="[deg]")
+    tune.add_argument("--gain-margin", type=float, default=6.0, help="[dB]")
+    tune.add_argument("--step", type=float, default=1.0, help="verification step [mm | deg]")
+    tune.add_argument("--out", type=Path, default=None, help="folder for the Bode and step plots (PNG)")
+
     view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
     view.add_argument("run_dir", type=Path)
 
@@ -87,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
             return _view(args)
         if args.command == "sweep":
             return _sweep(args)
+        if args.command == "tune":
+            return _tune(args)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -191,6 +201,40 @@ def _sweep(args: argparse.Namespace) -> int:
     if best is not None:
         shown = {p.path: best[p.path] for p in params}
         print(f"best by {minimize}: {best[minimize]:.6g} with {shown}")
+    return EXIT_OK
+
+
+def _tune(args: argparse.Namespace) -> int:
+    from cnc_twin.linearize import analyse
+    from cnc_twin.scenario import load_scenario
+    from cnc_twin.tuning import save_plots, twin_step, verified_proposal
+
+    scenario = load_scenario(args.scenario)
+    axis, cfg = args.axis, scenario.axis(args.axis)
+    before_lin = analyse(scenario, axis)[0]
+    try:
+        proposal, after, tried = verified_proposal(args.scenario, scenario, axis, phase_margin=args.phase_margin,
+                                                   gain_margin=args.gain_margin, step=args.step)
+    except ValueError as exc:
+        raise ScenarioError(args.scenario, f"axes.{axis}.servo", str(exc)) from None
+    after_lin = analyse(scenario, axis, kp=proposal.kp, ki=proposal.ki)[0]
+    before = twin_step(args.scenario, axis, step=args.step)
+    unit = cfg.display_unit
+    print(f"axis {axis}: targets phase margin >= {args.phase_margin:g} deg, gain margin >= {args.gain_margin:g} dB")
+    print(f"{'':18}{'kp [1/s]':>10}{'ki [1/s^2]':>12}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}"
+          f"{'rise [ms]':>11}{'overshoot':>11}{'settle [ms]':>13}")
+    for name, g, lin, twin in (("before", (cfg.kp, cfg.ki), before_lin, before),
+                               ("proposed", (proposal.kp, proposal.ki), after_lin, after)):
+        print(f"{name:<18}{g[0]:>10.1f}{g[1]:>12.1f}{lin.phase_margin_deg:>10.1f}{lin.gain_margin_db:>9.1f}"
+              f"{lin.crossover_hz:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
+              f"{twin['settling_time_s'] * 1e3:>13.1f}")
+    print(f"(step responses: the nonlinear twin, {args.step:g} {unit} step, feed-forward off; "
+          f"{tried} candidate(s) tried on it)")
+    print(f"to use: axes: {{{axis}: {{servo: {{kp: {proposal.kp:.4g}, ki: {proposal.ki:.4g}}}}}}}")
+    if args.out is not None:
+        paths = save_plots(scenario, axis, args.out, {"before": {"kp": cfg.kp, "ki": cfg.ki},
+                                                      "proposed": {"kp": proposal.kp, "ki": proposal.ki}})
+        print("plots: " + ", ".join(str(p) for p in paths))
     return EXIT_OK
 
 

@@ -47,3 +47,20 @@ def test_margins_of_the_default_gains():
     report, _, _ = analyse(load_scenario(default_scenario()), "Y")
     assert 60 < report.phase_margin_deg < 80 and report.gain_margin_db > 6
     assert 5 < report.crossover_hz < 8 and report.bandwidth_hz > report.crossover_hz
+
+
+def test_tune_proposes_gains_that_the_twin_confirms(tmp_path):
+    import re
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "tune", str(default_scenario()), "--axis", "X",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    row = next(line for line in proc.stdout.splitlines() if line.startswith("proposed"))
+    kp, ki, pm, gm, fc, rise, overshoot, settle = (float(x) for x in re.findall(r"[-\d.]+|inf|nan", row))
+    before = next(line for line in proc.stdout.splitlines() if line.startswith("before"))
+    fc_before = float(re.findall(r"[-\d.]+|inf|nan", before)[4])
+    assert pm >= 45 and gm >= 6 and fc > fc_before  # a faster loop that keeps its margins ...
+    assert np.isfinite(settle) and overshoot < 25  # ... and behaves on the nonlinear twin
+    assert (tmp_path / "X_bode.png").stat().st_size > 10_000 and (tmp_path / "X_step.png").is_file()
