@@ -22,7 +22,8 @@ missed exchange, and a starved card holds (FEED_HOLD) until records arrive again
 from __future__ import annotations
 
 import math
-import multiprocessing
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,12 +36,12 @@ from cnc_twin.config import NurbsProgram, Scenario
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.task import DspTask
-from cnc_twin.planner.process import PlannerJob, planner_main
+from cnc_twin.planner.process import PlannerJob
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.path_metrics import path_metrics
 from cnc_twin.record import RECORDING_FILE, FrameBuffer, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
-from cnc_twin.whiteboard.doorbell import Doorbells
+from cnc_twin.whiteboard.doorbell import PipeDoorbells
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.status import DspState, FaultCode
@@ -148,18 +149,15 @@ class Twin:
         """
         self.observer = observer
         sc = self.scenario
-        ctx = multiprocessing.get_context("spawn")
         wb = Whiteboard.create(Layout(sc.whiteboard.words))
         bells = None
         process = None
         port = None
         try:
-            bells = Doorbells(ctx)
-            process = ctx.Process(
-                target=planner_main, args=(wb.name, self.job, *bells.pc_ends()), name="cnc-twin-planner", daemon=True
-            )
-            process.start()
-            port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=process.is_alive,
+            bells = PipeDoorbells()
+            process = _start_planner(wb.name, self.job, bells.pc_fds())
+            bells.release_pc_ends()
+            port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
             self.port, self.process = port, process  # for observers (diagnostics, tests)
@@ -331,18 +329,37 @@ def _lookahead_periods(scenario: Scenario) -> int:
     return periods
 
 
-def _reap(process: multiprocessing.process.BaseProcess | None) -> None:
+def _start_planner(shm_name: str, job: PlannerJob, fds: tuple[int, int]) -> subprocess.Popen:
+    """The planner as a plain subprocess (``python -m cnc_twin.planner.process``), the job pickled
+    on its stdin, the doorbell pipes inherited. Unlike multiprocessing's spawn this never imports
+    the caller's main script again, so user scripts need no ``__main__`` guard."""
+    import pickle
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cnc_twin.planner.process", shm_name, str(fds[0]), str(fds[1])],
+        stdin=subprocess.PIPE, pass_fds=fds, close_fds=True,
+    )
+    try:
+        process.stdin.write(pickle.dumps(job))
+        process.stdin.close()
+    except BrokenPipeError:  # it died at once; wait_ready reports it
+        pass
+    return process
+
+
+def _reap(process: subprocess.Popen | None) -> None:
     """Wait briefly for the planner to exit by itself, then terminate, then kill."""
-    if process is None or process.pid is None:
+    if process is None:
         return
-    process.join(timeout=2.0)
-    if process.is_alive():
+    try:
+        process.wait(timeout=2.0)
+    except subprocess.TimeoutExpired:
         process.terminate()
-        process.join(timeout=1.0)
-    if process.is_alive():  # pragma: no cover - a planner ignoring SIGTERM
-        process.kill()
-        process.join()
-    process.close()
+        try:
+            process.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:  # pragma: no cover - a planner ignoring SIGTERM
+            process.kill()
+            process.wait()
 
 
 def run_scenario(scenario: Scenario, *, progress: ProgressCallback | None = None) -> RunResult:

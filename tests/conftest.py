@@ -58,4 +58,24 @@ def no_leftover_segments_or_processes():
     before = set(leftover_segments())
     yield
     assert _leaked(set(leftover_segments()) - before) == set(), "shared-memory segment left behind"
-    assert multiprocessing.active_children() == [], "planner process left behind"
+    assert multiprocessing.active_children() == [], "child process left behind"
+    assert _planner_children() == [], "planner process left behind"
+
+
+def _planner_children() -> list[int]:
+    """Live (not zombie) child processes of this one running the planner module."""
+    import os
+    from pathlib import Path
+
+    me, out = os.getpid(), []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            stat = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+            cmd = (proc / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if int(stat[1]) == me and stat[0] != "Z" and b"cnc_twin.planner.process" in cmd:
+            out.append(int(proc.name))
+    return out

@@ -347,7 +347,7 @@ class FaultSchedule:
         return None
 
 
-def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp: Connection) -> None:
+def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, ring_dsp: Connection | int) -> None:
     """Process entry point: attach, plan, announce, then answer every DSP status until the end.
 
     ``wait_dsp`` / ``ring_dsp`` are the planner's ends of the mailbox doorbells.
@@ -389,3 +389,25 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection, ring_dsp:
     finally:
         del port
         wb.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m cnc_twin.planner.process SHM_NAME WAIT_FD RING_FD``, the job pickled on stdin.
+
+    Started as a plain subprocess (not multiprocessing's spawn), so the user's main script is
+    never imported again in here: scripts need no ``if __name__ == "__main__"`` guard.
+    """
+    import pickle
+
+    args = sys.argv[1:] if argv is None else argv
+    shm_name, wait_fd, ring_fd = args[0], int(args[1]), int(args[2])
+    job = pickle.load(sys.stdin.buffer)
+    try:
+        planner_main(shm_name, job, wait_fd, ring_fd)
+    except BaseException:
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

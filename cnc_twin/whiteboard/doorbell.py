@@ -27,13 +27,13 @@ class Doorbell:
 
     Parameters
     ----------
-    conn : a ``multiprocessing`` pipe end (picklable to a spawned process); only its file
-        descriptor is used, with raw ``os.read`` / ``os.write``.
+    end : a pipe end: a raw file descriptor, or a ``multiprocessing`` connection (only its file
+        descriptor is used, with raw ``os.read`` / ``os.write``).
     """
 
-    def __init__(self, conn: Connection):
-        self.conn = conn
-        self.fd = conn.fileno()
+    def __init__(self, end: Connection | int):
+        self.conn = end if not isinstance(end, int) else None
+        self.fd = end if isinstance(end, int) else end.fileno()
         os.set_blocking(self.fd, False)
 
     def ring(self) -> None:
@@ -56,7 +56,43 @@ class Doorbell:
             pass
 
     def close(self) -> None:
-        self.conn.close()
+        if self.conn is not None:
+            self.conn.close()
+        else:
+            try:
+                os.close(self.fd)
+            except OSError:
+                pass
+
+
+class PipeDoorbells:
+    """Both directions as OS pipes, for a planner started as a plain subprocess: the planner's
+    ends (:meth:`pc_fds`) are inherited through ``pass_fds`` and closed here once it started."""
+
+    def __init__(self):
+        to_pc_r, to_pc_w = os.pipe()
+        to_dsp_r, to_dsp_w = os.pipe()
+        self._pc_fds = (to_pc_r, to_dsp_w)
+        self.ring_pc = Doorbell(to_pc_w)
+        self.wait_pc = Doorbell(to_dsp_r)
+
+    def pc_fds(self) -> tuple[int, int]:
+        """``(wait_dsp, ring_dsp)`` descriptors for the planner."""
+        return self._pc_fds
+
+    def release_pc_ends(self) -> None:
+        """Close this process's copies of the planner's ends (after it started)."""
+        for fd in self._pc_fds:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._pc_fds = ()
+
+    def close(self) -> None:
+        self.release_pc_ends()
+        self.ring_pc.close()
+        self.wait_pc.close()
 
 
 class Doorbells:
