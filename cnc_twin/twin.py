@@ -2,7 +2,7 @@
 
 The clock, on simulated time; real-time mode also paces each period to the wall clock::
 
-    create the whiteboard; start the planner process (spawn); wait until it attached
+    create the whiteboard; start the planner process (a plain subprocess); wait until it attached
     for k = 0, 1, ...:
         dsp.begin_period(k)                  # whiteboard exchange, records, state, setpoint
         for each of ticks_per_period servo ticks:

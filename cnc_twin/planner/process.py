@@ -1,7 +1,7 @@
 """The PC planner as its own OS process: plan, encode, stream records through the whiteboard.
 
-``planner_main`` is the process entry point (started with the ``spawn`` method by
-:mod:`cnc_twin.twin`). Per DSP status it writes as many records as fit, bounded by
+``planner_main`` does the work; :func:`main` is the entry point when :mod:`cnc_twin.twin` starts
+it as ``python -m cnc_twin.planner.process``. Per DSP status it writes as many records as fit, bounded by
 
 - the free FIFO space,
 - the chunk size (the card takes 4 KB per mailbox interrupt),
