@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from cnc_twin.axes import AXES
-from cnc_twin.errors import ScenarioError
+from cnc_twin.errors import ScenarioError, format_key_path
 
 _PART = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -99,7 +99,4 @@ def apply_overrides(raw: Mapping[str, Any], overrides: Mapping[str, Any], *, lab
 
 
 def _show(parts: list[str | int]) -> str:
-    out = ""
-    for p in parts:
-        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
-    return out or "the top level"
+    return format_key_path(tuple(parts)) or "the top level"

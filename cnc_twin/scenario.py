@@ -331,9 +331,7 @@ def _override_for(key_path: str, overrides: dict[str, Any]) -> str | None:
 
     for name in overrides:
         for target in expand(name, {}):
-            shown = ""
-            for p in target:
-                shown += f"[{p}]" if isinstance(p, int) else (f".{p}" if shown else str(p))
+            shown = format_key_path(tuple(target))
             if key_path == shown or key_path.startswith(shown + ".") or key_path.startswith(shown + "["):
                 return name
     return None
@@ -361,8 +359,9 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     params = _validate(MachineParameters, params_raw, params_path)
 
     merged = dict(raw)
-    merged["axes"] = _deep_merge(params.model_dump()["axes"], raw.get("axes", {}))
-    merged["force_sensor"] = _deep_merge(params.model_dump()["force_sensor"], raw.get("force_sensor", {}))
+    defaults = params.model_dump()
+    merged["axes"] = _deep_merge(defaults["axes"], raw.get("axes", {}))
+    merged["force_sensor"] = _deep_merge(defaults["force_sensor"], raw.get("force_sensor", {}))
     spec = _validate(ScenarioFile, merged, label)
 
     timing = _convert_timing(spec.timing, label)

@@ -78,8 +78,6 @@ class NurbsCurve:
             raise NurbsError("knots", f"knot vector must be clamped: first and last {p + 1} knots equal")
         if not U[-1] > U[0]:
             raise NurbsError("knots", "knot vector spans no parameter range")
-        if np.any(np.diff(U[p + 1:-(p + 1)] if n > p + 1 else []) < 0):  # pragma: no cover - covered above
-            raise NurbsError("knots", "knots must be non-decreasing")
         interior = U[p + 1:n]
         if interior.size and np.max(np.unique(interior, return_counts=True)[1]) > p:
             raise NurbsError("knots", f"an interior knot repeats more than degree = {p} times")
