@@ -24,7 +24,7 @@ from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import SPIN_POLLS, Doorbell, Doorbells
 from cnc_twin.whiteboard.layout import Layout, PcState
-from cnc_twin.whiteboard.ports import DspPort, PcPort
+from cnc_twin.whiteboard.ports import DspPort, PcPort, signal_shutdown
 from cnc_twin.whiteboard.records import DataBlock, EndOfProgram, Move, decode, encode
 from cnc_twin.whiteboard.status import STATUS_DTYPE
 
@@ -86,8 +86,7 @@ def _with_pc(target, args: tuple, words: int, body) -> Any:
         port.wait_ready(60.0)
         return body(port)
     finally:
-        wb.words[wb.SHUTDOWN] = 1
-        bells.ring_pc.ring()
+        signal_shutdown(wb, bells.ring_pc)
         proc.join(5.0)
         if proc.is_alive():
             proc.kill()

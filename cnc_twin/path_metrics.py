@@ -59,15 +59,21 @@ def _point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return best
 
 
+def tip_curve(prog: NurbsProgram) -> NurbsCurve:
+    """The programmed tool-tip curve in the world frame (a held-axis program stores its curve in
+    axis space: shifted back by the head offset)."""
+    points = np.asarray(prog.control_points)
+    if prog.axis_curve is None:
+        points = points + np.asarray(prog.tip_shift)
+    return NurbsCurve(points, prog.weights, prog.knots, prog.degree)
+
+
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
                  plan_us: int = 0, plan_blocks: int = 0) -> dict[str, Any]:
     """The contour metrics of a curve run (see the module docstring); lengths in um."""
     prog = scenario.program
     assert isinstance(prog, NurbsProgram)
-    points = np.asarray(prog.control_points)
-    if prog.axis_curve is None:
-        points = points + np.asarray(prog.tip_shift)  # axis space -> tool tip, world frame
-    curve = NurbsCurve(points, prog.weights, prog.knots, prog.degree)
+    curve = tip_curve(prog)
     tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period
     u = trace.period_signals["path_u"][tpp - 1::tpp]

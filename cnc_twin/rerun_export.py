@@ -162,12 +162,9 @@ def log_paths(rec: rr.RecordingStream, scenario: Scenario, command_tips: np.ndar
     rec.log("/paths/actual", rr.LineStrips3D([actual_tips], colors=[[255, 140, 0]], radii=[0.0004]), static=True)
     prog = scenario.program
     if isinstance(prog, NurbsProgram):
-        from cnc_twin.geometry.nurbs import NurbsCurve
+        from cnc_twin.path_metrics import tip_curve
 
-        points = np.asarray(prog.control_points)
-        if prog.axis_curve is None:
-            points = points + np.asarray(prog.tip_shift)
-        curve = NurbsCurve(points, prog.weights, prog.knots, prog.degree)
+        curve = tip_curve(prog)
         dense = curve.point(np.linspace(*curve.domain, 4000))
         rec.log("/paths/planned", rr.LineStrips3D([dense], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
 

@@ -43,7 +43,7 @@ from cnc_twin.record import RECORDING_FILE, FrameBuffer, Trace, compute_metrics,
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import PipeDoorbells
 from cnc_twin.whiteboard.layout import Layout
-from cnc_twin.whiteboard.ports import DspPort, PlannerLost
+from cnc_twin.whiteboard.ports import DspPort, PlannerLost, signal_shutdown
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 ProgressCallback = Callable[[int, int], None]
@@ -174,9 +174,7 @@ class Twin:
         finally:
             # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
             try:
-                wb.words[wb.SHUTDOWN] = 1
-                if bells is not None:
-                    bells.ring_pc.ring()
+                signal_shutdown(wb, bells.ring_pc if bells is not None else None)
             finally:
                 try:
                     _reap(process)
@@ -232,7 +230,6 @@ class Twin:
                 if self.observer is not None:
                     frames.count = t
                     self.observer(self)
-                    rows = frames.rows
             if dsp.done:
                 if dsp.state == DspState.FINISHED:
                     break
@@ -268,12 +265,7 @@ class Twin:
     def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
         sc = self.scenario
         assert self.frames is not None
-        trace = Trace.from_frames(
-            self.frames,
-            servo_period=sc.timing.servo_period,
-            ticks_per_period=sc.timing.ticks_per_period,
-            counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]),
-        )
+        trace = self.partial_trace()  # by now, the whole run
         metrics = compute_metrics(
             trace, sc, wall_time=wall_time, dac_saturations=self.servo.dac_saturations,
             warnings=self.plant.warnings(),

@@ -17,9 +17,9 @@ from cnc_twin.twin import run_scenario
 
 def rrd_rows(path: Path) -> dict[str, int]:
     """Rows per entity path, read back with rerun's own CLI (``rerun rrd print``)."""
-    viewer = Path(sys.executable).with_name("rerun")
-    command = [str(viewer)] if viewer.exists() else [sys.executable, "-m", "rerun"]
-    out = subprocess.run(command + ["rrd", "print", str(path)], capture_output=True, text=True, timeout=120)
+    from cnc_twin.viewer import rerun_command
+
+    out = subprocess.run(rerun_command() + ["rrd", "print", str(path)], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     rows: dict[str, int] = collections.Counter()
     for line in out.stdout.splitlines():

@@ -44,6 +44,13 @@ WAKE_INTERVAL = 0.002
 """longest a blocked waiter sleeps before re-checking liveness and heartbeat [s]"""
 
 
+def signal_shutdown(wb: Whiteboard, ring_pc: Doorbell | None) -> None:
+    """Tell the planner the run is over: the shutdown word, then a ring so it wakes to see it."""
+    wb.words[wb.SHUTDOWN] = 1
+    if ring_pc is not None:
+        ring_pc.ring()
+
+
 class PlannerLost(RuntimeError):
     """The planner process exited or its heartbeat stopped."""
 
@@ -163,11 +170,6 @@ class DspPort:
         self.words[self.wb.MAILBOX_TO_PC] = mailbox_value(period)
         self.ring_pc.ring()
         self.last_posted = period
-
-    def shutdown(self) -> None:
-        """Tell the planner the run is over (it exits at its next poll)."""
-        self.words[self.wb.SHUTDOWN] = 1
-        self.ring_pc.ring()
 
 
 class PcPort:
