@@ -79,44 +79,6 @@ def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int
     return records, periods
 
 
-def program_chunks(job: PlannerJob):
-    """The program as successive ``(records, periods)`` chunks, planned as they are asked for.
-
-    Point-to-point: one chunk. Curves: the approach move and the curve, then the S-curve blocks
-    window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`), then settle and end.
-    """
-    if not isinstance(job.program, NurbsProgram):
-        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
-        yield segments_to_records(segments)
-        return
-    import math
-
-    from cnc_twin.planner.feed import plan_feed_windows
-
-    prog = job.program
-    curve, start, axis_path, axis_limits, geometry = curve_setup(prog)
-    records: list[Record] = []
-    periods: list[int] = []
-    approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
-    if approach is not None:
-        records.append(Move(end=approach.end, profile=approach.profile, periods=approach.periods))
-        periods.append(approach.periods)
-    records.append(geometry)
-    periods.append(0)
-    yield records, periods
-    for blocks in plan_feed_windows(curve, prog.limits, period=job.period, window=job.window,
-                                    axis_path=axis_path, axis_limits=axis_limits):
-        yield ([CurveBlock(b) for b in blocks],
-               [math.ceil(b.duration / job.period) for b in blocks])
-    tail: list[Record] = []
-    tail_periods: list[int] = []
-    if prog.settle > 0:
-        n = max(1, math.ceil(prog.settle / job.period - 1e-9))
-        tail.append(Dwell(periods=n))
-        tail_periods.append(n)
-    yield tail + [EndOfProgram()], tail_periods + [0]
-
-
 def curve_setup(prog: NurbsProgram):
     """``(curve, start pose, axis_path, axis_limits, CurveGeometry record)`` for a curve program.
 
@@ -152,25 +114,71 @@ def curve_setup(prog: NurbsProgram):
     return curve, start, axis_path, axis_limits, geometry
 
 
-def estimated_periods(job: PlannerJob) -> int:
-    """Program length announced before planning [periods]: exact for moves, estimated for curves."""
-    if not isinstance(job.program, NurbsProgram):
-        segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
-        return sum(seg.periods for seg in segments)
-    import math
+class Program:
+    """A job planned once; its length announced up front and its records handed out in chunks.
 
-    prog = job.program
-    curve, start, _, _, _ = curve_setup(prog)
-    approach = plan_move(tuple(job.home), start, job.axes, feed=prog.approach_feed, period=job.period)
-    curve_time = 1.2 * curve.arc_length() / prog.limits.feed
-    return (approach.periods if approach else 0) + math.ceil((curve_time + prog.settle) / job.period)
+    Point-to-point: all moves are planned here, one chunk. Curves: the curve, its kinematics and
+    the approach move are set up here; :meth:`chunks` then yields the approach and the curve,
+    the S-curve blocks window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`), and
+    settle and end of program.
+    """
+
+    def __init__(self, job: PlannerJob):
+        self.job = job
+        self.segments: list[Segment] | None = None
+        if isinstance(job.program, NurbsProgram):
+            self.curve, start, self.axis_path, self.axis_limits, self.geometry = curve_setup(job.program)
+            self.approach = plan_move(tuple(job.home), start, job.axes, feed=job.program.approach_feed,
+                                      period=job.period)
+        else:
+            self.segments = plan_point_to_point(job.program, job.axes, start=job.home, period=job.period)
+
+    @property
+    def estimated_periods(self) -> int:
+        """Program length [periods]: exact for moves, estimated (1.2x the curve at feed) for curves."""
+        import math
+
+        if self.segments is not None:
+            return sum(seg.periods for seg in self.segments)
+        prog, period = self.job.program, self.job.period
+        curve_time = 1.2 * self.curve.arc_length() / prog.limits.feed
+        return (self.approach.periods if self.approach else 0) + math.ceil((curve_time + prog.settle) / period)
+
+    def chunks(self):
+        """Successive ``(records, periods)`` chunks, planned as they are asked for."""
+        if self.segments is not None:
+            yield segments_to_records(self.segments)
+            return
+        import math
+
+        from cnc_twin.planner.feed import plan_feed_windows
+
+        job, prog, approach = self.job, self.job.program, self.approach
+        records: list[Record] = []
+        periods: list[int] = []
+        if approach is not None:
+            records.append(Move(end=approach.end, profile=approach.profile, periods=approach.periods))
+            periods.append(approach.periods)
+        records.append(self.geometry)
+        periods.append(0)
+        yield records, periods
+        for blocks in plan_feed_windows(self.curve, prog.limits, period=job.period, window=job.window,
+                                        axis_path=self.axis_path, axis_limits=self.axis_limits):
+            yield ([CurveBlock(b) for b in blocks], [math.ceil(b.duration / job.period) for b in blocks])
+        tail: list[Record] = []
+        tail_periods: list[int] = []
+        if prog.settle > 0:
+            n = max(1, math.ceil(prog.settle / job.period - 1e-9))
+            tail.append(Dwell(periods=n))
+            tail_periods.append(n)
+        yield tail + [EndOfProgram()], tail_periods + [0]
 
 
 def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
     """The whole program at once: records, their durations [periods], motion blocks."""
     records: list[Record] = []
     periods: list[int] = []
-    for chunk, chunk_periods in program_chunks(job):
+    for chunk, chunk_periods in Program(job).chunks():
         records += chunk
         periods += chunk_periods
     return records, periods, sum(isinstance(r, (Move, CurveBlock)) for r in records)
@@ -187,8 +195,10 @@ class Feeder:
 
     def __init__(self, job: PlannerJob, streamer: "Streamer"):
         self.streamer = streamer
-        self.chunks = program_chunks(job)
-        self.plan_seconds = 0.0
+        started = time.perf_counter()
+        self.program = Program(job)
+        self.plan_seconds = time.perf_counter() - started
+        self.chunks = self.program.chunks()
         self.blocks = 0
         self._lock = threading.Lock()
         self._ready: list[tuple[list[Record], list[int]]] = []
@@ -360,7 +370,7 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
         streamer = Streamer(chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
         feeder = Feeder(job, streamer)
         faults = FaultSchedule(job.faults)
-        port.announce(program_periods=estimated_periods(job))
+        port.announce(program_periods=feeder.program.estimated_periods)
         while True:
             status = port.wait_status()
             if status is None:
