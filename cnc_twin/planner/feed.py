@@ -103,12 +103,13 @@ def tangential_budget(limits: PathLimits, axis_q: np.ndarray | None, s: np.ndarr
 
 
 def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float,
-               axis_q: np.ndarray | None = None, axis_limits=None) -> np.ndarray:
+               axis_q: np.ndarray | None = None, axis_limits=None, a_t: float | None = None) -> np.ndarray:
     """The feed limit [m/s] at each sample (see the module docstring).
 
     With ``axis_q`` (the machine axes along the samples, shape (N, k)) and ``axis_limits``
     ((velocity, acceleration, jerk) per axis), the axis terms use those axes' derivatives with
     respect to arc length (numerical) instead of the tool tip's: the limits after kinematics.
+    ``a_t``: the tangential acceleration budget, if already known (:func:`tangential_budget`).
     """
     _, d1, d2 = curve.derivatives(u, 2)
     sigma = np.linalg.norm(d1, axis=1)
@@ -130,7 +131,8 @@ def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimi
     else:
         q1, q2, q3 = axis_derivatives(axis_q, s)
         v_lim, a_lim, j_lim = axis_limits
-    a_t = tangential_budget(limits, axis_q, s, axis_limits)[0]
+    if a_t is None:
+        a_t = tangential_budget(limits, axis_q, s, axis_limits)[0]
     for i in range(q1.shape[1]):
         f = np.minimum(f, v_lim[i] / np.maximum(np.abs(q1[:, i]), tiny))
         f = np.minimum(f, np.sqrt(0.5 * a_lim[i] / np.maximum(np.abs(q2[:, i]), tiny)))
@@ -174,20 +176,26 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
     raise RuntimeError(f"feed planning did not converge in {max_rounds} rounds")
 
 
-def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
-                      max_rounds: int = 200, axis_path=None, axis_limits=None):
-    """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
+@dataclass(frozen=True)
+class _Samples:
+    """A curve sampled for planning: parameters, arc lengths, the feed limit, tangential budgets."""
 
-    Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
-    critical point farther from the window's end than the stopping distance from full feed are
-    unaffected by that forced stop (the backward scan cannot reach them), so they are final and
-    identical to a whole-curve plan's; the next window starts there at the committed speed.
-    """
-    spacing = min(limits.feed * period, 0.5e-3)
-    u, s = sample_curve(curve, spacing)
+    u: np.ndarray
+    s: np.ndarray
+    limit: np.ndarray
+    a_t: float
+    j_t: float
+
+
+def _sample(curve: NurbsCurve, limits: PathLimits, period: float, axis_path, axis_limits) -> _Samples:
+    u, s = sample_curve(curve, min(limits.feed * period, 0.5e-3))
     axis_q = None if axis_path is None else axis_path(u)
-    limit = feed_limit(curve, u, s, limits, period, axis_q, axis_limits)
     a_t, j_t = tangential_budget(limits, axis_q, s, axis_limits)
+    return _Samples(u, s, feed_limit(curve, u, s, limits, period, axis_q, axis_limits, a_t=a_t), a_t, j_t)
+
+
+def _windows(sm: _Samples, limits: PathLimits, window: float, max_rounds: int):
+    s, limit, a_t, j_t = sm.s, sm.limit, sm.a_t, sm.j_t
     stop = ramp_distance(limits.feed, 0.0, a_t, j_t)
     last = len(s) - 1
     a, v_a = 0, 0.0
@@ -207,6 +215,18 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
         a, v_a = critical[k], speeds[k]
 
 
+def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
+                      max_rounds: int = 200, axis_path=None, axis_limits=None):
+    """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
+
+    Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
+    critical point farther from the window's end than the stopping distance from full feed are
+    unaffected by that forced stop (the backward scan cannot reach them), so they are final and
+    identical to a whole-curve plan's; the next window starts there at the committed speed.
+    """
+    yield from _windows(_sample(curve, limits, period, axis_path, axis_limits), limits, window, max_rounds)
+
+
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
               max_rounds: int = 200, axis_path=None, axis_limits=None) -> FeedPlan:
     """Plan the whole curve from rest to rest (in windows when ``window`` is given [m]).
@@ -214,17 +234,12 @@ def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: f
     ``axis_path(u) -> (N, k)`` and ``axis_limits`` plan against the machine axes after
     kinematics (a varying tool axis); by default the tool tip's X/Y/Z limits apply.
     """
-    spacing = min(limits.feed * period, 0.5e-3)
-    u, s = sample_curve(curve, spacing)
-    axis_q = None if axis_path is None else axis_path(u)
-    limit = feed_limit(curve, u, s, limits, period, axis_q, axis_limits)
+    sm = _sample(curve, limits, period, axis_path, axis_limits)
     if window is None:
-        a_t, j_t = tangential_budget(limits, axis_q, s, axis_limits)
-        blocks = _plan_range(s, limit, 0, len(s) - 1, 0.0, 0.0, limits, max_rounds, a_t, j_t)[0]
+        blocks = _plan_range(sm.s, sm.limit, 0, len(sm.s) - 1, 0.0, 0.0, limits, max_rounds, sm.a_t, sm.j_t)[0]
     else:
-        blocks = [b for chunk in plan_feed_windows(curve, limits, period=period, window=window, max_rounds=max_rounds,
-                                                   axis_path=axis_path, axis_limits=axis_limits) for b in chunk]
-    return FeedPlan(blocks=tuple(blocks), s=s, u=u, limit=limit)
+        blocks = [b for chunk in _windows(sm, limits, window, max_rounds) for b in chunk]
+    return FeedPlan(blocks=tuple(blocks), s=sm.s, u=sm.u, limit=sm.limit)
 
 
 def _worst_excess(block: SCurve, s_local: np.ndarray, limit: np.ndarray) -> int | None:
