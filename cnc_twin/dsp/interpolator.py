@@ -261,11 +261,7 @@ class SegmentInterpolator:
             if isinstance(item, (MoveSegment, DwellSegment, _Block)):
                 self._queued_periods -= item.periods
             if isinstance(item, _Block):
-                self._queued_path -= item.profile.length
-                self._current = (seq, item)
-                self._tau = 0.0
-                self._s = 0.0
-                self._block_state = None
+                self._begin_block(seq, item, 0.0)
             elif isinstance(item, _Curve):
                 self._curve = item
                 self.last_seq_executed = seq
@@ -325,6 +321,15 @@ class SegmentInterpolator:
         s = prof.evaluate(self._tau)[0]
         return [c0 + s * dc for c0, dc in zip(self._start_counts, self._delta_counts)]
 
+    def _begin_block(self, seq: int, block: _Block, tau: float) -> None:
+        """Make ``block`` the running segment, ``tau`` [s] into its clock (0 at a fresh start;
+        the rest of a period when the previous block ended inside it)."""
+        self._queued_path -= block.profile.length
+        self._current = (seq, block)
+        self._tau = tau
+        self._s = block.profile.state(tau)[0] if tau > 0.0 else 0.0
+        self._block_state = None
+
     def _advance_block(self, seq: int, block: _Block) -> list[float]:
         """One period along a curve block; the setpoint in counts."""
         prof = block.profile
@@ -368,10 +373,7 @@ class SegmentInterpolator:
             if isinstance(nxt, _Block):
                 seq_next, nxt = self._queue.popleft()
                 self._queued_periods -= nxt.periods
-                self._queued_path -= nxt.profile.length
-                self._current = (seq_next, nxt)
-                self._tau = tau - prof.duration
-                self._s = nxt.profile.state(self._tau)[0]
+                self._begin_block(seq_next, nxt, tau - prof.duration)
                 ds += self._s
         stepper = block.curve.stepper
         point = stepper.step(ds) if ds > 0.0 else stepper.point
