@@ -84,26 +84,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune}
     try:
-        if args.command == "run":
-            return _run(args)
-        if args.command == "validate":
-            return _validate(args)
-        if args.command == "bench":
-            return _bench(args)
-        if args.command == "view":
-            return _view(args)
-        if args.command == "sweep":
-            return _sweep(args)
-        if args.command == "tune":
-            return _tune(args)
+        return handlers[args.command](args)
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    raise AssertionError(f"unhandled command {args.command}")  # pragma: no cover
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -193,12 +193,14 @@ def test_curve_records_round_trip_and_every_bit_flip_is_caught():
 def test_curve_geometry_with_a_tool_axis_curve_round_trips():
     from cnc_twin.whiteboard.records import CurveGeometry
 
-    axis = (1, (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), ((0.0, 0.0, 1.0), (0.3, -0.2, 1.0)))
+    from cnc_twin.config import AxisCurve
+
+    axis = AxisCurve(1, (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), ((0.0, 0.0, 1.0), (0.3, -0.2, 1.0)))
     rec = CurveGeometry(degree=1, knots=(0, 0, 1, 1), weights=(1, 1), control_points=((0, 0, 0.1), (0.1, 0, 0.1)),
                         hold=(0.0, 0.0, 0.5), axis=axis, pivot=(0.0, 0.0, 0.6), offset=(0.0, 0.0, -0.25))
     words = encode(rec, 3)
     _, got = decode(words)
-    assert got.axis == (1, (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), ((0.0, 0.0, 1.0), (0.3, -0.2, 1.0)))
+    assert got.axis == AxisCurve(1, (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), ((0.0, 0.0, 1.0), (0.3, -0.2, 1.0)))
     assert got.pivot == (0.0, 0.0, 0.6) and got.offset == (0.0, 0.0, -0.25) and got.hold == (0.0, 0.0, 0.5)
     for bit in range(0, 16 * len(words), 5):
         assert_flip_caught(words, bit)

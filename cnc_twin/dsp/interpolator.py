@@ -59,8 +59,8 @@ class _Curve:
         self.hold = tuple(record.hold)
         self.axis = None
         if record.axis is not None:
-            degree, knots, weights, points = record.axis
-            self.axis = NurbsCurve(points, weights, knots, degree).span_evaluator()
+            ac = record.axis
+            self.axis = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree).span_evaluator()
             self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
         end = curve.point(curve.domain[1])[0].tolist()
         self.end = self.pose(end, curve.domain[1])

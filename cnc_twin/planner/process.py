@@ -109,7 +109,7 @@ def curve_setup(prog: NurbsProgram):
                    tuple(lim.axis_jerk) + tuple(rot[2]))
     geometry = CurveGeometry(degree=prog.degree, knots=prog.knots, weights=prog.weights,
                              control_points=prog.control_points, hold=prog.hold,
-                             axis=(ac.degree, ac.knots, ac.weights, ac.control_points),
+                             axis=ac,
                              pivot=prog.pivot_home, offset=prog.tool_offset)
     return curve, start, axis_path, axis_limits, geometry
 

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_twin.config import AxisCurve
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.dsp.scurve import SCurve
 
@@ -124,8 +125,8 @@ class CurveGeometry:
     weights: tuple[float, ...]
     control_points: tuple[tuple[float, float, float], ...]
     hold: tuple[float, float, float]
-    axis: tuple | None = None
-    """(degree, knots, weights, control_points) of the tool-axis curve, or None"""
+    axis: AxisCurve | None = None
+    """the tool-axis curve (directions), or None when A/B are held"""
     pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
@@ -185,10 +186,11 @@ def _payload(record: Record) -> bytes:
                  np.asarray(record.control_points, "<f8").ravel()]
         degree2 = n2 = 0
         if record.axis is not None:
-            degree2, knots2, weights2, points2 = record.axis
-            n2 = len(points2)
+            ac = record.axis
+            degree2, n2 = ac.degree, len(ac.control_points)
             parts += [np.asarray(record.pivot, "<f8"), np.asarray(record.offset, "<f8"),
-                      np.asarray(knots2, "<f8"), np.asarray(weights2, "<f8"), np.asarray(points2, "<f8").ravel()]
+                      np.asarray(ac.knots, "<f8"), np.asarray(ac.weights, "<f8"),
+                      np.asarray(ac.control_points, "<f8").ravel()]
         body = _CURVE_HEAD.pack(record.degree, n, degree2, n2, *record.hold) + np.concatenate(parts).tobytes()
         if len(body) // 2 > MAX_BLOCK_WORDS:
             raise ValueError(f"curve of {n} control points exceeds one record ({MAX_BLOCK_WORDS} words)")
@@ -253,8 +255,8 @@ def _decode_curve(payload: bytes) -> CurveGeometry:
     axis, pivot, offset = None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     if n2:
         pivot, offset = tuple(take(3).tolist()), tuple(take(3).tolist())
-        axis = (degree2, tuple(take(n_knots2).tolist()), tuple(take(n2).tolist()),
-                tuple(tuple(p) for p in take(3 * n2).reshape(n2, 3).tolist()))
+        axis = AxisCurve(degree=degree2, knots=tuple(take(n_knots2).tolist()), weights=tuple(take(n2).tolist()),
+                         control_points=tuple(tuple(p) for p in take(3 * n2).reshape(n2, 3).tolist()))
     return CurveGeometry(degree=degree, knots=knots, weights=weights, control_points=points, hold=tuple(hold),
                          axis=axis, pivot=pivot, offset=offset)
 
