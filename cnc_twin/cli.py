@@ -251,10 +251,22 @@ def _validate(args: argparse.Namespace) -> int:
     for path in args.scenarios:
         scenario = load_scenario(path)
         program = scenario.program
-        what = (f"{len(program.moves)} moves" if hasattr(program, "moves")
-                else f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points")
-        print(f"{path}: ok ({scenario.name}, {what})")
+        print(f"{path}: ok ({scenario.name}, {describe_program(program)})")
     return EXIT_OK
+
+
+def describe_program(program) -> str:
+    """One line on what a program does."""
+    from cnc_twin.config import NurbsProgram, SurfaceProgram
+
+    if isinstance(program, SurfaceProgram):
+        s = program.surface
+        return (f"{program.pattern} on a {len(s.control_net)} x {len(s.control_net[0])} NURBS surface, "
+                f"{program.path_length * 1e3:.0f} mm of path in {len(program.sections)} section(s), "
+                f"{program.force.setpoint:g} N")
+    if isinstance(program, NurbsProgram):
+        return f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points"
+    return f"{len(program.moves)} moves"
 
 
 def _bench(args: argparse.Namespace) -> int:

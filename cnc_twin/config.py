@@ -166,6 +166,115 @@ class NurbsProgram:
 
 
 @dataclass(frozen=True)
+class UvCurve:
+    """A 2-D NURBS in a surface's (u, v) parameter space: one section of a surface tool path."""
+
+    degree: int
+    knots: tuple[float, ...]
+    weights: tuple[float, ...]
+    control_points: tuple[tuple[float, float], ...]
+
+
+@dataclass(frozen=True)
+class SurfaceDef:
+    """A NURBS surface in the world frame [m]: the workpiece's polished face."""
+
+    degree_u: int
+    degree_v: int
+    knots_u: tuple[float, ...]
+    knots_v: tuple[float, ...]
+    weights: tuple[tuple[float, ...], ...]
+    """shape (nu, nv)"""
+    control_net: tuple[tuple[tuple[float, float, float], ...], ...]
+    """shape (nu, nv, 3) [m], world frame"""
+
+
+@dataclass(frozen=True)
+class ForceControl:
+    """Grinding-force control along the tool axis (the card's force loop); SI units."""
+
+    setpoint: float
+    """[N]"""
+    profile: tuple[tuple[float, float], ...]
+    """setpoint along the path: (path length from its start [m], force [N]) pairs, linear between;
+    empty = ``setpoint`` everywhere"""
+    ramp_time: float
+    """force ramp after first contact and before retracting [s]"""
+    seek_speed: float
+    """approach speed along the tool axis until contact [m/s]"""
+    standoff: float
+    """gap above the surface where the seek starts and the retract ends [m]"""
+    contact_threshold: float
+    """measured force that counts as contact [N]"""
+    kp: float
+    """proportional gain [m/N]: tool-axis offset per newton of error"""
+    ki: float
+    """integral gain [m/(N s)]"""
+    max_depth: float
+    """clamp on the offset into the surface (anti-windup) [m]"""
+    retract_speed: float
+    """[m/s]"""
+    adapt_threshold: float
+    """force error, as a fraction of the setpoint, above which the feed is reduced"""
+    adapt_feed: float
+    """feed fraction while the force error is above the threshold"""
+    adapt_hold: float
+    """how long the error must stay below half the threshold before the feed is restored [s]"""
+
+
+@dataclass(frozen=True)
+class Preston:
+    """Material removal by Preston's law on a Winkler pad."""
+
+    k: float
+    """Preston coefficient [m^2/N]"""
+    pad_radius: float
+    """[m]"""
+    pad_modulus: float
+    """Winkler foundation modulus of the pad [N/m^3]"""
+    grid_spacing: float
+    """pitch of the removal map's points on the surface [m]"""
+    every: int
+    """removal update interval [interpolation periods]"""
+
+
+@dataclass(frozen=True)
+class SurfaceProgram:
+    """Polishing a NURBS surface along a raster or spiral path in its (u, v) space, at a controlled
+    force. The path is a list of (u, v) NURBS curves (sections, each run from rest to rest); the
+    card interpolates them on the surface with the tool axis along the surface normal."""
+
+    surface: SurfaceDef
+    sections: tuple[UvCurve, ...]
+    """the path in the surface's parameter space"""
+    pattern: str
+    """raster | spiral (for reports)"""
+    lead: float
+    """tool axis leaning forward along the feed direction [rad]"""
+    tilt: float
+    """tool axis leaning sideways (about the feed direction) [rad]"""
+    spindle_speed: float
+    """[rad/s]"""
+    limits: PathLimits
+    force: ForceControl
+    preston: Preston
+    approach_feed: float | None
+    settle: float
+    pivot_home: tuple[float, float, float]
+    tool_offset: tuple[float, float, float]
+    rotary_limits: tuple[tuple[float, float], tuple[float, float], tuple[float, float]]
+    """(velocity, acceleration, jerk) of A and B"""
+    spindle_acceleration: float
+    """C acceleration used to start and stop the spindle [rad/s^2]"""
+    path_length: float
+    """total length of the sections [m]"""
+    surface_tile_size: float = 0.02
+    """edge of the convex collision tiles [m]"""
+    friction: float | None = None
+    """pad-workpiece sliding friction; None = the model's"""
+
+
+@dataclass(frozen=True)
 class PlannerConfig:
     """The PC planner process."""
 
@@ -215,7 +324,7 @@ class Scenario:
     axes: tuple[AxisConfig, ...]
     """in X Y Z A B C order"""
     force_sensor: ForceSensorConfig
-    program: PointToPoint | NurbsProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
     planner: PlannerConfig

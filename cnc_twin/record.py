@@ -23,6 +23,10 @@ column              unit    meaning
 ``last_seq_executed`` -     sequence number of the last record executed
 ``path_u``          -       NURBS parameter at the period's end (-1 when not on a curve)
 ``path_ds``         m       arc length commanded along the curve in the period
+``force_state``     -       force loop (0 OFF, 1 SEEK, 2 RAMP, 3 TRACK, 4 RAMP_DOWN, 5 RETRACT)
+``force_setpoint``  N       force setpoint in effect in the period
+``force_depth``     m       force loop's push along the tool axis (negative: standing off)
+``feed_factor``     -       feed adaptation factor (1, or reduced while the force error is large)
 ==================  ======  ===========================================================
 
 A run directory holds ``scenario.yaml`` (the file as written), ``trace.parquet`` and
@@ -48,6 +52,7 @@ from cnc_twin.axes import AXES
 from cnc_twin.dsp.servo import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.config import Scenario
 
+_FLOAT_PERIOD_FIELDS = ("feed_override", "path_u", "path_ds", "force_setpoint", "force_depth", "feed_factor")
 TRACE_FILE = "trace.parquet"
 METRICS_FILE = "metrics.json"
 SCENARIO_FILE = "scenario.yaml"
@@ -116,7 +121,7 @@ class Trace:
             counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64),
             period_signals={
                 name: (rows[:, len(FRAME_FIELDS) * n_axes + 1 + i].astype(
-                    np.float64 if name in ("feed_override", "path_u", "path_ds") else np.int64))
+                    np.float64 if name in _FLOAT_PERIOD_FIELDS else np.int64))
                 for i, name in enumerate(PERIOD_FIELDS)
             },
         )
@@ -142,7 +147,8 @@ class Trace:
 _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",
           "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
           "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",
-          "path_u": "1", "path_ds": "m"}
+          "path_u": "1", "path_ds": "m", "force_state": "1", "force_setpoint": "N", "force_depth": "m",
+          "feed_factor": "1"}
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:

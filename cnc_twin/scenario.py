@@ -39,15 +39,15 @@ from cnc_twin.config import (
     WhiteboardConfig,
 )
 from cnc_twin.resources import resolve_model_file
+from cnc_twin.schema_base import KeyedValueError as _KeyedValueError
+from cnc_twin.schema_base import PathLimitsSpec
+from cnc_twin.schema_base import Strict as _Strict
+from cnc_twin.scenario_surface import SurfacePolishProgram
 
 
 # --------------------------------------------------------------------------------------------
 # Schema, in the units users write. Field descriptions state the unit.
 # --------------------------------------------------------------------------------------------
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
-
-
 class EncoderSpec(_Strict):
     """Quadrature encoder on the motor shaft (semi-closed loop)."""
 
@@ -191,7 +191,8 @@ class RecordBitflipFault(_Strict):
 FaultSpec = Annotated[
     Union[PlannerStallFault, PlannerDelayFault, PlannerKillFault, RecordBitflipFault], Field(discriminator="type")
 ]
-_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip", "point_to_point", "nurbs_curve"}
+_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip", "point_to_point", "nurbs_curve",
+               "surface_polish"}
 
 
 class MoveSpec(_Strict):
@@ -213,15 +214,6 @@ class PointToPointProgram(_Strict):
     type: Literal["point_to_point"]
     moves: list[MoveSpec] = Field(min_length=1)
     settle: float = Field(0.3, ge=0, description="time simulated after the last move [s]")
-
-
-class PathLimitsSpec(_Strict):
-    """Path limits of a curve program (axis limits come from the machine parameters)."""
-
-    path_acceleration: float = Field(2000.0, gt=0, description="tangential acceleration [mm/s^2]")
-    path_jerk: float = Field(50000.0, gt=0, description="tangential jerk [mm/s^3]")
-    normal_acceleration: float = Field(2000.0, gt=0, description="centripetal acceleration [mm/s^2]")
-    normal_jerk: float = Field(50000.0, gt=0, description="normal jerk [mm/s^3]")
 
 
 class ToolAxisSpec(_Strict):
@@ -259,7 +251,7 @@ class NurbsCurveProgram(_Strict):
     settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
 
 
-ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram], Field(discriminator="type")]
+ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram], Field(discriminator="type")]
 
 
 class ScenarioFile(_Strict):
@@ -277,14 +269,6 @@ class ScenarioFile(_Strict):
     faults: list[FaultSpec] = Field(default_factory=list)
     max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
     program: ProgramSpec
-
-
-class _KeyedValueError(ValueError):
-    """Raised inside validators to report a key path below the validated model."""
-
-    def __init__(self, loc: tuple, message: str):
-        self.loc = loc
-        super().__init__(message)
 
 
 # --------------------------------------------------------------------------------------------
@@ -368,7 +352,11 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     model = load_model(model_path)
     info = model_info(model)
     axes = _convert_axes(spec.axes, info)
-    if isinstance(spec.program, NurbsCurveProgram):
+    if isinstance(spec.program, SurfacePolishProgram):
+        from cnc_twin import scenario_surface
+
+        program = scenario_surface.convert(spec.program, axes, model_path, label)
+    elif isinstance(spec.program, NurbsCurveProgram):
         program = _convert_nurbs(spec.program, axes, model, label)
     else:
         program = _convert_program(spec.program, axes, info, label)

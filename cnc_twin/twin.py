@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_twin.config import NurbsProgram, Scenario
+from cnc_twin.config import NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.task import DspTask
@@ -65,6 +65,8 @@ class RunResult:
     """the compiled MJCF the run used (for exports)"""
     exchange_latency: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
+    removal: Any = field(default=None, repr=False)
+    """the removal map of a surface polishing run (:class:`cnc_twin.removal.PrestonModel`)"""
 
     @property
     def status(self) -> str:
@@ -82,9 +84,10 @@ class RunResult:
     def write(self, run_dir: str | Path, *, recording: bool = True) -> Path:
         """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
         ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``."""
-        extra = None
-        if recording:
-            def extra(folder: Path) -> None:
+        def extra(folder: Path) -> None:
+            if self.removal is not None:
+                self.removal.save(folder)
+            if recording:
                 self.export_rerun(rrd=folder / RECORDING_FILE)
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
                                      extra=extra)
@@ -109,7 +112,23 @@ class Twin:
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
         timing = scenario.timing
-        self.plant = Plant(load_model(scenario.model_file), timestep=timing.physics_timestep)
+        self.tiling = None
+        if isinstance(scenario.program, SurfaceProgram):
+            from cnc_twin.planner.surface_program import build_surface
+            from cnc_twin.workpiece import build_model
+
+            tile = scenario.program.surface_tile_size
+            model, self.tiling = build_model(scenario.model_file, build_surface(scenario.program), tile_size=tile,
+                                             friction=scenario.program.friction)
+        else:
+            model = load_model(scenario.model_file)
+        self.plant = Plant(model, timestep=timing.physics_timestep)
+        self.removal = None
+        if isinstance(scenario.program, SurfaceProgram):
+            from cnc_twin.polish import RemovalTracker
+
+            self.removal = RemovalTracker(scenario.program, self.plant.model, self.plant.data,
+                                          timing.interpolation_period)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor
         )
@@ -206,6 +225,8 @@ class Twin:
         tick_range = range(ticks_per_period)
         realtime = timing.mode == "realtime"
         report_every = max(1, self.expected_periods // 200)
+        removal = self.removal
+        removal_every = removal.every if removal is not None else 0
         self.late_periods = 0
         k = 0
         t = 0
@@ -224,6 +245,8 @@ class Twin:
                 rows[t] = frame
                 t += 1
             k += 1
+            if removal_every and k % removal_every == 0:
+                removal.update()
             if k % report_every == 0:
                 if progress is not None:
                     progress(min(k, self.expected_periods), self.expected_periods)
@@ -296,13 +319,25 @@ class Twin:
         if isinstance(sc.program, NurbsProgram):
             metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
                                            plan_us=self.plan_us, plan_blocks=self.plan_blocks)
+        if isinstance(sc.program, SurfaceProgram):
+            from cnc_twin.polish import force_metrics, removal_metrics
+
+            metrics["polish"] = {
+                "force": force_metrics(trace, sc.program, sc.timing.ticks_per_period),
+                "removal": removal_metrics(self.removal, sc.program, wall_time),
+                "collision_tiles": list(self.tiling.tiles),
+                "tile_hull_gap_mm": self.tiling.hull_gap * 1e3,
+                "path_length_mm": sc.program.path_length * 1e3,
+                "sections": len(sc.program.sections),
+            }
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason
         elif dsp.fault != FaultCode.NONE:
             metrics["status"] = "fault"
         latency = (np.asarray(port.latency_period, dtype=np.int64), np.asarray(port.latency_ns, dtype=np.float64) / 1e3)
-        return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency)
+        return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency,
+                         removal=None if self.removal is None else self.removal.model_removal)
 
 
 def _lookahead_periods(scenario: Scenario) -> int:
@@ -313,7 +348,7 @@ def _lookahead_periods(scenario: Scenario) -> int:
     """
     period = scenario.timing.interpolation_period
     periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
-    if periods and isinstance(scenario.program, NurbsProgram):
+    if periods and isinstance(scenario.program, (NurbsProgram, SurfaceProgram)):
         lim = scenario.program.limits
         a, j = lim.tangential_acceleration, lim.tangential_jerk
         stop_time = lim.feed / a + a / j

@@ -38,10 +38,15 @@ from collections.abc import Sequence
 
 from cnc_twin.config import AxisConfig
 from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.dsp.force import ForceController, ForceState
+from cnc_twin.geometry.kinematics import pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
+from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
+from cnc_twin.geometry.surface_path import SurfacePathEvaluator
 from cnc_twin.planner.segments import DwellSegment, MoveSegment
 from cnc_twin.whiteboard.records import (
-    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, Record, Spindle,
+    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Move,
+    Record, Spindle, SurfaceCurve, SurfaceGeometry,
 )
 
 SLEW_MARGIN = 0.9
@@ -69,22 +74,63 @@ class _Curve:
         """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""
         if self.axis is None:
             return (point[0], point[1], point[2], *self.hold)
-        nx, ny, nz = self.axis.evaluate(u)[0]
-        inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
-        b = math.asin(max(-1.0, min(1.0, nx * inv)))
-        a = math.atan2(-ny * inv, nz * inv)
-        ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
-        ox, oy, oz = self.offset
-        x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
-        rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
-        px, py, pz = self.pivot
-        return (point[0] - px - rx, point[1] - py - ry, point[2] - pz - rz, a, b, self.hold[2])
+        x, y, z, a, b = pose_to_axes(point, self.axis.evaluate(u)[0], self.pivot, self.offset)
+        return (x, y, z, a, b, self.hold[2])
+
+
+class _Surface:
+    """The surface of the following path sections, ready for per-period evaluation."""
+
+    def __init__(self, record: SurfaceGeometry):
+        surface = NurbsSurface(record.control_net, record.weights, record.knots_u, record.knots_v,
+                               record.degree_u, record.degree_v)
+        self.evaluator: SurfaceSpanEvaluator = surface.span_evaluator()
+        self.lead, self.tilt = record.lead, record.tilt
+        self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
+
+
+class _SurfaceRun:
+    """One path section on a surface: its stepper, the tool axis along the surface normal (with
+    lead and tilt), the kinematics per period. ``axis`` is the tool axis of the last pose."""
+
+    def __init__(self, surface: _Surface, section: SurfaceCurve, c_hold: float):
+        c = section.curve
+        uv = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
+        self.surface = surface
+        self.evaluator = SurfacePathEvaluator(surface.evaluator, uv.span_evaluator())
+        self.c_hold = c_hold
+        t0, t1 = uv.domain
+        self.end = self.pose(self.evaluator.evaluate(t1)[0], t1)
+        self.end_axis = self.axis
+        self.stepper = CurveStepper(self.evaluator, t0)  # evaluates t0 last: the kept tangents are the start's
+        self.start = self.pose(self.stepper.point, t0)
+        self.start_axis = self.axis
+
+    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
+        """Machine position for the tip at ``point``, with the tool axis at the last evaluated point."""
+        sf = self.surface
+        self.axis = self.evaluator.tool_axis(sf.lead, sf.tilt)
+        return (*pose_to_axes(point, self.axis, sf.pivot, sf.offset), self.c_hold)
+
+
+class _ForceWait:
+    """Force control switching on (seek, ramp) or off (ramp down, retract) at a section's start or
+    end pose; the queue waits until it is done."""
+
+    def __init__(self, record: ForceControlRecord, run: _SurfaceRun):
+        self.record = record
+        self.on = record.on
+        self.base = run.start if record.on else run.end
+        self.axis = run.start_axis if record.on else run.end_axis
+        standoff = record.params.standoff
+        # where the tool is when force control is off: standoff above the section's pose
+        self.clear_pose = tuple(p + standoff * n for p, n in zip(self.base[:3], self.axis)) + self.base[3:]
 
 
 class _Block:
-    """A queued curve block: the S-curve and the curve it runs on."""
+    """A queued curve block: the S-curve and the curve (or surface section) it runs on."""
 
-    def __init__(self, record: CurveBlock, curve: _Curve, period: float):
+    def __init__(self, record: CurveBlock, curve: "_Curve | _SurfaceRun", period: float):
         self.profile = record.profile
         self.curve = curve
         self.periods = math.ceil(self.profile.duration / period)
@@ -134,7 +180,22 @@ class SegmentInterpolator:
         self.spindle_speed = 0.0
         self._hold_counts = [0.0] * len(self.counts_per_unit)
         self._queued_periods = 0
-        self._pending_curve: _Curve | None = None
+        self._pending_curve: _Curve | _SurfaceRun | None = None
+        self._surface: _Surface | None = None
+        self.force = ForceController(period)
+        """the grinding-force loop (see :mod:`cnc_twin.dsp.force`)"""
+        self.measured_force = 0.0
+        """load-cell force of the last servo tick [N], set by the period task before each period"""
+        self.path_s = 0.0
+        """path length run since the last surface definition [m] (the force profile's abscissa)"""
+        self._axis = (0.0, 0.0, 1.0)
+        """tool axis of the last surface pose (world frame), for the force offset"""
+        c_axis = self.axes[5] if len(self.axes) > 5 else None
+        self._spindle_accel = SLEW_MARGIN * c_axis.max_acceleration if c_axis is not None else math.inf
+        self._spin = 0.0
+        """spindle speed commanded this period [rad/s]"""
+        self._c_offset = 0.0
+        """C angle turned by the spindle so far [rad], added to every C setpoint"""
         self._curve: _Curve | None = None
         self._s = 0.0
         self._starved_hold = False
@@ -168,6 +229,20 @@ class SegmentInterpolator:
             self._pending_curve = _Curve(record)
             self.programmed = self._pending_curve.end
             self._queue.append((seq, self._pending_curve))
+        elif isinstance(record, SurfaceGeometry):
+            self._surface = _Surface(record)
+            self._queue.append((seq, record))
+            self._path_open = False
+        elif isinstance(record, SurfaceCurve):
+            self._pending_curve = _SurfaceRun(self._surface, record, self.programmed[5])
+            self.programmed = self._pending_curve.end
+            self._queue.append((seq, self._pending_curve))
+        elif isinstance(record, ForceControlRecord):
+            wait = _ForceWait(record, self._pending_curve)
+            if not record.on:
+                self.programmed = wait.clear_pose
+            self._queue.append((seq, wait))
+            self._path_open = False
         elif isinstance(record, CurveBlock):
             block = _Block(record, self._pending_curve, self.period)
             self._queue.append((seq, block))
@@ -212,7 +287,7 @@ class SegmentInterpolator:
         """A curve block is running or next in line."""
         if self._current is not None and isinstance(self._current[1], _Block):
             return True
-        return bool(self._queue) and isinstance(self._queue[0][1], (_Block, _Curve))
+        return bool(self._queue) and isinstance(self._queue[0][1], (_Block, _Curve, _SurfaceRun))
 
     @property
     def pending(self) -> int:
@@ -227,6 +302,8 @@ class SegmentInterpolator:
             seg = self._current[1]
             if isinstance(seg, DwellSegment):
                 left = self._dwell_left
+            elif isinstance(seg, _ForceWait):  # as long as force control needs: not motion the planner queued
+                left = 0
             else:  # move or curve block
                 left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
         return self._queued_periods + left
@@ -234,26 +311,55 @@ class SegmentInterpolator:
     # --- per period --------------------------------------------------------------------------
     def next_period(self) -> list[float]:
         """Commanded position at the end of the coming period [counts], shape ``(6,)``."""
+        force = self.force
+        depth = force.update(self.measured_force, self.path_s) if force.state != ForceState.OFF else 0.0
         if self._current is None:
             self._start_next()
-        if self._current is None:
-            self.path_ds = 0.0
-            return list(self._hold_counts)
-        seq, seg = self._current
         self.path_ds = 0.0
-        if isinstance(seg, _Block):
-            counts = self._advance_block(seq, seg)
-        elif isinstance(seg, DwellSegment):
-            self.path_u = -1.0
-            self._dwell_left -= 1
-            counts = self._counts_of(seg.position)
-            if self._dwell_left <= 0:
-                self._complete(seq)
+        if self._current is None:
+            counts = list(self._hold_counts)
         else:
-            self.path_u = -1.0
-            counts = self._advance_move(seq, seg)
+            seq, seg = self._current
+            if isinstance(seg, _Block):
+                counts = self._advance_block(seq, seg)
+            elif isinstance(seg, _ForceWait):
+                self.path_u = -1.0
+                self._axis = seg.axis
+                counts = self._counts_of(seg.base)
+                if force.state == (ForceState.TRACK if seg.on else ForceState.OFF):
+                    self._complete(seq)
+                    if not seg.on:  # retracted: from here on the pose is the clear pose, no offset
+                        counts = self._counts_of(seg.clear_pose)
+                        depth = 0.0
+            elif isinstance(seg, DwellSegment):
+                self.path_u = -1.0
+                self._dwell_left -= 1
+                counts = self._counts_of(seg.position)
+                if self._dwell_left <= 0:
+                    self._complete(seq)
+            else:
+                self.path_u = -1.0
+                counts = self._advance_move(seq, seg)
         self._hold_counts = counts
-        return list(counts)
+        if depth != 0.0:  # the force loop pushes the tool along its axis (into the surface: -axis)
+            cpu, axis = self.counts_per_unit, self._axis
+            counts = [counts[0] - depth * axis[0] * cpu[0], counts[1] - depth * axis[1] * cpu[1],
+                      counts[2] - depth * axis[2] * cpu[2], *counts[3:]]
+        if self.spindle_on or self._spin != 0.0:
+            self._turn_spindle()
+        if self._c_offset != 0.0:
+            counts = [*counts[:5], counts[5] + self._c_offset * self.counts_per_unit[5]]
+        elif counts is self._hold_counts:
+            counts = list(counts)
+        return counts
+
+    def _turn_spindle(self) -> None:
+        """Spindle (C) in speed mode: ramp towards the commanded speed within C's acceleration."""
+        target = self.spindle_speed if self.spindle_on else 0.0
+        step = self._spindle_accel * self.period
+        spin = min(target, self._spin + step) if target > self._spin else max(target, self._spin - step)
+        self._c_offset += 0.5 * (self._spin + spin) * self.period
+        self._spin = spin
 
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
@@ -262,8 +368,17 @@ class SegmentInterpolator:
                 self._queued_periods -= item.periods
             if isinstance(item, _Block):
                 self._begin_block(seq, item, 0.0)
-            elif isinstance(item, _Curve):
+            elif isinstance(item, (_Curve, _SurfaceRun)):
                 self._curve = item
+                self.last_seq_executed = seq
+            elif isinstance(item, _ForceWait):
+                self._current = (seq, item)
+                if item.on:
+                    self.force.start(item.record.params)
+                else:
+                    self.force.stop()
+            elif isinstance(item, SurfaceGeometry):
+                self.path_s = 0.0
                 self.last_seq_executed = seq
             elif isinstance(item, MoveSegment):
                 self._begin_move(seq, item)
@@ -353,7 +468,11 @@ class SegmentInterpolator:
             else:
                 self._arrivals_at_latch = self._arrivals
         lam = self.override
-        target = 0.0 if (self.hold or self._starved_hold) else self.override_target
+        force = self.force
+        if self.hold or self._starved_hold or force.path_gate:
+            target = 0.0
+        else:
+            target = self.override_target * force.feed_factor
         if lam != target:
             lam = _slew(lam, target, v, a, prof.a_max, self.period)
             self.override = lam
@@ -375,11 +494,16 @@ class SegmentInterpolator:
                 self._queued_periods -= nxt.periods
                 self._begin_block(seq_next, nxt, tau - prof.duration)
                 ds += self._s
-        stepper = block.curve.stepper
+        curve = block.curve
+        stepper = curve.stepper
         point = stepper.step(ds) if ds > 0.0 else stepper.point
         self.path_u = stepper.u
         self.path_ds = ds
-        return self._counts_of(block.curve.pose(point, stepper.u))
+        pose = curve.pose(point, stepper.u)
+        if isinstance(curve, _SurfaceRun):
+            self._axis = curve.axis
+            self.path_s += ds
+        return self._counts_of(pose)
 
     def _counts_of(self, positions) -> list[float]:
         return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]

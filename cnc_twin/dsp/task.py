@@ -89,6 +89,7 @@ class DspTask:
         if acquired:
             self._publish(k)
         interp = self.interpolator
+        interp.measured_force = self.servo.frame[3 * self.servo.n_axes]
         if interp.path_u >= 0.0 or interp.on_curve:
             started = perf_counter_ns()
             setpoint = interp.next_period()
@@ -107,6 +108,11 @@ class DspTask:
         frame[base + 6] = interp.last_seq_executed
         frame[base + 7] = interp.path_u
         frame[base + 8] = interp.path_ds
+        force = interp.force
+        frame[base + 9] = force.state
+        frame[base + 10] = force.target
+        frame[base + 11] = force.depth
+        frame[base + 12] = force.feed_factor
 
     def raise_fault(self, code: int, message: str, k: int) -> None:
         """Record a fault and start a controlled stop (the first fault wins)."""

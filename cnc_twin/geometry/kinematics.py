@@ -18,12 +18,21 @@ Tool axis: the unit vector from the tip towards the spindle, ``n = Rx(A) Ry(B) (
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from cnc_twin.plant import HOME_KEYFRAME
+
+class UnreachablePose(ValueError):
+    """A tool pose the head cannot take; ``index`` is the first offending pose, ``reason`` why."""
+
+    def __init__(self, index: int, reason: str):
+        self.index, self.reason = index, reason
+        super().__init__(f"pose {index}: {reason}")
+
 
 PIVOT_BODY = "a_yoke"
 TOOL_SITE = "tool_site"
@@ -37,6 +46,21 @@ def ab_from_axis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     b = np.arcsin(np.clip(n[..., 0], -1.0, 1.0))
     a = np.arctan2(-n[..., 1], n[..., 2])
     return a, b
+
+
+def pose_to_axes(tip, n, pivot, offset) -> tuple[float, float, float, float, float]:
+    """Scalar inverse kinematics for the card's per-period work: X, Y, Z [m], A, B [rad] that put
+    the tool tip at ``tip`` with the tool along ``n`` (any length > 0); ``pivot`` is the A/B
+    pivot at X = Y = Z = 0 and ``offset`` the tip - pivot at A = B = 0 (3-sequences, m)."""
+    nx, ny, nz = n
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+    b = math.asin(max(-1.0, min(1.0, nx * inv)))
+    a = math.atan2(-ny * inv, nz * inv)
+    ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+    ox, oy, oz = offset
+    x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
+    rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
+    return (tip[0] - pivot[0] - rx, tip[1] - pivot[1] - ry, tip[2] - pivot[2] - rz, a, b)
 
 
 def rotation_ab(a: float, b: float) -> np.ndarray:
@@ -90,6 +114,49 @@ class HeadGeometry:
         rotated = np.stack([x1, ca * y1 - sa * z1, sa * y1 + ca * z1], axis=-1)
         xyz = np.asarray(tip_world) - np.asarray(self.pivot_home) - rotated
         return np.column_stack([xyz, a, b])
+
+    def forward(self, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tool tip and unit tool axis (each (m, 3), world frame) for X/Y/Z/A/B rows (m, 5)."""
+        q = np.atleast_2d(np.asarray(axes, dtype=np.float64))
+        a, b = q[:, 3], q[:, 4]
+        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+        ox, oy, oz = self.tool_offset
+        x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
+        rotated = np.stack([x1, ca * oy - sa * z1, sa * oy + ca * z1], axis=-1)
+        tip = q[:, :3] + np.asarray(self.pivot_home) + rotated
+        axis = np.stack([sb, -sa * cb, ca * cb], axis=-1)
+        return tip, axis
+
+    def inverse(self, tip_world: np.ndarray, axis: np.ndarray, *, travel=None) -> np.ndarray:
+        """X/Y/Z/A/B (m, 5) for tool poses, refusing any the head cannot take.
+
+        ``travel``: optional per-axis ``(lo, hi)`` [m | rad] (or None) for X, Y, Z, A, B.
+
+        Raises
+        ------
+        UnreachablePose
+            For the first pose whose tool axis does not point down into the head's branch
+            (z component <= 0: |B| would reach 90 deg) or whose axes leave their travel.
+        """
+        n = np.atleast_2d(np.asarray(axis, dtype=np.float64))
+        n = n / np.linalg.norm(n, axis=1, keepdims=True)
+        bad = np.flatnonzero(n[:, 2] <= 1e-9)
+        if bad.size:
+            raise UnreachablePose(int(bad[0]), f"tool axis {np.round(n[bad[0]], 4).tolist()} does not point "
+                                  "into the head's working range (it needs an upward component)")
+        q = self.axes_from_pose(np.atleast_2d(tip_world), n)
+        if travel is not None:
+            names = "XYZAB"
+            for i, rng in enumerate(travel):
+                if rng is None:
+                    continue
+                out = np.flatnonzero((q[:, i] < rng[0] - 1e-12) | (q[:, i] > rng[1] + 1e-12))
+                if out.size:
+                    j = int(out[0])
+                    f, unit = (180.0 / math.pi, "deg") if i >= 3 else (1e3, "mm")
+                    raise UnreachablePose(j, f"{names[i]} would be {q[j, i] * f:.3f} {unit}, outside its travel "
+                                          f"{rng[0] * f:g}..{rng[1] * f:g} {unit}")
+        return q
 
     def world_from_workpiece(self, points: np.ndarray) -> np.ndarray:
         """Workpiece-frame points (origin at the workpiece top centre, axes as the world's) -> world."""

@@ -154,6 +154,9 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
     """Plan samples a..b from speed v_a to v_b: (blocks, critical indices, critical speeds)."""
     inner = [a + j for j in _local_minima(limit[a:b + 1], limits.feed)]
     critical = sorted({a, b, *inner})
+    # A round re-plans every block, but a new critical point changes only the speeds near it:
+    # blocks with the same ends and speeds as in an earlier round are taken from here.
+    planned: dict[tuple, tuple[SCurve, int | None]] = {}
     for _ in range(max_rounds):
         speeds = [v_a if j == a else v_b if j == b else float(limit[j]) for j in critical]
         lengths = [float(s[q] - s[p]) for p, q in zip(critical[:-1], critical[1:])]
@@ -164,10 +167,14 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
         blocks = []
         violation = None
         for i, (p, q) in enumerate(zip(critical[:-1], critical[1:])):
-            cap = float(np.max(limit[p:q + 1]))
-            block = SCurve.plan(lengths[i], speeds[i], speeds[i + 1], v_max=min(cap, limits.feed), a_max=a_t, j_max=j_t)
+            key = (p, q, speeds[i], speeds[i + 1])
+            if key not in planned:
+                cap = float(np.max(limit[p:q + 1]))
+                block = SCurve.plan(lengths[i], speeds[i], speeds[i + 1], v_max=min(cap, limits.feed), a_max=a_t,
+                                    j_max=j_t)
+                planned[key] = (block, _worst_excess(block, s[p:q + 1] - s[p], limit[p:q + 1]))
+            block, worst = planned[key]
             blocks.append(block)
-            worst = _worst_excess(block, s[p:q + 1] - s[p], limit[p:q + 1])
             if worst is not None and violation is None:
                 violation = p + worst
         if violation is None:

@@ -31,7 +31,7 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from cnc_twin.config import AxisConfig, FaultInjection, NurbsProgram, PointToPoint
+from cnc_twin.config import AxisConfig, FaultInjection, NurbsProgram, PointToPoint, SurfaceProgram
 from cnc_twin.planner.ptp import plan_move, plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
@@ -46,7 +46,7 @@ from cnc_twin.whiteboard.status import DspState
 class PlannerJob:
     """Everything the planner process needs, as plain picklable data."""
 
-    program: PointToPoint | NurbsProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram
     axes: tuple[AxisConfig, ...]
     home: tuple[float, ...]
     period: float
@@ -126,7 +126,12 @@ class Program:
     def __init__(self, job: PlannerJob):
         self.job = job
         self.segments: list[Segment] | None = None
-        if isinstance(job.program, NurbsProgram):
+        self.surface = None
+        if isinstance(job.program, SurfaceProgram):
+            from cnc_twin.planner.surface_program import SurfacePlan
+
+            self.surface = SurfacePlan(job.program, job.axes, job.home, job.period)
+        elif isinstance(job.program, NurbsProgram):
             self.curve, start, self.axis_path, self.axis_limits, self.geometry = curve_setup(job.program)
             self.approach = plan_move(tuple(job.home), start, job.axes, feed=job.program.approach_feed,
                                       period=job.period)
@@ -138,6 +143,8 @@ class Program:
         """Program length [periods]: exact for moves, estimated (1.2x the curve at feed) for curves."""
         import math
 
+        if self.surface is not None:
+            return self.surface.estimated_periods
         if self.segments is not None:
             return sum(seg.periods for seg in self.segments)
         prog, period = self.job.program, self.job.period
@@ -146,6 +153,9 @@ class Program:
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
+        if self.surface is not None:
+            yield from self.surface.chunks()
+            return
         if self.segments is not None:
             yield segments_to_records(self.segments)
             return

@@ -33,9 +33,19 @@ type   record           payload                                                 
                         tool offset f64 x3, then the tool-axis curve's knots,
                         weights and direction control points
 9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6      24
+10     SurfaceGeometry  degree_u, degree_v, nu, nv u16 x4; lead, tilt [rad]; pivot,   varies
+                        tool offset f64 x3 each; knots_u, knots_v, weights (nu nv),
+                        control net f64 x 3 nu nv (world frame, m; row-major in u)
+11     SurfaceCurve     degree u16, n u16; knots f64 x (n + degree + 1); weights     varies
+                        f64 x n; (u, v) control points f64 x 2n: one path section
+                        on the last SurfaceGeometry; its CurveBlocks follow
+12     ForceControl     on u16, n u16 (profile points); setpoint, ramp_time,         varies
+                        seek_speed, standoff, contact_threshold, kp, ki, max_depth,
+                        retract_speed, adapt_threshold, adapt_feed, adapt_hold f64
+                        x12; profile (path length [m], force [N]) f64 x 2n
 =====  ===============  =========================================================  ======
 
-DataBlock and CurveGeometry have variable length: their span is fixed by the length and its
+DataBlock, CurveGeometry and the surface records have variable length: their span is fixed by the length and its
 complement (a single flipped bit in either makes them disagree), so the CRC-16 guarantee holds.
 """
 
@@ -47,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_twin.config import AxisCurve
+from cnc_twin.config import AxisCurve, ForceControl, UvCurve
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.dsp.scurve import SCurve
 
@@ -138,7 +148,39 @@ class CurveBlock:
     profile: SCurve
 
 
-Record = Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock
+@dataclass(frozen=True)
+class SurfaceGeometry:
+    """The surface the following path sections run on, and the tool axis's lead and tilt [rad]."""
+
+    degree_u: int
+    degree_v: int
+    knots_u: tuple[float, ...]
+    knots_v: tuple[float, ...]
+    weights: tuple[tuple[float, ...], ...]
+    control_net: tuple[tuple[tuple[float, float, float], ...], ...]
+    lead: float
+    tilt: float
+    pivot: tuple[float, float, float]
+    offset: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class SurfaceCurve:
+    """One section of a surface path: a (u, v) NURBS on the last SurfaceGeometry."""
+
+    curve: UvCurve
+
+
+@dataclass(frozen=True)
+class ForceControlRecord:
+    """Force control on (seek, ramp up, then let the path run) or off (ramp down, retract)."""
+
+    on: bool
+    params: ForceControl
+
+
+Record = (Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
+          | SurfaceCurve | ForceControlRecord)
 
 _MOVE = struct.Struct("<6d4dI")
 _DWELL = struct.Struct("<I")
@@ -147,14 +189,20 @@ _SPINDLE = struct.Struct("<HHd")
 _HEADER = struct.Struct("<HHHI")
 
 _TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7,
-            CurveGeometry: 8, CurveBlock: 9}
+            CurveGeometry: 8, CurveBlock: 9, SurfaceGeometry: 10, SurfaceCurve: 11, ForceControlRecord: 12}
 _CURVE_HEAD = struct.Struct("<HHHH3d")
 _CURVE_BLOCK = struct.Struct("<6d")
 _PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0,
                   9: _CURVE_BLOCK.size // 2}
 _DATA_BLOCK = 7
 _CURVE_GEOMETRY = 8
-_VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY}
+_SURFACE, _SURFACE_CURVE, _FORCE = 10, 11, 12
+_VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY, _SURFACE, _SURFACE_CURVE, _FORCE}
+_SURFACE_HEAD = struct.Struct("<HHHH8d")
+_UV_HEAD = struct.Struct("<HH")
+_FORCE_HEAD = struct.Struct("<HH12d")
+_FORCE_FIELDS = ("setpoint", "ramp_time", "seek_speed", "standoff", "contact_threshold", "kp", "ki", "max_depth",
+                 "retract_speed", "adapt_threshold", "adapt_feed", "adapt_hold")
 MAX_RECORD_WORDS = OVERHEAD_WORDS + MAX_BLOCK_WORDS
 
 
@@ -198,7 +246,32 @@ def _payload(record: Record) -> bytes:
     if isinstance(record, CurveBlock):
         p = record.profile
         return _CURVE_BLOCK.pack(p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
+    if isinstance(record, SurfaceGeometry):
+        nu, nv = len(record.control_net), len(record.control_net[0])
+        body = _SURFACE_HEAD.pack(record.degree_u, record.degree_v, nu, nv, record.lead, record.tilt,
+                                  *record.pivot, *record.offset) + np.concatenate([
+            np.asarray(record.knots_u, "<f8"), np.asarray(record.knots_v, "<f8"),
+            np.asarray(record.weights, "<f8").ravel(), np.asarray(record.control_net, "<f8").ravel()]).tobytes()
+        return _checked_size(body, f"surface of {nu} x {nv} control points")
+    if isinstance(record, SurfaceCurve):
+        c = record.curve
+        body = _UV_HEAD.pack(c.degree, len(c.control_points)) + np.concatenate([
+            np.asarray(c.knots, "<f8"), np.asarray(c.weights, "<f8"),
+            np.asarray(c.control_points, "<f8").ravel()]).tobytes()
+        return _checked_size(body, f"path section of {len(c.control_points)} control points")
+    if isinstance(record, ForceControlRecord):
+        f = record.params
+        body = _FORCE_HEAD.pack(1 if record.on else 0, len(f.profile), *(getattr(f, k) for k in _FORCE_FIELDS))
+        if f.profile:
+            body += np.asarray(f.profile, "<f8").ravel().tobytes()
+        return _checked_size(body, f"force profile of {len(f.profile)} points")
     raise TypeError(f"not a record: {record!r}")
+
+
+def _checked_size(body: bytes, what: str) -> bytes:
+    if len(body) // 2 > MAX_BLOCK_WORDS:
+        raise ValueError(f"{what} exceeds one record ({len(body) // 2} of {MAX_BLOCK_WORDS} words)")
+    return body
 
 
 def encode(record: Record, seq: int) -> np.ndarray:
@@ -261,6 +334,48 @@ def _decode_curve(payload: bytes) -> CurveGeometry:
                          axis=axis, pivot=pivot, offset=offset)
 
 
+def _f64s(payload: bytes, offset: int, expected: int, what: str) -> np.ndarray:
+    values = np.frombuffer(payload, dtype="<f8", offset=offset)
+    if len(values) != expected:
+        raise RecordError(f"{what} record of {len(values)} values, expected {expected}")
+    return values
+
+
+def _decode_surface(payload: bytes) -> SurfaceGeometry:
+    if len(payload) < _SURFACE_HEAD.size:
+        raise RecordError("surface record shorter than its header")
+    du, dv, nu, nv, lead, tilt, *geo = _SURFACE_HEAD.unpack_from(payload)
+    ku, kv = nu + du + 1, nv + dv + 1
+    values = _f64s(payload, _SURFACE_HEAD.size, ku + kv + 4 * nu * nv, "surface")
+    w = values[ku + kv:ku + kv + nu * nv].reshape(nu, nv)
+    net = values[ku + kv + nu * nv:].reshape(nu, nv, 3)
+    return SurfaceGeometry(degree_u=du, degree_v=dv, knots_u=tuple(values[:ku].tolist()),
+                           knots_v=tuple(values[ku:ku + kv].tolist()),
+                           weights=tuple(tuple(r) for r in w.tolist()),
+                           control_net=tuple(tuple(tuple(p) for p in row) for row in net.tolist()),
+                           lead=lead, tilt=tilt, pivot=tuple(geo[:3]), offset=tuple(geo[3:]))
+
+
+def _decode_surface_curve(payload: bytes) -> SurfaceCurve:
+    if len(payload) < _UV_HEAD.size:
+        raise RecordError("path section record shorter than its header")
+    degree, n = _UV_HEAD.unpack_from(payload)
+    k = n + degree + 1
+    values = _f64s(payload, _UV_HEAD.size, k + 3 * n, "path section")
+    return SurfaceCurve(UvCurve(degree=degree, knots=tuple(values[:k].tolist()),
+                                weights=tuple(values[k:k + n].tolist()),
+                                control_points=tuple(tuple(p) for p in values[k + n:].reshape(n, 2).tolist())))
+
+
+def _decode_force(payload: bytes) -> ForceControlRecord:
+    if len(payload) < _FORCE_HEAD.size:
+        raise RecordError("force record shorter than its header")
+    on, n, *fields = _FORCE_HEAD.unpack_from(payload)
+    profile = _f64s(payload, _FORCE_HEAD.size, 2 * n, "force").reshape(n, 2)
+    params = ForceControl(profile=tuple(tuple(p) for p in profile.tolist()), **dict(zip(_FORCE_FIELDS, fields)))
+    return ForceControlRecord(on=bool(on), params=params)
+
+
 def decode(words: np.ndarray) -> tuple[int, Record]:
     """``(seq, record)`` from a whole record's words.
 
@@ -299,6 +414,12 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
         record = _decode_curve(bytes(payload))
     elif kind == 9:
         record = CurveBlock(SCurve(*_CURVE_BLOCK.unpack(payload)))
+    elif kind == _SURFACE:
+        record = _decode_surface(bytes(payload))
+    elif kind == _SURFACE_CURVE:
+        record = _decode_surface_curve(bytes(payload))
+    elif kind == _FORCE:
+        record = _decode_force(bytes(payload))
     else:
         record = EndOfProgram()
     return seq, record

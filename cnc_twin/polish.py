@@ -1,0 +1,168 @@
+"""The twin's side of a surface polishing run: the workpiece model, the removal map, the metrics.
+
+During the run, every ``preston.every`` interpolation periods, :class:`RemovalTracker` reads the
+machine as MuJoCo has it (pad face centre and tool axis from the ``tool_site`` / ``pad`` frames,
+the pad's linear and angular velocity, the normal force of every pad-workpiece contact) and adds
+that interval's Preston removal to the map (:mod:`cnc_twin.removal`). It is the physics' truth,
+not the card's measurement: the load cell and its ADC are what the force loop sees.
+
+Metrics (``metrics.json`` key ``polish``): force tracking once the ramp is over (RMS and largest
+error, % of the setpoint), the overshoot at first contact, time at reduced feed, and the removal
+map's volume and uniformity, with the Preston integral for the whole run as a cross-check.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from cnc_twin.config import Scenario, SurfaceProgram
+from cnc_twin.dsp.force import ForceState
+from cnc_twin.geometry.surface import NurbsSurface
+from cnc_twin.record import Trace
+from cnc_twin.removal import PrestonModel, RemovalGrid
+
+CONTACT_SETTLE = 0.3
+"""after the ramp, time within which the first-contact overshoot is judged [s]"""
+
+
+def removal_grid(surface: NurbsSurface, spacing: float) -> tuple[RemovalGrid, np.ndarray]:
+    """Points about ``spacing`` apart on the surface (cell centres of a (u, v) grid), and their
+    (u, v), shape (m, 2)."""
+    from cnc_twin.planner.toolpath import parameter_scales
+
+    lu, lv, _, _ = parameter_scales(surface)
+    (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
+    nu = max(2, math.ceil((u1 - u0) * lu / spacing))
+    nv = max(2, math.ceil((v1 - v0) * lv / spacing))
+    du, dv = (u1 - u0) / nu, (v1 - v0) / nv
+    u, v = np.meshgrid(u0 + du * (np.arange(nu) + 0.5), v0 + dv * (np.arange(nv) + 0.5), indexing="ij")
+    u, v = u.ravel(), v.ravel()
+    d = surface.derivatives(u, v, 1)
+    cross = np.cross(d[(1, 0)], d[(0, 1)])
+    points = d[(0, 0)]
+    grid = RemovalGrid(points=points, normals=surface.normal(u, v), areas=np.linalg.norm(cross, axis=1) * du * dv,
+                       shape=(nu, nv), extent=(float(points[:, 0].min()), float(points[:, 0].max()),
+                                               float(points[:, 1].min()), float(points[:, 1].max())))
+    return grid, np.column_stack([u, v])
+
+
+class RemovalTracker:
+    """Accumulates the removal map from the MuJoCo state during a run."""
+
+    def __init__(self, program: SurfaceProgram, model: mujoco.MjModel, data: mujoco.MjData, period: float):
+        from cnc_twin.planner.surface_program import build_surface
+
+        p = program.preston
+        self.surface = build_surface(program)
+        self.grid, self.uv = removal_grid(self.surface, p.grid_spacing)
+        self.model_removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
+                                          pad_modulus=p.pad_modulus)
+        self.model, self.data = model, data
+        self.dt = p.every * period
+        self.every = p.every
+        self._site = model.site("tool_site").id
+        self._pad_body = model.body("pad").id
+        pad_geom = model.geom("pad_collision").id
+        self._pad_geom = pad_geom
+        self._velocity = np.zeros(6)
+        self._wrench = np.zeros(6)
+        self.force_time_integral = 0.0
+        """integral of the pad's contact normal force over time [N s]"""
+        self.calls = 0
+        self.cost_ns = 0
+
+    def contact_force(self) -> float:
+        """Total normal force of the pad's contacts [N]."""
+        d, total = self.data, 0.0
+        for i in range(d.ncon):
+            c = d.contact[i]
+            if c.geom1 == self._pad_geom or c.geom2 == self._pad_geom:
+                mujoco.mj_contactForce(self.model, d, i, self._wrench)
+                total += self._wrench[0]
+        return total
+
+    def update(self) -> None:
+        """Add the removal of the last ``every`` periods (called once per such interval)."""
+        started = time.perf_counter_ns()
+        d = self.data
+        force = self.contact_force()
+        if force > 0.0:
+            mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_SITE, self._site, self._velocity, 0)
+            tip = d.site_xpos[self._site]
+            axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
+            self.model_removal.accumulate(tip, axis, force, self._velocity[3:], self._velocity[:3], self.dt)
+            self.force_time_integral += force * self.dt
+        self.calls += 1
+        self.cost_ns += time.perf_counter_ns() - started
+
+
+def polished_band(program: SurfaceProgram, uv: np.ndarray) -> np.ndarray:
+    """Mask of the grid points inside the path's envelope shrunk by the pad radius on every side:
+    where every point saw the full overlap of neighbouring passes (the "middle band")."""
+    from cnc_twin.planner.surface_program import build_surface
+    from cnc_twin.planner.toolpath import parameter_scales
+
+    lu, lv, _, _ = parameter_scales(build_surface(program))
+    pts = np.concatenate([np.asarray(c.control_points) for c in program.sections])
+    r = program.preston.pad_radius
+    u_lo, u_hi = pts[:, 0].min() + r / lu, pts[:, 0].max() - r / lu
+    v_lo, v_hi = pts[:, 1].min() + r / lv, pts[:, 1].max() - r / lv
+    return (uv[:, 0] >= u_lo) & (uv[:, 0] <= u_hi) & (uv[:, 1] >= v_lo) & (uv[:, 1] <= v_hi)
+
+
+def force_metrics(trace: Trace, program: SurfaceProgram, ticks_per_period: int) -> dict[str, Any]:
+    """Force tracking after the ramp, and the overshoot at first contact."""
+    state = trace.period_signals["force_state"]
+    setpoint = trace.period_signals["force_setpoint"]
+    force = trace.pad_force
+    servo_period = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
+    track = state == ForceState.TRACK
+    out: dict[str, Any] = {"setpoint_n": program.force.setpoint}
+    if not np.any(track):
+        out["tracking"] = None
+        return out
+    e = force[track] - setpoint[track]
+    rel = e / np.maximum(setpoint[track], 1e-9)
+    out["tracking"] = {
+        "rms_error_n": float(np.sqrt(np.mean(e * e))),
+        "rms_error_pct": float(100.0 * np.sqrt(np.mean(rel * rel))),
+        "max_error_pct": float(100.0 * np.max(np.abs(rel))),
+        "mean_force_n": float(np.mean(force[track])),
+        "time_s": float(np.count_nonzero(track) * servo_period),
+    }
+    contact = np.flatnonzero(state == ForceState.RAMP)
+    first_track = int(np.flatnonzero(track)[0])
+    if contact.size:
+        window = slice(int(contact[0]), first_track + int(CONTACT_SETTLE / servo_period))
+        peak = float(np.max(force[window]))
+        goal = float(setpoint[first_track])
+        out["first_contact"] = {"time_s": float(trace.time[contact[0]]), "peak_n": peak,
+                                "overshoot_pct": float(100.0 * max(0.0, peak - goal) / goal)}
+    reduced = trace.period_signals["feed_factor"][track] < 1.0
+    out["reduced_feed_s"] = float(np.count_nonzero(reduced) * servo_period)
+    return out
+
+
+def removal_metrics(tracker: RemovalTracker, program: SurfaceProgram, wall_time: float) -> dict[str, Any]:
+    """Volume and uniformity of the removal map; the model's cost."""
+    model = tracker.model_removal
+    band = polished_band(program, tracker.uv)
+    p = program.preston
+    out: dict[str, Any] = {
+        "volume_mm3": model.volume() * 1e9,
+        "touched": model.stats(),
+        "middle_band": model.stats(band & (model.depth > 0)) if np.any(band & (model.depth > 0)) else None,
+        "contact_time_s": model.contact_time,
+        "force_time_integral_ns": tracker.force_time_integral,
+        "grid_points": int(len(model.depth)),
+        "updates": tracker.calls,
+        "cost_us_per_update": tracker.cost_ns / max(1, tracker.calls) / 1e3,
+        "cost_fraction_of_run": tracker.cost_ns / 1e9 / wall_time if wall_time > 0 else None,
+        "preston_k": p.k,
+    }
+    return out
