@@ -248,7 +248,9 @@ class SurfaceProgram:
     sections: tuple[UvCurve, ...]
     """the path in the surface's parameter space"""
     pattern: str
-    """raster | spiral (for reports)"""
+    """raster | spiral"""
+    direction: str
+    """raster passes along "u" or "v"""
     lead: float
     """tool axis leaning forward along the feed direction [rad]"""
     tilt: float

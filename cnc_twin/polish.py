@@ -22,6 +22,7 @@ import numpy as np
 
 from cnc_twin.config import Scenario, SurfaceProgram
 from cnc_twin.dsp.force import ForceState
+from cnc_twin.dsp.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface
 from cnc_twin.record import Trace
 from cnc_twin.removal import PrestonModel, RemovalGrid
@@ -63,6 +64,9 @@ class RemovalTracker:
         self.model_removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
                                           pad_modulus=p.pad_modulus)
         self.model, self.data = model, data
+        from cnc_twin.workpiece import pad_friction
+
+        self.friction = program.friction if program.friction is not None else pad_friction(model)
         self.dt = p.every * period
         self.every = p.every
         self._site = model.site("tool_site").id
@@ -77,13 +81,15 @@ class RemovalTracker:
         self.cost_ns = 0
 
     def contact_force(self) -> float:
-        """Total normal force of the pad's contacts [N]."""
+        """Normal force of the pad's contacts along the tool axis [N] (a contact on a tile's side
+        face, pushing sideways, does not press the pad onto the surface)."""
         d, total = self.data, 0.0
+        axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
         for i in range(d.ncon):
             c = d.contact[i]
             if c.geom1 == self._pad_geom or c.geom2 == self._pad_geom:
                 mujoco.mj_contactForce(self.model, d, i, self._wrench)
-                total += self._wrench[0]
+                total += self._wrench[0] * abs(float(c.frame[:3] @ axis))
         return total
 
     def update(self) -> None:
@@ -91,28 +97,71 @@ class RemovalTracker:
         started = time.perf_counter_ns()
         d = self.data
         force = self.contact_force()
+        wrench = d.xfrc_applied[self._pad_body]
+        wrench[:] = 0.0
         if force > 0.0:
             mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_SITE, self._site, self._velocity, 0)
             tip = d.site_xpos[self._site]
             axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
-            self.model_removal.accumulate(tip, axis, force, self._velocity[3:], self._velocity[:3], self.dt)
+            v_tip, omega = self._velocity[3:], self._velocity[:3]
+            self.model_removal.accumulate(tip, axis, force, v_tip, omega, self.dt)
             self.force_time_integral += force * self.dt
+            wrench[:] = friction_wrench(self.model_removal, tip, axis, force, v_tip, omega,
+                                        d.xipos[self._pad_body], self.friction)
         self.calls += 1
         self.cost_ns += time.perf_counter_ns() - started
 
 
+FRICTION_SPEED = 1e-3
+"""sliding speed below which the pad's friction fades linearly to zero (regularisation) [m/s]"""
+
+
+def friction_wrench(removal: PrestonModel, tip: np.ndarray, axis: np.ndarray, force: float, v_tip: np.ndarray,
+                    omega: np.ndarray, centre: np.ndarray, mu: float) -> np.ndarray:
+    """Force and torque (6,) [N, N m] about ``centre`` (world frame) of the pad's sliding friction
+    over its contact patch (the removal model's Winkler pressures): ``-mu p A v / max(|v|,
+    FRICTION_SPEED)`` per point, ``v`` the pad's tangential sliding velocity there."""
+    idx, p, r, n = removal._contact(tip, axis, force)
+    out = np.zeros(6)
+    if idx.size == 0:
+        return out
+    v = np.cross(omega, r.T).T + v_tip[:, None]
+    v -= np.einsum("ij,ij->j", v, n) * n
+    speed = np.sqrt(np.einsum("ij,ij->j", v, v))
+    f = v * (-mu * p * removal.grid.areas[idx] / np.maximum(speed, FRICTION_SPEED))
+    arm = r + (tip - centre)[:, None]
+    out[:3] = f.sum(axis=1)
+    out[3:] = np.cross(arm.T, f.T).sum(axis=0)
+    return out
+
+
 def polished_band(program: SurfaceProgram, uv: np.ndarray) -> np.ndarray:
-    """Mask of the grid points inside the path's envelope shrunk by the pad radius on every side:
-    where every point saw the full overlap of neighbouring passes (the "middle band")."""
+    """Mask of the grid points in the raster's *middle band*: along the passes, farther from
+    their ends than the pad radius plus the feed's ramp distance; across, from the first pass plus
+    the pad radius to the last minus it. There every point saw every pass that reaches it at full
+    feed (no start, stop or turn nearby), so the removal there shows the raster's own uniformity. For a spiral: the annulus
+    between the pad radius from the start and the pad radius from the outer turn."""
     from cnc_twin.planner.surface_program import build_surface
     from cnc_twin.planner.toolpath import parameter_scales
 
     lu, lv, _, _ = parameter_scales(build_surface(program))
     pts = np.concatenate([np.asarray(c.control_points) for c in program.sections])
     r = program.preston.pad_radius
-    u_lo, u_hi = pts[:, 0].min() + r / lu, pts[:, 0].max() - r / lu
-    v_lo, v_hi = pts[:, 1].min() + r / lv, pts[:, 1].max() - r / lv
-    return (uv[:, 0] >= u_lo) & (uv[:, 0] <= u_hi) & (uv[:, 1] >= v_lo) & (uv[:, 1] <= v_hi)
+    x, y = uv[:, 0] * lu, uv[:, 1] * lv
+    px, py = pts[:, 0] * lu, pts[:, 1] * lv
+    if program.pattern == "spiral":
+        cx, cy = 0.5 * (px.min() + px.max()), 0.5 * (py.min() + py.max())
+        rho = np.hypot(x - cx, y - cy)
+        outer = min(px.max() - cx, py.max() - cy)
+        return (rho >= r) & (rho <= outer - r)
+    along, across, p_along, p_across = (x, y, px, py) if program.direction == "u" else (y, x, py, px)
+    # along the passes: clear of the turns by the pad radius plus the distance the feed needs to
+    # come up to speed after one (and down before the next)
+    lim = program.limits
+    ramp = ramp_distance(lim.feed, 0.0, lim.tangential_acceleration, lim.tangential_jerk)
+    a_lo, a_hi = p_along.min() + r + ramp, p_along.max() - r - ramp
+    # across: the turns' control points bulge no further than the passes
+    return (along >= a_lo) & (along <= a_hi) & (across >= p_across.min() + r) & (across <= p_across.max() - r)
 
 
 def force_metrics(trace: Trace, program: SurfaceProgram, ticks_per_period: int) -> dict[str, Any]:
@@ -166,3 +215,20 @@ def removal_metrics(tracker: RemovalTracker, program: SurfaceProgram, wall_time:
         "preston_k": p.k,
     }
     return out
+
+
+def preston_by_hand(trace: Trace, program: SurfaceProgram) -> float:
+    """Removed volume [m^3] by Preston's law in closed form: a flat pad of radius R spinning at
+    the programmed speed w under the force setpoint, pressure uniform, feed negligible against
+    the pad's own sliding speed (mean over the disc of w r = 2 w R / 3)::
+
+        V = k (2 w R / 3) integral F*(t) dt      over the ramps and the tracking
+
+    The cross-check of the removal map on a flat plate (on a curved face the pressure is not
+    uniform, and the formula does not apply)."""
+    state = trace.period_signals["force_state"]
+    active = (state == ForceState.RAMP) | (state == ForceState.TRACK) | (state == ForceState.RAMP_DOWN)
+    dt = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
+    impulse = float(np.sum(trace.period_signals["force_setpoint"][active])) * dt
+    p = program.preston
+    return p.k * 2.0 * program.spindle_speed * p.pad_radius / 3.0 * impulse

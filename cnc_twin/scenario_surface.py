@@ -151,6 +151,7 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
                            control_net=tuple(tuple(tuple(float(x) for x in p) for p in row) for row in net)),
         sections=tuple(sections),
         pattern=spec.path.pattern,
+        direction=spec.path.direction,
         lead=spec.lead * units.DEG,
         tilt=spec.tilt * units.DEG,
         spindle_speed=spec.spindle * units.RPM,

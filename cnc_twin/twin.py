@@ -118,8 +118,7 @@ class Twin:
             from cnc_twin.workpiece import build_model
 
             tile = scenario.program.surface_tile_size
-            model, self.tiling = build_model(scenario.model_file, build_surface(scenario.program), tile_size=tile,
-                                             friction=scenario.program.friction)
+            model, self.tiling = build_model(scenario.model_file, build_surface(scenario.program), tile_size=tile)
         else:
             model = load_model(scenario.model_file)
         self.plant = Plant(model, timestep=timing.physics_timestep)
@@ -320,11 +319,12 @@ class Twin:
             metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
                                            plan_us=self.plan_us, plan_blocks=self.plan_blocks)
         if isinstance(sc.program, SurfaceProgram):
-            from cnc_twin.polish import force_metrics, removal_metrics
+            from cnc_twin.polish import force_metrics, preston_by_hand, removal_metrics
 
             metrics["polish"] = {
                 "force": force_metrics(trace, sc.program, sc.timing.ticks_per_period),
-                "removal": removal_metrics(self.removal, sc.program, wall_time),
+                "removal": {**removal_metrics(self.removal, sc.program, wall_time),
+                            "preston_by_hand_mm3": preston_by_hand(trace, sc.program) * 1e9},
                 "collision_tiles": list(self.tiling.tiles),
                 "tile_hull_gap_mm": self.tiling.hull_gap * 1e3,
                 "path_length_mm": sc.program.path_length * 1e3,

@@ -1,22 +1,24 @@
 """The workpiece of a surface program as MuJoCo geometry: a NURBS surface turned into meshes.
 
-MuJoCo collides with a mesh's convex hull, so one mesh cannot stand for a doubly curved face
-(a saddle's hull would bridge its hollows). The solid under the surface is cut into tiles in
+MuJoCo collides with a mesh's convex hull. A convex face (a plate, a dome) is therefore one mesh:
+the surface sampled 33 x 33 plus the same points dropped to the base. Any other face (a saddle's
+hull would bridge its hollows) is cut into tiles in
 (u, v); each tile is a mesh of ``(k + 1)^2`` surface points plus the same points dropped to the
 solid's base, whose convex hull is the tile's collision shape. On a convex (dome-like) region the
 hull's top is the surface itself, up to the tessellation's chord; in a hollow the hull bridges it
 by at most the *hull gap*, measured here on the upper hull and reported, so a user sees how
-faithful the contact geometry is and can ask for smaller tiles.
+faithful the contact geometry is and can ask for smaller tiles. Tiles meet in seams where the pad
+can catch a neighbour's side face (a sideways contact, a bump in the force): fewer, larger tiles
+where the face allows.
 
 :func:`build_model` loads the scene with ``mujoco.MjSpec``, removes the block workpiece
 (geom ``workpiece_collision``), adds the tiles (collision group 3, contype 1 / conaffinity 2 like
-the block) and a fine visual mesh of the surface (group 2, no contact), and compiles.
+the block; frictionless, with the pad, see below) and a fine visual mesh of the surface (group 2, no contact), and compiles.
 Units: m, world frame (the workpiece body sits at the world origin).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +32,10 @@ from cnc_twin.geometry.surface import NurbsSurface
 WORKPIECE_BODY = "workpiece"
 BLOCK_GEOM = "workpiece_collision"
 PAD_GEOM = "pad_collision"
+CONVEX_TOLERANCE = 1e-6
+"""a face whose single hull stands no more than this above it is meshed as one tile [m]"""
+ONE_TILE_POINTS = 33
+"""surface points per edge of a one-tile face"""
 BASE_DEPTH = 0.02
 """the solid reaches this far below the surface's lowest point [m]"""
 
@@ -54,9 +60,16 @@ def tile_meshes(surface: NurbsSurface, *, tile_size: float, points_per_edge: int
 
     lu, lv, _, _ = parameter_scales(surface)
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
+    # A convex face (flat, dome) is one hull: no seams between tiles for the pad to catch on.
+    one, tiling = _tiles(surface, 1, 1, ONE_TILE_POINTS)
+    if tiling.hull_gap <= CONVEX_TOLERANCE:
+        return one, tiling
     nu = max(1, int(np.ceil((u1 - u0) * lu / tile_size)))
     nv = max(1, int(np.ceil((v1 - v0) * lv / tile_size)))
-    k = points_per_edge
+    return _tiles(surface, nu, nv, points_per_edge)
+
+
+def _tiles(surface: NurbsSurface, nu: int, nv: int, k: int) -> tuple[list[np.ndarray], Tiling]:
     _, _, grid = surface.grid(nu * (k - 1) + 1, nv * (k - 1) + 1)
     base = float(grid[..., 2].min()) - BASE_DEPTH
     tiles, gap = [], 0.0
@@ -85,8 +98,7 @@ def _hull_gap(vertices: np.ndarray, top: np.ndarray) -> float:
     return float(max(0.0, np.max(z_top - top[:, 2])))
 
 
-def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, friction: float | None = None,
-                label: Path | str = "<model>") -> tuple[mujoco.MjModel, Tiling]:
+def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, label: Path | str = "<model>") -> tuple[mujoco.MjModel, Tiling]:
     """The scene with the surface as its workpiece, compiled.
 
     Raises
@@ -104,11 +116,12 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, fr
     body = block.parent
     contact = dict(contype=block.contype, conaffinity=block.conaffinity, group=block.group,
                    friction=block.friction.copy(), solref=block.solref.copy(), solimp=block.solimp.copy())
-    if friction is not None:
-        contact["friction"][0] = friction
     spec.delete(block)
-    if os.environ.get("CNC_CONDIM"):
-        spec.geom(PAD_GEOM).condim = int(os.environ["CNC_CONDIM"])
+    # Frictionless pad contact: MuJoCo gives a flat spinning pad one contact point, wherever on
+    # its face, and full sliding friction there (a jittering force in a random direction, a
+    # 300 Hz load-cell ripple of 1 N at 1200 rpm). The pad's friction is applied from the
+    # pressure distribution instead (cnc_twin.polish.friction_wrench).
+    spec.geom(PAD_GEOM).condim = 1
     tiles, tiling = tile_meshes(surface, tile_size=tile_size)
     for n, vertices in enumerate(tiles):
         mesh = spec.add_mesh(name=f"surface_tile_{n}")
@@ -117,8 +130,7 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, fr
                              rgba=[0.7, 0.7, 0.75, 1.0], density=0.0)
         for key, value in contact.items():
             setattr(geom, key, value)
-        if os.environ.get("CNC_CONDIM"):
-            geom.condim = int(os.environ["CNC_CONDIM"])
+        geom.condim = 1
     vertices, faces = surface.tessellate(64, 64)
     visual = spec.add_mesh(name="surface_visual")
     visual.uservert = vertices.ravel().tolist()
@@ -132,6 +144,11 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, fr
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else "does not compile"
         raise ScenarioError(label, "program.surface", f"the surface's meshes do not compile: {first}") from None
     return model, tiling
+
+
+def pad_friction(model: mujoco.MjModel) -> float:
+    """Sliding friction coefficient of the pad's geom in the MJCF."""
+    return float(model.geom(PAD_GEOM).friction[0])
 
 
 def pad_radius(model: mujoco.MjModel) -> float:

@@ -275,7 +275,9 @@ class SegmentInterpolator:
         enough blocks to cover twice a full-speed stop (the rest stay in the FIFO)."""
         if len(self._queue) < ahead:
             return True
-        return self._path_open and self._queued_path < self._stop_reserve
+        # Holding for data always wants more: the reserve follows the last block's speed, the hold
+        # the running block's, and a slow block queued behind a fast one must not starve the card.
+        return self._path_open and (self._queued_path < self._stop_reserve or self._starved_hold)
 
     @property
     def holding_for_data(self) -> bool:

@@ -81,6 +81,30 @@ def _quarter(p: np.ndarray, corner: np.ndarray, q: np.ndarray):
     return np.array([p, corner, q]), (1.0, _W, 1.0)
 
 
+def _pass_positions(surface: NurbsSurface, u_range, v_range, step_over: float, *, swap: bool) -> np.ndarray:
+    """Pass parameters from ``v_range[0]`` to ``v_range[1]``: each gap as wide as the step-over
+    allows where the passes are furthest apart on the surface (``max_u |S_v| dv``), then all
+    gaps scaled by one factor so the last pass lands on the range's end."""
+    us = np.linspace(*u_range, 64)
+    lo, hi = v_range
+    if hi <= lo:
+        return np.array([lo])
+
+    def widest(v: float) -> float:
+        vv = np.full_like(us, v)
+        d = surface.derivatives(vv, us, 1)[(1, 0)] if swap else surface.derivatives(us, vv, 1)[(0, 1)]
+        return float(np.max(np.linalg.norm(d, axis=1)))
+
+    gaps, v = [], lo
+    while v < hi:
+        dv = step_over / widest(v)
+        dv = step_over / max(widest(v), widest(min(hi, v + 0.5 * dv)))  # and half-way to the next pass
+        gaps.append(dv)
+        v += dv
+    gaps = np.asarray(gaps) * (hi - lo) / np.sum(gaps)  # shrink the gaps evenly: none widens
+    return lo + np.concatenate([[0.0], np.cumsum(gaps)])
+
+
 def raster(surface: NurbsSurface, *, step_over: float, margin: float, direction: str = "u") -> list[UvCurve]:
     """Zig-zag passes along ``direction`` ("u" or "v"); see the module docstring. Lengths in m."""
     lu, lv, su_max, sv_max = parameter_scales(surface)
@@ -91,13 +115,10 @@ def raster(surface: NurbsSurface, *, step_over: float, margin: float, direction:
     y_lo, y_hi = v0 * lv + margin, v1 * lv - margin
     if not (x_hi > x_lo and y_hi >= y_lo):
         raise ToolpathError("margin", f"a margin of {margin * 1e3:g} mm leaves no area to polish on this surface")
-    # passes evenly spaced; on the surface no two neighbours further apart than the step-over
-    dy_max = step_over * lv / sv_max
-    n_gaps = max(1, math.ceil((y_hi - y_lo) / dy_max - 1e-9))
-    ys = np.linspace(y_lo, y_hi, n_gaps + 1)
-    r = 0.5 * (ys[1] - ys[0])
-    if x_hi + r > u1 * lu + 1e-12 or x_lo - r < u0 * lu - 1e-12:
-        raise ToolpathError("margin", f"the raster's turns (radius {r * 1e3:.3g} mm) leave the surface: "
+    ys = _pass_positions(surface, (x_lo / lu, x_hi / lu), (y_lo / lv, y_hi / lv), step_over, swap=direction == "v") * lv
+    r_max = 0.5 * float(np.max(np.diff(ys))) if len(ys) > 1 else 0.0
+    if x_hi + r_max > u1 * lu + 1e-12 or x_lo - r_max < u0 * lu - 1e-12:
+        raise ToolpathError("margin", f"the raster's turns (radius up to {r_max * 1e3:.3g} mm) leave the surface: "
                             f"the margin must be at least half the step-over")
     scale = np.array([lu, lv])
     sections: list[UvCurve] = []
@@ -113,6 +134,7 @@ def raster(surface: NurbsSurface, *, step_over: float, margin: float, direction:
             sections.append(_bezier_pieces_to_nurbs(pieces, scale))
             pieces, n_points = [], 1
         side = 1.0 if i % 2 == 0 else -1.0
+        r = 0.5 * (ys[i + 1] - y)
         mid = np.array([b + side * r, y + r])
         pieces.append(_quarter(np.array([b, y]), np.array([b + side * r, y]), mid))
         pieces.append(_quarter(mid, np.array([b + side * r, y + 2 * r]), np.array([b, y + 2 * r])))
