@@ -41,13 +41,14 @@ def removal_grid(surface: NurbsSurface, spacing: float) -> tuple[RemovalGrid, np
     nu = max(2, math.ceil((u1 - u0) * lu / spacing))
     nv = max(2, math.ceil((v1 - v0) * lv / spacing))
     du, dv = (u1 - u0) / nu, (v1 - v0) / nv
-    u, v = np.meshgrid(u0 + du * (np.arange(nu) + 0.5), v0 + dv * (np.arange(nv) + 0.5), indexing="ij")
+    # rows along v, columns along u: drawn as an image, u runs across like x on the plate grid
+    u, v = np.meshgrid(u0 + du * (np.arange(nu) + 0.5), v0 + dv * (np.arange(nv) + 0.5), indexing="xy")
     u, v = u.ravel(), v.ravel()
     d = surface.derivatives(u, v, 1)
     cross = np.cross(d[(1, 0)], d[(0, 1)])
     points = d[(0, 0)]
     grid = RemovalGrid(points=points, normals=surface.normal(u, v), areas=np.linalg.norm(cross, axis=1) * du * dv,
-                       shape=(nu, nv), extent=(float(points[:, 0].min()), float(points[:, 0].max()),
+                       shape=(nv, nu), extent=(float(points[:, 0].min()), float(points[:, 0].max()),
                                                float(points[:, 1].min()), float(points[:, 1].max())))
     return grid, np.column_stack([u, v])
 

@@ -92,7 +92,8 @@ def cases(params: Sequence[Param], *, random: int | None = None, seed: int = 0) 
 
 
 def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
-    """One flat row of a run's metrics (following errors in counts, path figures in um)."""
+    """One flat row of a run's metrics (following errors in counts, path figures in um; force
+    tracking in % of the setpoint and the removal map's figures for a polishing run)."""
     row: dict[str, Any] = {k: metrics.get(k) for k in ("status", "final_state", "sim_time_s", *WALL_CLOCK_COLUMNS)}
     total = 0.0
     for axis, fe in metrics["following_error"].items():
@@ -106,6 +107,18 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
         row["contour_max_um"] = path["contour_error_um"]["max"]
         row["contour_rms_um"] = path["contour_error_um"]["rms"]
         row["feed_fluctuation_max"] = path["feed_fluctuation"]["max"]
+    polish = metrics.get("polish")
+    if polish:
+        tracking = polish["force"].get("tracking") or {}
+        row["force_rms_pct"] = tracking.get("rms_error_pct")
+        row["force_overshoot_pct"] = (polish["force"].get("first_contact") or {}).get("overshoot_pct")
+        row["reduced_feed_s"] = polish["force"].get("reduced_feed_s")
+        removal = polish["removal"]
+        row["removal_volume_mm3"] = removal["volume_mm3"]
+        row["preston_by_hand_mm3"] = removal["preston_by_hand_mm3"]
+        band = removal.get("middle_band") or {}
+        row["band_mean_um"] = band.get("mean_um")
+        row["band_pv_um"] = band.get("pv_um")
     row["fault"] = (metrics.get("fault") or {}).get("code")
     return row
 

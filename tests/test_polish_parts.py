@@ -214,3 +214,50 @@ def test_force_loop_anti_windup_holds_the_clamp():
     assert fc.depth == pytest.approx(1e-3)
     fc.update(40.0, 0.0)  # contact at last: the loop backs off at once, no wound-up integral
     assert fc.depth < 1e-3
+
+
+def _surface_scenario(**program_changes) -> dict:
+    import yaml
+
+    from cnc_twin.resources import scenarios_dir
+
+    raw = yaml.safe_load((scenarios_dir() / "flat_plate_polish.yaml").read_text())
+    for path, value in program_changes.items():
+        node = raw["program"]
+        keys = path.split(".")
+        for k in keys[:-1]:
+            node = node[k]
+        node[keys[-1]] = value
+    return raw
+
+
+@pytest.mark.parametrize("change, key, message", [
+    ({"surface.control_net": [[[-80, -60, 0], [-80, 60, 0]], [[80, -60, 0]]]}, "program.surface.control_net",
+     "rectangular grid"),
+    ({"surface.knots_u": [0, 0.5, 1, 1]}, "program.surface.knots_u", "clamped"),
+    ({"surface.weights": [[1, 1], [1, -1]]}, "program.surface.weights", "> 0"),
+    ({"path.margin": 70.0}, "program.path.margin", "no area"),
+    ({"surface.control_net": [[[-80, -60, 500], [-80, 60, 500]], [[80, -60, 500], [80, 60, 500]]]},
+     "program.path", "outside its travel"),
+    ({"spindle": 5000.0}, "program.spindle", "exceeds"),
+    ({"force.profile": [[0, 20], [0, 25]]}, "program.force.profile", "increase"),
+])
+def test_bad_surface_programs_are_refused_with_the_key(change, key, message):
+    from cnc_twin.errors import ScenarioError
+    from cnc_twin.scenario import scenario_from_dict
+
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_dict(_surface_scenario(**change))
+    assert info.value.key_path == key
+    assert message in str(info.value)
+
+
+def test_a_face_tilted_beyond_the_head_is_refused_before_motion():
+    """A wall (normals horizontal) cannot be reached with |B| < 90 deg: refused at load."""
+    from cnc_twin.errors import ScenarioError
+    from cnc_twin.scenario import scenario_from_dict
+
+    wall = [[[-80, 0, -30], [-80, 0, 30]], [[80, 0, -30], [80, 0, 30]]]
+    with pytest.raises(ScenarioError, match="unreachable: tool axis") as info:
+        scenario_from_dict(_surface_scenario(**{"surface.control_net": wall, "path.margin": 20.0}))
+    assert info.value.key_path == "program.path"

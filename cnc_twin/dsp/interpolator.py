@@ -28,6 +28,15 @@ acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. When
 stopping distance (the FIFO is running dry), the card holds, across block boundaries, and stops
 inside what it has; it resumes once new blocks have made the queued path longer than a full-speed
 stop again.
+
+Surfaces (SurfaceGeometry, then SurfaceCurve sections with their CurveBlocks): each section is a
+(u, v) curve on the surface, stepped like a curve (:mod:`cnc_twin.geometry.surface_path`); the
+pose's tool axis is the surface normal with lead and tilt, and the kinematics solve X/Y/Z/A/B.
+ForceControl records wait at the head of the queue until the force loop
+(:mod:`cnc_twin.dsp.force`) has made contact and ramped up (on) or ramped down and retracted
+(off); in between the loop's ``depth`` is added along the tool axis every period and its feed
+factor scales the path's speed. Spindle records put C in speed mode: its angle advances by the
+ramped speed each period, on top of every C setpoint.
 """
 
 from __future__ import annotations

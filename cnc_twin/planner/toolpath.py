@@ -16,8 +16,8 @@ Spiral: an Archimedean spiral ``r = r0 + step_over theta / (2 pi)`` about the pa
 centre (scaled coordinates), out to the largest radius that keeps ``margin`` from the edges;
 interpolated by cubic B-splines through 16 points per turn.
 
-A path longer than one whiteboard record holds is cut into sections (at the end of a raster pass,
-or every few spiral turns); the card runs each section from rest to rest.
+A path is cut into sections of at most ``MAX_SECTION_LENGTH`` and one whiteboard record (at the
+end of a raster pass, or along the spiral); the card runs each section from rest to rest.
 """
 
 from __future__ import annotations
@@ -32,6 +32,9 @@ from cnc_twin.geometry.surface import NurbsSurface
 
 MAX_SECTION_POINTS = 110
 """control points per section: a (u, v) curve of 110 points is ~1800 words, within one record"""
+MAX_SECTION_LENGTH = 0.3
+"""path length per section [m, scaled coordinates]: the planner samples a whole section before its
+first window, which must stay well inside the card's planner-heartbeat timeout"""
 _W = math.sqrt(0.5)
 
 
@@ -124,15 +127,17 @@ def raster(surface: NurbsSurface, *, step_over: float, margin: float, direction:
     sections: list[UvCurve] = []
     pieces: list = []
     n_points = 1
+    length = 0.0
     for i, y in enumerate(ys):
         a, b = (x_lo, x_hi) if i % 2 == 0 else (x_hi, x_lo)
         pieces.append(_line(np.array([a, y]), np.array([b, y])))
         n_points += 2
+        length += x_hi - x_lo
         if i == len(ys) - 1:
             break
-        if n_points + 6 > MAX_SECTION_POINTS:
+        if n_points + 6 > MAX_SECTION_POINTS or length + (x_hi - x_lo) > MAX_SECTION_LENGTH:
             sections.append(_bezier_pieces_to_nurbs(pieces, scale))
-            pieces, n_points = [], 1
+            pieces, n_points, length = [], 1, 0.0
         side = 1.0 if i % 2 == 0 else -1.0
         r = 0.5 * (ys[i + 1] - y)
         mid = np.array([b + side * r, y + r])
@@ -162,9 +167,10 @@ def spiral(surface: NurbsSurface, *, step_over: float, margin: float, points_per
     theta = np.linspace(0.0, theta_end, n + 1)
     r = r0 + pitch * theta / (2.0 * math.pi)
     xy = np.column_stack([cx + r * np.cos(theta), cy + r * np.sin(theta)])
-    scale = np.array([lu, lv])
     sections = []
-    n_sections = math.ceil(n / (MAX_SECTION_POINTS - 3))  # even sections: none too short for a cubic
+    total = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
+    # even sections (none too short for a cubic), within one record and MAX_SECTION_LENGTH
+    n_sections = max(math.ceil(n / (MAX_SECTION_POINTS - 3)), math.ceil(total / MAX_SECTION_LENGTH))
     bounds = np.linspace(0, n, n_sections + 1).round().astype(int)
     for start, stop in zip(bounds[:-1], bounds[1:]):
         chunk = xy[start:stop + 1]

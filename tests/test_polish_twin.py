@@ -1,0 +1,67 @@
+"""Whole-twin polishing runs: force tracking, the removal map against Preston's law, linearity.
+
+The three flat-plate runs go through the sweep's local pool (two workers), as a user sweeping
+force and feed would run them.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cnc_twin.resources import scenarios_dir
+from cnc_twin.sweep import run_local
+
+PLATE = "flat_plate_polish.yaml"
+
+
+@pytest.fixture(scope="module")
+def plate_rows():
+    path = str(scenarios_dir() / PLATE)
+    todo = [{}, {"program.force.setpoint": 10.0}, {"program.feed": 3000.0}]
+    rows = run_local(path, todo, workers=2)
+    assert [r["status"] for r in rows] == ["complete"] * 3, rows
+    return rows
+
+
+def test_flat_plate_force_tracking_and_first_contact(plate_rows):
+    base = plate_rows[0]
+    assert base["force_rms_pct"] <= 2.0
+    assert base["force_overshoot_pct"] <= 20.0
+
+
+def test_flat_plate_removal_is_uniform_and_matches_preston_by_hand(plate_rows):
+    base = plate_rows[0]
+    assert base["band_mean_um"] > 0
+    assert base["band_pv_um"] / base["band_mean_um"] <= 0.05
+    assert base["removal_volume_mm3"] == pytest.approx(base["preston_by_hand_mm3"], rel=0.02)
+
+
+def test_removal_scales_with_force_and_dwell(plate_rows):
+    base, half_force, half_feed = plate_rows
+    assert base["band_mean_um"] / half_force["band_mean_um"] == pytest.approx(2.0, rel=0.03)
+    assert half_feed["band_mean_um"] / base["band_mean_um"] == pytest.approx(2.0, rel=0.03)
+
+
+def test_freeform_scenario_through_the_cli(tmp_path):
+    """The freeform face (a shorter raster: wider margin) from `cnc-twin run`: force held within
+    2 % RMS, first contact within 20 %, and the removal map saved as an array and an image."""
+    out = tmp_path / "run"
+    scenario = scenarios_dir() / "freeform_polish.yaml"
+    text = scenario.read_text().replace("margin: 25.0", "margin: 45.0")
+    short = tmp_path / "freeform_short.yaml"
+    short.write_text(text)
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(short), "--out", str(out), "--quiet",
+                           "--no-rrd"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    force = metrics["polish"]["force"]
+    assert force["tracking"]["rms_error_pct"] <= 2.0
+    assert force["first_contact"]["overshoot_pct"] <= 20.0
+    assert metrics["polish"]["tile_hull_gap_mm"] < 1e-3  # a convex face: one exact hull
+    removal = np.load(out / "removal.npz")
+    assert removal["depth"].max() > 0 and (out / "removal.png").stat().st_size > 1000
