@@ -180,10 +180,24 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
     if program.spindle_speed > c_axis.max_velocity:
         raise ScenarioError(label, "program.spindle", f"{spec.spindle:g} rpm exceeds the C axis's "
                             f"{c_axis.max_velocity / units.RPM:g} rpm")
+    _check_fits_one_record(program, label)
     length = check_reach(program, axes, head, label)
     from dataclasses import replace
 
     return replace(program, path_length=length)
+
+
+def _check_fits_one_record(program: SurfaceProgram, label: Path) -> None:
+    """The card takes the surface in one record (up to 2048 words: about 120 control points)."""
+    from cnc_twin.whiteboard.records import SurfaceGeometry, encode
+
+    s = program.surface
+    try:
+        encode(SurfaceGeometry(degree_u=s.degree_u, degree_v=s.degree_v, knots_u=s.knots_u, knots_v=s.knots_v,
+                               weights=s.weights, control_net=s.control_net, lead=0.0, tilt=0.0,
+                               pivot=(0.0, 0.0, 0.0), offset=(0.0, 0.0, 0.0)), 1)
+    except ValueError as exc:
+        raise ScenarioError(label, "program.surface.control_net", f"{exc}: the card takes a surface in one record") from None
 
 
 def check_reach(program: SurfaceProgram, axes: tuple[AxisConfig, ...], head, label: Path) -> float:

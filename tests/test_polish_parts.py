@@ -64,7 +64,10 @@ def test_inverse_kinematics_refuses_unreachable_poses():
 def test_raster_passes_keep_the_step_over_and_margin():
     surface = dome()
     sections = raster(surface, step_over=10e-3, margin=25e-3)
-    assert len(sections) == 1
+    # cut at pass ends: each section's passes within MAX_SECTION_LENGTH (0.3 m, scaled)
+    assert len(sections) > 1
+    for c in sections:
+        assert SurfacePath(surface, NurbsCurve(c.control_points, c.weights, c.knots, c.degree)).arc_length() < 0.45
     uv = NurbsCurve(*(lambda c: (c.control_points, c.weights, c.knots, c.degree))(sections[0]))
     path = SurfacePath(surface, uv)
     t = np.linspace(*path.domain, 200001)
@@ -261,3 +264,16 @@ def test_a_face_tilted_beyond_the_head_is_refused_before_motion():
     with pytest.raises(ScenarioError, match="unreachable: tool axis") as info:
         scenario_from_dict(_surface_scenario(**{"surface.control_net": wall, "path.margin": 20.0}))
     assert info.value.key_path == "program.path"
+
+
+def test_a_surface_too_large_for_one_record_is_refused():
+    from cnc_twin.errors import ScenarioError
+    from cnc_twin.scenario import scenario_from_dict
+
+    n = 14
+    net = [[[-80 + 160 * i / (n - 1), -60 + 120 * j / (n - 1), 0] for j in range(n)] for i in range(n)]
+    knots = [0, 0] + [k / (n - 1) for k in range(1, n - 1)] + [1, 1]
+    change = {"surface.control_net": net, "surface.knots_u": knots, "surface.knots_v": knots}
+    with pytest.raises(ScenarioError, match="exceeds one record") as info:
+        scenario_from_dict(_surface_scenario(**change))
+    assert info.value.key_path == "program.surface.control_net"

@@ -122,3 +122,13 @@ def test_cli_exit_code_2_one_line_no_traceback(write_scenario, label, content, k
         assert len(lines) == 1, proc.stderr
         assert lines[0] == f"error: {path}: {key}: " + lines[0].split(f"{key}: ", 1)[1]
         assert "Traceback" not in proc.stderr and proc.stdout == ""
+
+
+def test_errors_stay_one_line_whatever_the_input_held():
+    """Found by the fuzzer: a control character in a value (here U+001E, a line break to
+    str.splitlines) used to split the error message."""
+    from cnc_twin.errors import ScenarioError
+
+    text = str(ScenarioError("f.yaml", "machine.model", "file '\x1e\n\u2028x' not found"))
+    assert len(text.splitlines()) == 1
+    assert "\\x1e" in text and "\\n" in text

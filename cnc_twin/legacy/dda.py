@@ -35,12 +35,14 @@ Two corrections the textbook form needs, both documented here because they chang
   ``GUARD_BITS`` more bits than the radius needs (4x more iterations, smaller Euler step):
   measured < 0.85 pulse up to R = 4095. ``half_load=False`` / ``bits=`` give the classic card.
 * A piece ending on an axis can leave the axis that moves away from the centre a step short
-  when its integrand (the other coordinate) has just reached 0; the card would hang there. The
-  owed steps are then emitted one per iteration (its integrand is treated as 2^n).
+  when its integrand (the other coordinate) has just reached 0; the card would hang there. Once
+  the other axis has finished, a zero integrand is treated as 2^n: the owed steps come out one
+  per iteration. (At a piece's start a zero integrand is normal: the other axis is leaving 0.)
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 from cnc_twin.legacy.quadrants import arc_pieces
@@ -97,10 +99,10 @@ def arc(x0: int, y0: int, x1: int, y1: int, *, clockwise: bool, bits: int | None
         bits = need + GUARD_BITS
     if bits < need:
         raise ValueError(f"{bits}-bit registers cannot hold the radius {largest}: need {need} bits")
-    return _arc_steps(pieces, bits, half_load)
+    return _arc_steps(pieces, int(x0) ** 2 + int(y0) ** 2, bits, half_load)
 
 
-def _arc_steps(pieces, bits: int, half_load: bool) -> Iterator[tuple[int, int]]:
+def _arc_steps(pieces, r2: int, bits: int, half_load: bool) -> Iterator[tuple[int, int]]:
     full = 1 << bits
     load = full >> 1 if half_load else 0
     for piece in pieces:
@@ -108,17 +110,27 @@ def _arc_steps(pieces, bits: int, half_load: bool) -> Iterator[tuple[int, int]]:
         sx, sy = piece.direction
         nx, ny = piece.steps
         rx = ry = load
+        px, py = piece.start
+        if px == 0 or py == 0:
+            # On an axis point (+-a, 0) / (0, +-a): the lattice point is off the circle by
+            # delta = a - R, |delta| < 1. Preload the inward axis's remainder with delta so the
+            # integrated point starts on the circle; the DDA has no deviation to pull it back.
+            offset = abs(px + py) * full - math.isqrt(r2 * full * full)
+            if piece.inward == 0:
+                rx = max(0, load + offset)
+            else:
+                ry = max(0, load + offset)
         while nx or ny:
             # Integrands hold the coordinates before this iteration's steps (parallel clocking).
             vx, vy = abs(y), abs(x)
             step_x = step_y = 0
             if nx:
-                rx += vx if vx else full  # hung axis: see the module docstring
+                rx += vx if vx or ny else full  # hung axis: see the module docstring
                 if rx >= full:
                     rx -= full
                     step_x = sx
             if ny:
-                ry += vy if vy else full
+                ry += vy if vy or nx else full
                 if ry >= full:
                     ry -= full
                     step_y = sy
