@@ -30,6 +30,11 @@ Sliding speed: the pad's velocity at the point, ``v = v_tip + omega x r`` (world
 component along the surface normal: ``V = |v - (v . n) n|``.
 
 Over a time step ``dt``: ``depth_i += k_p * p_i * V_i * dt``. SI units throughout (m, N, s, rad).
+
+Cost: :meth:`PrestonModel.accumulate` runs every few milliseconds of simulated time, so it only
+touches the points near the pad: a KD-tree ball query of radius ``sqrt(R^2 + slab^2) + margin``,
+cached and reused while the tip stays within ``margin`` (0.1 R) of the ball's centre; the rest is
+vectorised over those points.
 """
 
 from __future__ import annotations
@@ -154,7 +159,10 @@ class PrestonModel:
             return empty
         tip = np.asarray(tip, dtype=np.float64)
         a = np.asarray(axis, dtype=np.float64)
-        a = a / np.linalg.norm(a)
+        norm = np.linalg.norm(a)
+        if not norm > 0:
+            raise ValueError(f"tool axis must be non-zero, got {axis}")
+        a = a / norm
         idx, ball = self._near(tip)
         if idx.size == 0:
             return empty
@@ -246,14 +254,18 @@ class PrestonModel:
         fig = Figure(figsize=(7, 5))
         FigureCanvasAgg(fig)  # a figure of its own: no pyplot state
         ax = fig.add_subplot()
-        img = ax.imshow(self.depth.reshape(g.shape) * 1e6, origin="lower", extent=np.array(g.extent) * 1e3,
+        x0, x1, y0, y1 = g.extent
+        # pixels centred on the points: widen the points' extent by half a cell
+        hx, hy = (x1 - x0) / max(g.shape[1] - 1, 1) / 2, (y1 - y0) / max(g.shape[0] - 1, 1) / 2
+        img = ax.imshow(self.depth.reshape(g.shape) * 1e6, origin="lower",
+                        extent=np.array([x0 - hx, x1 + hx, y0 - hy, y1 + hy]) * 1e3,
                         cmap="viridis", aspect="equal", interpolation="nearest")
         fig.colorbar(img, ax=ax, label="removal depth [um]")
         s = self.stats()
         ax.set_xlabel("x [mm]")
         ax.set_ylabel("y [mm]")
-        ax.set_title(f"removal: mean {s['mean_um']:.3g} um, PV {s['pv_um']:.3g} um, "
-                     f"volume {self.volume() * 1e9:.3g} mm^3")
+        ax.set_title(f"removal: mean {s['mean_um']:.3g} um, PV {s['pv_um']:.3g} um\n"
+                     f"volume {self.volume() * 1e9:.3g} mm^3, contact {self.contact_time:.3g} s", fontsize=10)
         png = folder / "removal.png"
         fig.savefig(png, dpi=110, bbox_inches="tight")
         return [npz, png]

@@ -135,11 +135,17 @@ class MachineRef(_Strict):
     parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
 
 
+HEARTBEAT_DEFAULT_MS = {"realtime": 1000.0, "lockstep": 10000.0}
+
+
 class PlannerSpec(_Strict):
     """The PC planner process."""
 
     lookahead: float = Field(0.0, ge=0, description="motion kept queued on the card ahead of execution [ms]; 0 = no limit")
-    heartbeat_timeout: float = Field(1000.0, gt=0, description="wall-clock time without planner heartbeat before it counts as lost [ms]")
+    heartbeat_timeout: float | None = Field(
+        None, gt=0, description="wall-clock time without planner heartbeat before it counts as lost [ms]; "
+        "default 1000 in realtime mode, 10000 in lockstep (where the card waits anyway, and a busy machine "
+        "running a sweep must not pass for a hung planner)")
     start_timeout: float = Field(60.0, gt=0, description="wall-clock time for the planner process to start [s]")
 
 
@@ -376,7 +382,8 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         home=info.home,
         planner=PlannerConfig(
             lookahead=spec.planner.lookahead * units.MS,
-            heartbeat_timeout=spec.planner.heartbeat_timeout * units.MS,
+            heartbeat_timeout=(spec.planner.heartbeat_timeout if spec.planner.heartbeat_timeout is not None
+                               else HEARTBEAT_DEFAULT_MS[spec.timing.mode]) * units.MS,
             start_timeout=spec.planner.start_timeout,
         ),
         whiteboard=WhiteboardConfig(words=spec.whiteboard.words, chunk_words=spec.whiteboard.chunk // 2),
