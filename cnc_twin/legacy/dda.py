@@ -27,17 +27,26 @@ integrates |y| and the Y axis integrates |x| (``dx/dt = -y``, ``dy/dt = x`` for 
     a step on X updates J_vy = |x|; a step on Y updates J_vx = |y|   (after the iteration)
     an axis stops when it has made its |dx| (|dy|) steps of the piece   (end-point per axis)
 
-Two corrections the textbook form needs, both documented here because they change accuracy:
+Three changes to the textbook form, documented because they change accuracy:
 
 * The integrand lags by the accumulator remainder, which makes the zero-cleared DDA circle
-  spiral outwards (measured on a quarter circle: up to ~1.8 pulses radial error at R = 4095
-  with n = bit length of R). Arcs therefore default to half-loaded accumulators and
-  ``GUARD_BITS`` more bits than the radius needs (4x more iterations, smaller Euler step):
-  measured < 0.85 pulse up to R = 4095. ``half_load=False`` / ``bits=`` give the classic card.
+  spiral outwards (measured on a quarter circle from (R, 0): up to ~1.8 pulses radial error at
+  R = 4095 with n = bit length of R). Arcs therefore default to half-loaded accumulators and
+  ``GUARD_BITS`` more bits than the radius needs (4x the iterations, a smaller Euler step).
+  ``half_load=False, bits=<bit length>`` gives the classic card.
+* The DDA has no deviation to pull it back onto the circle, so a piece starting on an axis
+  point ``(a, 0)``, which is off the circle by ``delta = a - R`` (|delta| < 1), would follow a
+  circle of radius a. The inward axis's accumulator is preloaded with ``delta * 2^n`` more
+  (clamped at 0) so the integrated position starts on the circle; it may carry at once.
 * A piece ending on an axis can leave the axis that moves away from the centre a step short
   when its integrand (the other coordinate) has just reached 0; the card would hang there. Once
   the other axis has finished, a zero integrand is treated as 2^n: the owed steps come out one
   per iteration. (At a piece's start a zero integrand is normal: the other axis is leaving 0.)
+
+With these defaults every lattice point was within one pulse of the circle of radius
+sqrt(x0^2 + y0^2) in an exhaustive check (all starts with |x0|, |y0| <= 12, every valid end,
+both directions) and on random arcs up to R = 40000; the closest calls are the axis points
+themselves (a - R < 1 by construction) and ends accepted one pulse off the circle.
 """
 
 from __future__ import annotations
