@@ -110,7 +110,6 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
     from cnc_twin.workpiece import pad_radius
 
     sp = spec.surface
-    net = np.asarray(sp.control_net, dtype=object)
     rows = {len(r) for r in sp.control_net}
     if len(rows) != 1 or any(len(p) != 3 for r in sp.control_net for p in r):
         raise ScenarioError(label, "program.surface.control_net",
@@ -191,11 +190,9 @@ def _check_fits_one_record(program: SurfaceProgram, label: Path) -> None:
     """The card takes the surface in one record (up to 2048 words: about 120 control points)."""
     from cnc_twin.whiteboard.records import SurfaceGeometry, encode
 
-    s = program.surface
     try:
-        encode(SurfaceGeometry(degree_u=s.degree_u, degree_v=s.degree_v, knots_u=s.knots_u, knots_v=s.knots_v,
-                               weights=s.weights, control_net=s.control_net, lead=0.0, tilt=0.0,
-                               pivot=(0.0, 0.0, 0.0), offset=(0.0, 0.0, 0.0)), 1)
+        encode(SurfaceGeometry(surface=program.surface, lead=0.0, tilt=0.0, pivot=(0.0, 0.0, 0.0),
+                               offset=(0.0, 0.0, 0.0)), 1)
     except ValueError as exc:
         raise ScenarioError(label, "program.surface.control_net", f"{exc}: the card takes a surface in one record") from None
 
@@ -214,11 +211,10 @@ def check_reach(program: SurfaceProgram, axes: tuple[AxisConfig, ...], head, lab
         axis = path.axes(t, program.lead, program.tilt)
         for lift in (0.0, program.force.standoff):
             try:
-                poses = head.inverse(tips + lift * axis, axis, travel=[a.travel for a in axes[:5]])
+                head.inverse(tips + lift * axis, axis, travel=[a.travel for a in axes[:5]])
             except UnreachablePose as exc:
                 where = (tips[exc.index] - origin) / units.MM
                 raise ScenarioError(label, "program.path", f"section {k + 1}: the pose at workpiece "
                                     f"({where[0]:.1f}, {where[1]:.1f}, {where[2]:.1f}) mm is unreachable: {exc.reason}") from None
-            del poses
         total += path.arc_length()
     return total

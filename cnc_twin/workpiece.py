@@ -107,10 +107,7 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, la
         If the scene has no block workpiece to replace, or the result does not compile.
     """
     spec = mujoco.MjSpec.from_file(str(model_file))
-    try:
-        block = spec.geom(BLOCK_GEOM)
-    except Exception:  # pragma: no cover - the binding's lookup raises on unknown names
-        block = None
+    block = spec.geom(BLOCK_GEOM)  # None when the scene has no such geom
     if block is None:
         raise ScenarioError(label, "program.surface", f"the scene has no geom '{BLOCK_GEOM}' to replace with the surface")
     body = block.parent

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_twin.config import ForceControl
+from cnc_twin.config import ForceControl, SurfaceDef
 from cnc_twin.dsp.force import ForceController, ForceState
 from cnc_twin.geometry.kinematics import HeadGeometry, UnreachablePose, pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
@@ -146,10 +146,10 @@ def test_surface_path_evaluator_matches_the_vectorised_path():
 def test_surface_records_round_trip():
     surface = dome()
     c = raster(surface, step_over=7e-3, margin=25e-3)[0]
-    geo = SurfaceGeometry(degree_u=3, degree_v=3, knots_u=tuple(KNOTS), knots_v=tuple(KNOTS),
-                          weights=tuple(tuple(r) for r in surface.weights.tolist()),
-                          control_net=tuple(tuple(tuple(p) for p in row) for row in surface.control_net.tolist()),
-                          lead=0.01, tilt=-0.02, pivot=(0.0, 0.0, 1.2), offset=(0.0, 0.0, -0.25))
+    sdef = SurfaceDef(degree_u=3, degree_v=3, knots_u=tuple(KNOTS), knots_v=tuple(KNOTS),
+                      weights=tuple(tuple(r) for r in surface.weights.tolist()),
+                      control_net=tuple(tuple(tuple(p) for p in row) for row in surface.control_net.tolist()))
+    geo = SurfaceGeometry(surface=sdef, lead=0.01, tilt=-0.02, pivot=(0.0, 0.0, 1.2), offset=(0.0, 0.0, -0.25))
     for record in (geo, SurfaceCurve(c), ForceControlRecord(on=True, params=force_params(profile=((0.0, 20.0), (0.1, 25.0)))),
                    ForceControlRecord(on=False, params=force_params())):
         words = encode(record, 7)

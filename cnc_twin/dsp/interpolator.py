@@ -91,9 +91,7 @@ class _Surface:
     """The surface of the following path sections, ready for per-period evaluation."""
 
     def __init__(self, record: SurfaceGeometry):
-        surface = NurbsSurface(record.control_net, record.weights, record.knots_u, record.knots_v,
-                               record.degree_u, record.degree_v)
-        self.evaluator: SurfaceSpanEvaluator = surface.span_evaluator()
+        self.evaluator: SurfaceSpanEvaluator = NurbsSurface.from_def(record.surface).span_evaluator()
         self.lead, self.tilt = record.lead, record.tilt
         self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
 

@@ -128,6 +128,11 @@ class NurbsSurface:
         self._basis_u = BSpline(self.knots_u, np.eye(nu), p, extrapolate=True)
         self._basis_v = BSpline(self.knots_v, np.eye(nv), q, extrapolate=True)
 
+    @classmethod
+    def from_def(cls, d) -> "NurbsSurface":
+        """From a :class:`cnc_twin.config.SurfaceDef` (or anything with its six fields)."""
+        return cls(d.control_net, d.weights, d.knots_u, d.knots_v, d.degree_u, d.degree_v)
+
     def _basis(self, which: str, x: np.ndarray, order: int) -> list[np.ndarray]:
         spline, degree = (self._basis_u, self.degree_u) if which == "u" else (self._basis_v, self.degree_v)
         n = spline.c.shape[1]

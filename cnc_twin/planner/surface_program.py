@@ -36,8 +36,7 @@ from cnc_twin.whiteboard.records import (
 
 
 def build_surface(prog: SurfaceProgram) -> NurbsSurface:
-    s = prog.surface
-    return NurbsSurface(s.control_net, s.weights, s.knots_u, s.knots_v, s.degree_u, s.degree_v)
+    return NurbsSurface.from_def(prog.surface)
 
 
 def section_paths(prog: SurfaceProgram, surface: NurbsSurface | None = None) -> list[SurfacePath]:
@@ -104,9 +103,7 @@ class SurfacePlan:
         spin = spindle_periods(prog, T)
         first += [Spindle(on=True, speed=prog.spindle_speed), Dwell(periods=spin)]
         periods += [0, spin]
-        s = prog.surface
-        first.append(SurfaceGeometry(degree_u=s.degree_u, degree_v=s.degree_v, knots_u=s.knots_u, knots_v=s.knots_v,
-                                     weights=s.weights, control_net=s.control_net, lead=prog.lead, tilt=prog.tilt,
+        first.append(SurfaceGeometry(surface=prog.surface, lead=prog.lead, tilt=prog.tilt,
                                      pivot=prog.pivot_home, offset=prog.tool_offset))
         periods.append(0)
         yield first, periods

@@ -100,8 +100,8 @@ def _pass_positions(surface: NurbsSurface, u_range, v_range, step_over: float, *
 
     gaps, v = [], lo
     while v < hi:
-        dv = step_over / widest(v)
-        dv = step_over / max(widest(v), widest(min(hi, v + 0.5 * dv)))  # and half-way to the next pass
+        here = widest(v)
+        dv = step_over / max(here, widest(min(hi, v + 0.5 * step_over / here)))  # and half-way to the next pass
         gaps.append(dv)
         v += dv
     gaps = np.asarray(gaps) * (hi - lo) / np.sum(gaps)  # shrink the gaps evenly: none widens
@@ -110,10 +110,10 @@ def _pass_positions(surface: NurbsSurface, u_range, v_range, step_over: float, *
 
 def raster(surface: NurbsSurface, *, step_over: float, margin: float, direction: str = "u") -> list[UvCurve]:
     """Zig-zag passes along ``direction`` ("u" or "v"); see the module docstring. Lengths in m."""
-    lu, lv, su_max, sv_max = parameter_scales(surface)
+    lu, lv, _, _ = parameter_scales(surface)
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
     if direction == "v":  # lay out in swapped coordinates, swap back at the end
-        (u0, u1), (v0, v1), lu, lv, sv_max = (v0, v1), (u0, u1), lv, lu, su_max
+        (u0, u1), (v0, v1), lu, lv = (v0, v1), (u0, u1), lv, lu
     x_lo, x_hi = u0 * lu + margin, u1 * lu - margin
     y_lo, y_hi = v0 * lv + margin, v1 * lv - margin
     if not (x_hi > x_lo and y_hi >= y_lo):

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_twin.config import AxisCurve, ForceControl, UvCurve
+from cnc_twin.config import AxisCurve, ForceControl, SurfaceDef, UvCurve
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.dsp.scurve import SCurve
 
@@ -152,12 +152,7 @@ class CurveBlock:
 class SurfaceGeometry:
     """The surface the following path sections run on, and the tool axis's lead and tilt [rad]."""
 
-    degree_u: int
-    degree_v: int
-    knots_u: tuple[float, ...]
-    knots_v: tuple[float, ...]
-    weights: tuple[tuple[float, ...], ...]
-    control_net: tuple[tuple[tuple[float, float, float], ...], ...]
+    surface: SurfaceDef
     lead: float
     tilt: float
     pivot: tuple[float, float, float]
@@ -240,18 +235,17 @@ def _payload(record: Record) -> bytes:
                       np.asarray(ac.knots, "<f8"), np.asarray(ac.weights, "<f8"),
                       np.asarray(ac.control_points, "<f8").ravel()]
         body = _CURVE_HEAD.pack(record.degree, n, degree2, n2, *record.hold) + np.concatenate(parts).tobytes()
-        if len(body) // 2 > MAX_BLOCK_WORDS:
-            raise ValueError(f"curve of {n} control points exceeds one record ({MAX_BLOCK_WORDS} words)")
-        return body
+        return _checked_size(body, f"curve of {n} control points")
     if isinstance(record, CurveBlock):
         p = record.profile
         return _CURVE_BLOCK.pack(p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
     if isinstance(record, SurfaceGeometry):
-        nu, nv = len(record.control_net), len(record.control_net[0])
-        body = _SURFACE_HEAD.pack(record.degree_u, record.degree_v, nu, nv, record.lead, record.tilt,
+        s = record.surface
+        nu, nv = len(s.control_net), len(s.control_net[0])
+        body = _SURFACE_HEAD.pack(s.degree_u, s.degree_v, nu, nv, record.lead, record.tilt,
                                   *record.pivot, *record.offset) + np.concatenate([
-            np.asarray(record.knots_u, "<f8"), np.asarray(record.knots_v, "<f8"),
-            np.asarray(record.weights, "<f8").ravel(), np.asarray(record.control_net, "<f8").ravel()]).tobytes()
+            np.asarray(s.knots_u, "<f8"), np.asarray(s.knots_v, "<f8"),
+            np.asarray(s.weights, "<f8").ravel(), np.asarray(s.control_net, "<f8").ravel()]).tobytes()
         return _checked_size(body, f"surface of {nu} x {nv} control points")
     if isinstance(record, SurfaceCurve):
         c = record.curve
@@ -308,15 +302,26 @@ def record_length(header: np.ndarray) -> int:
     return OVERHEAD_WORDS + n
 
 
+def _head(head: struct.Struct, payload: bytes, what: str) -> tuple:
+    """The fixed header of a variable record's payload."""
+    if len(payload) < head.size:
+        raise RecordError(f"{what} record shorter than its header")
+    return head.unpack_from(payload)
+
+
+def _f64s(payload: bytes, offset: int, expected: int, what: str) -> np.ndarray:
+    """The float64 values after a variable record's header; exactly ``expected`` of them."""
+    values = np.frombuffer(payload, dtype="<f8", offset=offset)
+    if len(values) != expected:
+        raise RecordError(f"{what} record of {len(values)} values, expected {expected}")
+    return values
+
+
 def _decode_curve(payload: bytes) -> CurveGeometry:
-    if len(payload) < _CURVE_HEAD.size:
-        raise RecordError("curve record shorter than its header")
-    degree, n, degree2, n2, *hold = _CURVE_HEAD.unpack_from(payload)
-    values = np.frombuffer(payload, dtype="<f8", offset=_CURVE_HEAD.size)
+    degree, n, degree2, n2, *hold = _head(_CURVE_HEAD, payload, "curve")
     n_knots, n_knots2 = n + degree + 1, (n2 + degree2 + 1 if n2 else 0)
     expected = n_knots + 4 * n + (6 + n_knots2 + 4 * n2 if n2 else 0)
-    if len(values) != expected:
-        raise RecordError(f"curve record of {len(values)} values, expected {expected}")
+    values = _f64s(payload, _CURVE_HEAD.size, expected, "curve")
 
     def take(count: int) -> np.ndarray:
         nonlocal values
@@ -334,32 +339,20 @@ def _decode_curve(payload: bytes) -> CurveGeometry:
                          axis=axis, pivot=pivot, offset=offset)
 
 
-def _f64s(payload: bytes, offset: int, expected: int, what: str) -> np.ndarray:
-    values = np.frombuffer(payload, dtype="<f8", offset=offset)
-    if len(values) != expected:
-        raise RecordError(f"{what} record of {len(values)} values, expected {expected}")
-    return values
-
-
 def _decode_surface(payload: bytes) -> SurfaceGeometry:
-    if len(payload) < _SURFACE_HEAD.size:
-        raise RecordError("surface record shorter than its header")
-    du, dv, nu, nv, lead, tilt, *geo = _SURFACE_HEAD.unpack_from(payload)
+    du, dv, nu, nv, lead, tilt, *geo = _head(_SURFACE_HEAD, payload, "surface")
     ku, kv = nu + du + 1, nv + dv + 1
     values = _f64s(payload, _SURFACE_HEAD.size, ku + kv + 4 * nu * nv, "surface")
     w = values[ku + kv:ku + kv + nu * nv].reshape(nu, nv)
     net = values[ku + kv + nu * nv:].reshape(nu, nv, 3)
-    return SurfaceGeometry(degree_u=du, degree_v=dv, knots_u=tuple(values[:ku].tolist()),
-                           knots_v=tuple(values[ku:ku + kv].tolist()),
-                           weights=tuple(tuple(r) for r in w.tolist()),
-                           control_net=tuple(tuple(tuple(p) for p in row) for row in net.tolist()),
-                           lead=lead, tilt=tilt, pivot=tuple(geo[:3]), offset=tuple(geo[3:]))
+    surface = SurfaceDef(degree_u=du, degree_v=dv, knots_u=tuple(values[:ku].tolist()),
+                         knots_v=tuple(values[ku:ku + kv].tolist()), weights=tuple(tuple(r) for r in w.tolist()),
+                         control_net=tuple(tuple(tuple(p) for p in row) for row in net.tolist()))
+    return SurfaceGeometry(surface=surface, lead=lead, tilt=tilt, pivot=tuple(geo[:3]), offset=tuple(geo[3:]))
 
 
 def _decode_surface_curve(payload: bytes) -> SurfaceCurve:
-    if len(payload) < _UV_HEAD.size:
-        raise RecordError("path section record shorter than its header")
-    degree, n = _UV_HEAD.unpack_from(payload)
+    degree, n = _head(_UV_HEAD, payload, "path section")
     k = n + degree + 1
     values = _f64s(payload, _UV_HEAD.size, k + 3 * n, "path section")
     return SurfaceCurve(UvCurve(degree=degree, knots=tuple(values[:k].tolist()),
@@ -368,9 +361,7 @@ def _decode_surface_curve(payload: bytes) -> SurfaceCurve:
 
 
 def _decode_force(payload: bytes) -> ForceControlRecord:
-    if len(payload) < _FORCE_HEAD.size:
-        raise RecordError("force record shorter than its header")
-    on, n, *fields = _FORCE_HEAD.unpack_from(payload)
+    on, n, *fields = _head(_FORCE_HEAD, payload, "force")
     profile = _f64s(payload, _FORCE_HEAD.size, 2 * n, "force").reshape(n, 2)
     params = ForceControl(profile=tuple(tuple(p) for p in profile.tolist()), **dict(zip(_FORCE_FIELDS, fields)))
     return ForceControlRecord(on=bool(on), params=params)
