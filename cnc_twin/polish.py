@@ -25,18 +25,17 @@ from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface
 from cnc_twin.record import Trace
-from cnc_twin.removal import PrestonModel, RemovalGrid
+from cnc_twin.removal import Patch, PrestonModel, RemovalGrid
 
 CONTACT_SETTLE = 0.3
 """after the ramp, time within which the first-contact overshoot is judged [s]"""
 
 
-def removal_grid(surface: NurbsSurface, spacing: float) -> tuple[RemovalGrid, np.ndarray]:
+def removal_grid(surface: NurbsSurface, spacing: float, scales: tuple[float, float]) -> tuple[RemovalGrid, np.ndarray]:
     """Points about ``spacing`` apart on the surface (cell centres of a (u, v) grid), and their
-    (u, v), shape (m, 2)."""
-    from cnc_twin.planner.toolpath import parameter_scales
-
-    lu, lv, _, _ = parameter_scales(surface)
+    (u, v), shape (m, 2). ``scales``: the surface's mean ``|S_u|``, ``|S_v|``
+    (:func:`cnc_twin.planner.toolpath.parameter_scales`)."""
+    lu, lv = scales
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
     nu = max(2, math.ceil((u1 - u0) * lu / spacing))
     nv = max(2, math.ceil((v1 - v0) * lv / spacing))
@@ -56,12 +55,14 @@ def removal_grid(surface: NurbsSurface, spacing: float) -> tuple[RemovalGrid, np
 class RemovalTracker:
     """Accumulates the removal map from the MuJoCo state during a run."""
 
-    def __init__(self, program: SurfaceProgram, model: mujoco.MjModel, data: mujoco.MjData, period: float):
-        from cnc_twin.planner.surface_program import build_surface
+    def __init__(self, program: SurfaceProgram, surface: NurbsSurface, model: mujoco.MjModel, data: mujoco.MjData,
+                 period: float):
+        from cnc_twin.planner.toolpath import parameter_scales
 
         p = program.preston
-        self.surface = build_surface(program)
-        self.grid, self.uv = removal_grid(self.surface, p.grid_spacing)
+        self.surface = surface
+        self.scales = parameter_scales(self.surface)[:2]
+        self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
         self.model_removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
                                           pad_modulus=p.pad_modulus)
         self.model, self.data = model, data
@@ -104,11 +105,12 @@ class RemovalTracker:
             mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_SITE, self._site, self._velocity, 0)
             tip = d.site_xpos[self._site]
             axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
-            v_tip, omega = self._velocity[3:], self._velocity[:3]
-            self.model_removal.accumulate(tip, axis, force, v_tip, omega, self.dt)
+            removal = self.model_removal
+            patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
+            if patch is not None:
+                removal.add(patch, self.dt)
+                wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
             self.force_time_integral += force * self.dt
-            wrench[:] = friction_wrench(self.model_removal, tip, axis, force, v_tip, omega,
-                                        d.xipos[self._pad_body], self.friction)
         self.calls += 1
         self.cost_ns += time.perf_counter_ns() - started
 
@@ -117,35 +119,29 @@ FRICTION_SPEED = 1e-3
 """sliding speed below which the pad's friction fades linearly to zero (regularisation) [m/s]"""
 
 
-def friction_wrench(removal: PrestonModel, tip: np.ndarray, axis: np.ndarray, force: float, v_tip: np.ndarray,
-                    omega: np.ndarray, centre: np.ndarray, mu: float) -> np.ndarray:
+def friction_wrench(patch: Patch, areas: np.ndarray, tip: np.ndarray, centre: np.ndarray, mu: float) -> np.ndarray:
     """Force and torque (6,) [N, N m] about ``centre`` (world frame) of the pad's sliding friction
     over its contact patch (the removal model's Winkler pressures): ``-mu p A v / max(|v|,
-    FRICTION_SPEED)`` per point, ``v`` the pad's tangential sliding velocity there."""
-    idx, p, r, n = removal._contact(tip, axis, force)
-    out = np.zeros(6)
-    if idx.size == 0:
-        return out
-    v = np.cross(omega, r.T).T + v_tip[:, None]
-    v -= np.einsum("ij,ij->j", v, n) * n
+    FRICTION_SPEED)`` per point, ``v`` the pad's tangential sliding velocity there; ``areas`` the
+    grid's point areas [m^2]."""
+    v = patch.sliding
     speed = np.sqrt(np.einsum("ij,ij->j", v, v))
-    f = v * (-mu * p * removal.grid.areas[idx] / np.maximum(speed, FRICTION_SPEED))
-    arm = r + (tip - centre)[:, None]
+    f = v * (-mu * patch.pressure * areas[patch.index] / np.maximum(speed, FRICTION_SPEED))
+    arm = patch.arm + (tip - centre)[:, None]
+    out = np.empty(6)
     out[:3] = f.sum(axis=1)
     out[3:] = np.cross(arm.T, f.T).sum(axis=0)
     return out
 
 
-def polished_band(program: SurfaceProgram, uv: np.ndarray) -> np.ndarray:
+def polished_band(program: SurfaceProgram, uv: np.ndarray, scales: tuple[float, float]) -> np.ndarray:
     """Mask of the grid points in the raster's *middle band*: along the passes, farther from
     their ends than the pad radius plus the feed's ramp distance; across, from the first pass plus
     the pad radius to the last minus it. There every point saw every pass that reaches it at full
-    feed (no start, stop or turn nearby), so the removal there shows the raster's own uniformity. For a spiral: the annulus
-    between the pad radius from the start and the pad radius from the outer turn."""
-    from cnc_twin.planner.surface_program import build_surface
-    from cnc_twin.planner.toolpath import parameter_scales
-
-    lu, lv, _, _ = parameter_scales(build_surface(program))
+    feed (no start, stop or turn nearby), so the removal there shows the raster's own uniformity.
+    For a spiral: the annulus between the pad radius from the start and the pad radius from the
+    outer turn. ``scales`` as for :func:`removal_grid`."""
+    lu, lv = scales
     pts = np.concatenate([np.asarray(c.control_points) for c in program.sections])
     r = program.preston.pad_radius
     x, y = uv[:, 0] * lu, uv[:, 1] * lv
@@ -165,7 +161,7 @@ def polished_band(program: SurfaceProgram, uv: np.ndarray) -> np.ndarray:
     return (along >= a_lo) & (along <= a_hi) & (across >= p_across.min() + r) & (across <= p_across.max() - r)
 
 
-def force_metrics(trace: Trace, program: SurfaceProgram, ticks_per_period: int) -> dict[str, Any]:
+def force_metrics(trace: Trace, program: SurfaceProgram) -> dict[str, Any]:
     """Force tracking after the ramp, and the overshoot at first contact."""
     state = trace.period_signals["force_state"]
     setpoint = trace.period_signals["force_setpoint"]
@@ -201,7 +197,7 @@ def force_metrics(trace: Trace, program: SurfaceProgram, ticks_per_period: int) 
 def removal_metrics(tracker: RemovalTracker, program: SurfaceProgram, wall_time: float) -> dict[str, Any]:
     """Volume and uniformity of the removal map; the model's cost."""
     model = tracker.model_removal
-    band = polished_band(program, tracker.uv)
+    band = polished_band(program, tracker.uv, tracker.scales)
     p = program.preston
     out: dict[str, Any] = {
         "volume_mm3": model.volume() * 1e9,

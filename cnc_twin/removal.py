@@ -109,6 +109,20 @@ class RemovalGrid:
         return cls(pts, normals, np.full(X.size, dx * dy), (ny, nx), (x[0], x[-1], y[0], y[-1]))
 
 
+@dataclass(frozen=True)
+class Patch:
+    """The pad's contact patch at one instant (``k`` grid points)."""
+
+    index: np.ndarray
+    """(k,) indices into the grid"""
+    pressure: np.ndarray
+    """(k,) [Pa]"""
+    arm: np.ndarray
+    """(3, k) point - tip [m]"""
+    sliding: np.ndarray
+    """(3, k) the pad's tangential velocity over each point [m/s]"""
+
+
 class PrestonModel:
     """Preston removal on a :class:`RemovalGrid` under a Winkler pad (see the module docstring).
 
@@ -198,17 +212,15 @@ class PrestonModel:
         idx, p, _, _ = self._contact(tip, axis, force)
         return idx, p
 
-    def accumulate(self, tip, axis, force, v_tip, omega, dt) -> int:
-        """Add one time step's removal; returns how many points got removal.
+    def patch(self, tip, axis, force, v_tip, omega) -> "Patch | None":
+        """The contact patch with its pressures and sliding velocities, or None without contact.
 
         ``tip``, ``axis`` (3,) [m]; ``force`` [N]; ``v_tip`` (3,) [m/s] the tip's velocity;
-        ``omega`` (3,) [rad/s] the pad's angular velocity; ``dt`` [s] >= 0. World frame.
+        ``omega`` (3,) [rad/s] the pad's angular velocity. World frame.
         """
-        if dt < 0:
-            raise ValueError(f"dt must be >= 0, got {dt}")
         idx, p, r, n = self._contact(tip, axis, force)
         if idx.size == 0:
-            return 0
+            return None
         w = np.asarray(omega, dtype=np.float64)
         v = np.empty_like(r)  # v_tip + omega x r, row by row: cheaper than np.cross on (3, k)
         v[0] = w[1] * r[2] - w[2] * r[1]
@@ -216,10 +228,25 @@ class PrestonModel:
         v[2] = w[0] * r[1] - w[1] * r[0]
         v += np.asarray(v_tip, dtype=np.float64)[:, None]
         v -= np.einsum("ij,ij->j", v, n) * n  # sliding is tangential only
-        inc = (self.preston_k * dt) * p * np.sqrt(np.einsum("ij,ij->j", v, v))
-        np.add.at(self.depth, idx, inc)  # faster than depth[idx] += inc here
+        return Patch(index=idx, pressure=p, arm=r, sliding=v)
+
+    def add(self, patch: "Patch", dt: float) -> int:
+        """Add a patch's removal over ``dt`` [s] >= 0; returns how many points got removal."""
+        if dt < 0:
+            raise ValueError(f"dt must be >= 0, got {dt}")
+        v = patch.sliding
+        inc = (self.preston_k * dt) * patch.pressure * np.sqrt(np.einsum("ij,ij->j", v, v))
+        np.add.at(self.depth, patch.index, inc)  # faster than depth[idx] += inc here
         self.contact_time += dt
         return int(np.count_nonzero(inc > 0))
+
+    def accumulate(self, tip, axis, force, v_tip, omega, dt) -> int:
+        """Add one time step's removal (:meth:`patch`, then :meth:`add`); returns how many points
+        got removal. ``dt`` [s] >= 0."""
+        if dt < 0:
+            raise ValueError(f"dt must be >= 0, got {dt}")
+        patch = self.patch(tip, axis, force, v_tip, omega)
+        return 0 if patch is None else self.add(patch, dt)
 
     def volume(self) -> float:
         """Removed volume ``sum(depth * areas)`` [m^3]."""

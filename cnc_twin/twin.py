@@ -112,22 +112,20 @@ class Twin:
     def __init__(self, scenario: Scenario):
         self.scenario = scenario
         timing = scenario.timing
-        self.tiling = None
+        self.tiling = self.removal = None
         if isinstance(scenario.program, SurfaceProgram):
             from cnc_twin.planner.surface_program import build_surface
+            from cnc_twin.polish import RemovalTracker
             from cnc_twin.workpiece import build_model
 
-            tile = scenario.program.surface_tile_size
-            model, self.tiling = build_model(scenario.model_file, build_surface(scenario.program), tile_size=tile)
-        else:
-            model = load_model(scenario.model_file)
-        self.plant = Plant(model, timestep=timing.physics_timestep)
-        self.removal = None
-        if isinstance(scenario.program, SurfaceProgram):
-            from cnc_twin.polish import RemovalTracker
-
-            self.removal = RemovalTracker(scenario.program, self.plant.model, self.plant.data,
+            surface = build_surface(scenario.program)
+            model, self.tiling = build_model(scenario.model_file, surface,
+                                             tile_size=scenario.program.surface_tile_size)
+            self.plant = Plant(model, timestep=timing.physics_timestep)
+            self.removal = RemovalTracker(scenario.program, surface, self.plant.model, self.plant.data,
                                           timing.interpolation_period)
+        else:
+            self.plant = Plant(load_model(scenario.model_file), timestep=timing.physics_timestep)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor
         )
@@ -322,7 +320,7 @@ class Twin:
             from cnc_twin.polish import force_metrics, preston_by_hand, removal_metrics
 
             metrics["polish"] = {
-                "force": force_metrics(trace, sc.program, sc.timing.ticks_per_period),
+                "force": force_metrics(trace, sc.program),
                 "removal": {**removal_metrics(self.removal, sc.program, wall_time),
                             "preston_by_hand_mm3": preston_by_hand(trace, sc.program) * 1e9},
                 "collision_tiles": list(self.tiling.tiles),
