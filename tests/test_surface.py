@@ -10,6 +10,7 @@ import pytest
 
 from cnc_twin.geometry.nurbs import NurbsError
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
+from test_nurbs import cox_de_boor  # the curves' independent reference, tensor-producted here
 
 S2 = math.sqrt(2.0) / 2.0
 
@@ -50,16 +51,6 @@ def cylinder(outward: bool = True):
 
 PLATE = dict(control_net=[[[0, 0, 0], [0, 0.3, 0]], [[0.5, 0, 0], [0.5, 0.3, 0]]], weights=None,
              knots_u=[0, 0, 1, 1], knots_v=[0, 0, 1, 1], degree_u=1, degree_v=1)
-
-
-def cox_de_boor(i: int, p: int, u: float, U) -> float:
-    """Independent reference: the textbook basis function recurrence (right-open spans)."""
-    if p == 0:
-        last = U[i + 1] == U[-1] and U[i] < U[i + 1]
-        return 1.0 if (U[i] <= u < U[i + 1]) or (last and u == U[-1]) else 0.0
-    left = 0.0 if U[i + p] == U[i] else (u - U[i]) / (U[i + p] - U[i]) * cox_de_boor(i, p - 1, u, U)
-    right = 0.0 if U[i + p + 1] == U[i + 1] else (U[i + p + 1] - u) / (U[i + p + 1] - U[i + 1]) * cox_de_boor(i + 1, p - 1, u, U)
-    return left + right
 
 
 def reference_point(spec, u: float, v: float) -> np.ndarray:

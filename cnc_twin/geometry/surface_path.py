@@ -26,10 +26,8 @@ import math
 
 import numpy as np
 
-from cnc_twin.geometry.nurbs import NurbsCurve, SpanEvaluator
+from cnc_twin.geometry.nurbs import NurbsCurve, SpanEvaluator, gauss_length
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
-
-_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
 
 def tool_axes(normal: np.ndarray, tangent: np.ndarray, lead: float, tilt: float) -> np.ndarray:
@@ -99,14 +97,9 @@ class SurfacePath:
         t1 = b if t1 is None else float(t1)
         if t1 < t0:
             return -self.arc_length(t1, t0)
-        breaks = np.array([t0] + [k for k in np.unique(self.knots) if t0 < k < t1] + [t1])
         # Each knot span in 16 pieces: the surface's own knot lines cross the spans, and |C'|
         # is only C1 there, which a single Gauss rule per span would integrate to ~1e-5.
-        edges = np.unique(np.concatenate([np.linspace(lo, hi, 17) for lo, hi in zip(breaks[:-1], breaks[1:])]))
-        mid, half = 0.5 * (edges[1:] + edges[:-1]), 0.5 * (edges[1:] - edges[:-1])
-        nodes = (mid[:, None] + half[:, None] * _GAUSS_NODES[None, :]).ravel()
-        speed = np.linalg.norm(self.derivatives(nodes, 1)[1], axis=1).reshape(len(mid), -1)
-        return float(np.sum(half * (speed @ _GAUSS_WEIGHTS)))
+        return gauss_length(lambda t: self.derivatives(t, 1)[1], self.knots, t0, t1, pieces=16)
 
     def span_evaluator(self) -> "SurfacePathEvaluator":
         return SurfacePathEvaluator(self.surface.span_evaluator(), self.uv.span_evaluator())
