@@ -257,7 +257,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 def describe_program(program) -> str:
     """One line on what a program does."""
-    from cnc_twin.config import NurbsProgram, SurfaceProgram
+    from cnc_twin.config import ContourProgram, NurbsProgram, SurfaceProgram
 
     if isinstance(program, SurfaceProgram):
         s = program.surface
@@ -266,6 +266,9 @@ def describe_program(program) -> str:
                 f"{program.force.setpoint:g} N")
     if isinstance(program, NurbsProgram):
         return f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points"
+    if isinstance(program, ContourProgram):
+        return (f"contour of {len(program.elements)} element(s), {len(program.methods)} pass(es): "
+                f"{', '.join(program.methods)}")
     return f"{len(program.moves)} moves"
 
 
@@ -309,14 +312,17 @@ def summary_table(metrics: dict) -> str:
     lines = [
         f"{metrics['scenario']}: {metrics['sim_time_s']:.3f} s simulated in {metrics['wall_time_s']:.2f} s "
         f"({metrics['real_time_factor']:.1f}x real time), {metrics['physics_steps']} physics steps",
-        f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}{'DAC sat':>9}",
     ]
+    # analog output: ticks each DAC spent clamped; pulse output: ticks at the pulse rate limit
+    limited = metrics.get("pulse_limited_ticks") or metrics["dac_saturation_ticks"]
+    lines.append(f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}"
+                 f"{'rate lim' if 'pulse_limited_ticks' in metrics else 'DAC sat':>9}")
     for axis, fe in metrics["following_error"].items():
         final = metrics["final_following_error"][axis]
         unit = fe["unit"]
         lines.append(
             f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
-            f"{metrics['dac_saturation_ticks'][axis]:>9d}"
+            f"{limited[axis]:>9d}"
         )
     wb = metrics.get("whiteboard")
     if wb:
@@ -334,6 +340,10 @@ def summary_table(metrics: dict) -> str:
             f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
             f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
         )
+    if metrics.get("contour"):
+        from cnc_twin.contour_metrics import format_passes
+
+        lines.append(format_passes(metrics["contour"]))
     lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")

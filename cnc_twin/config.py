@@ -59,6 +59,14 @@ class AxisConfig:
     """hard travel from the MJCF [m | rad]; None when unlimited"""
     speed_per_volt: float
     """drive scaling read from the MJCF [m/s/V | rad/s/V]"""
+    pulse_max_rate: float = 500e3
+    """pulse output: highest step rate of the card's generator and the drive input [pulses/s]"""
+    drive_position_gain: float = 80.0
+    """pulse output: the amplifier's position-loop gain in position mode [1/s]"""
+    drive_velocity_ff: float = 1.0
+    """pulse output: the amplifier's velocity feed-forward [-]"""
+    drive_ff_filter: float = 1e-3
+    """pulse output: time constant of the amplifier's feed-forward filter [s]"""
 
     @property
     def display_factor(self) -> float:
@@ -163,6 +171,51 @@ class NurbsProgram:
     tool-tip positions in the world frame and the card solves the kinematics every period"""
     rotary_limits: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     """(velocity, acceleration, jerk) of A and B [rad/s, rad/s^2, rad/s^3] when the axis varies"""
+
+
+@dataclass(frozen=True)
+class LatticeElement:
+    """One contour element on the pulse lattice [counts from the encoders' power-on position]."""
+
+    kind: str
+    """``line`` or ``arc``"""
+    start: tuple[int, int]
+    end: tuple[int, int]
+    center: tuple[int, int]
+    """arcs only ((0, 0) for lines)"""
+    clockwise: bool
+
+
+@dataclass(frozen=True)
+class ContourProgram:
+    """Lines and arcs in the X/Y plane at a fixed Z with the tool axis held, run once per method.
+
+    Each pass moves to the start, dwells, runs every element with exact stops between them
+    (each element starts and ends at rest), and is bracketed by Mark records ``pass number`` and
+    0 so the trace shows which pass ran when.
+    """
+
+    methods: tuple[str, ...]
+    """``nurbs``, ``point_by_point`` or ``dda``: one pass each, in this order"""
+    elements: tuple
+    """the contour in axis space (X, Y [m]): :class:`cnc_twin.geometry.contour.Line` / ``Arc``"""
+    start: tuple[float, ...]
+    """all six axes at the contour's start [m | rad]"""
+    limits: PathLimits
+    curves: tuple[NurbsProgram, ...]
+    """each element as an exact NURBS in axis space, for the ``nurbs`` method"""
+    lattice: tuple[LatticeElement, ...]
+    """each element on the pulse lattice, for the step methods"""
+    element_feeds: tuple[float, ...]
+    """step methods: each element's feed [m/s], the programmed feed capped by the axes' speed
+    and, on arcs, by the normal acceleration limit"""
+    dda_bits: int
+    """DDA register length; 0 = the smallest that holds each element"""
+    approach_feed: float | None
+    dwell: float
+    """[s] at the start before each pass"""
+    settle: float
+    """[s] after the last pass"""
 
 
 @dataclass(frozen=True)
@@ -326,7 +379,7 @@ class Scenario:
     axes: tuple[AxisConfig, ...]
     """in X Y Z A B C order"""
     force_sensor: ForceSensorConfig
-    program: PointToPoint | NurbsProgram | SurfaceProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
     planner: PlannerConfig
@@ -334,6 +387,9 @@ class Scenario:
     faults: tuple[FaultInjection, ...]
     max_time: float | None
     """cap on simulated time [s]; None = twice the planned program plus 5 s"""
+    command_output: str = "analog"
+    """``analog``: +-10 V speed commands from the card's PID (drives in velocity mode);
+    ``pulse``: step/direction pulses (drives in position mode, :mod:`cnc_twin.drive`)"""
 
     def axis(self, name: str) -> AxisConfig:
         return self.axes[AXES.index(name)]

@@ -11,7 +11,8 @@ column              unit    meaning
 ``command_<axis>``  counts  fine-interpolated position command
 ``actual_<axis>``   counts  encoder position (32-bit extended QEP)
 ``ferr_<axis>``     counts  following error, command - actual
-``dac_<axis>``      code    DAC code, -2048..2047 (x 10/2048 V)
+``dac_<axis>``      code    DAC code, -2048..2047 (x 10/2048 V); with ``command_output:
+                            pulse``, the step pulses sent in the tick (signed)
 ``pad_force``       N       load cell through the ADC, tared at servo-on
 ``state``           -       controller state (0 IDLE, 1 RUNNING, 2 FEED_HOLD, 3 STOPPING,
                             4 FAULT, 5 FINISHED), per interpolation period
@@ -27,6 +28,7 @@ column              unit    meaning
 ``force_setpoint``  N       force setpoint in effect in the period
 ``force_depth``     m       force loop's push along the tool axis (negative: standing off)
 ``feed_factor``     -       feed adaptation factor (1, or reduced while the force error is large)
+``mark``            -       number of the last Mark record executed (0 before any)
 ==================  ======  ===========================================================
 
 A run directory holds ``scenario.yaml`` (the file as written), ``trace.parquet`` and
@@ -148,7 +150,7 @@ _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "
           "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
           "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",
           "path_u": "1", "path_ds": "m", "force_state": "1", "force_setpoint": "N", "force_depth": "m",
-          "feed_factor": "1"}
+          "feed_factor": "1", "mark": "1"}
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:

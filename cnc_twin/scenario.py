@@ -42,6 +42,7 @@ from cnc_twin.resources import resolve_model_file
 from cnc_twin.schema_base import KeyedValueError as _KeyedValueError
 from cnc_twin.schema_base import PathLimitsSpec
 from cnc_twin.schema_base import Strict as _Strict
+from cnc_twin.scenario_contour import ContourProgramSpec
 from cnc_twin.scenario_surface import SurfacePolishProgram
 
 
@@ -68,6 +69,16 @@ class ServoSpec(_Strict):
     integrator_limit: float = Field(3.0, ge=0, description="clamp on the integrator's contribution [V]")
 
 
+class PulseSpec(_Strict):
+    """Pulse-train output (``command_output: pulse``): the generator's limit and the amplifier
+    in position mode."""
+
+    max_rate: float = Field(500.0, gt=0, description="highest step rate of the card and the drive input [kHz]")
+    position_gain: float = Field(80.0, gt=0, description="the amplifier's position-loop gain [1/s]")
+    velocity_ff: float = Field(1.0, ge=0, le=1.0, description="the amplifier's velocity feed-forward [-]")
+    ff_filter: float = Field(1.0, ge=0, description="feed-forward filter time constant [ms]")
+
+
 class AxisSpec(_Strict):
     """One axis: limits (mm or deg based), encoder, servo gains."""
 
@@ -76,6 +87,7 @@ class AxisSpec(_Strict):
     max_jerk: float = Field(gt=0, description="[mm/s^3] linear, [deg/s^3] rotary")
     encoder: EncoderSpec
     servo: ServoSpec
+    pulse: PulseSpec = PulseSpec()
 
 
 class AxesSpec(_Strict):
@@ -257,7 +269,8 @@ class NurbsCurveProgram(_Strict):
     settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
 
 
-ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram], Field(discriminator="type")]
+ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec],
+                        Field(discriminator="type")]
 
 
 class ScenarioFile(_Strict):
@@ -274,6 +287,9 @@ class ScenarioFile(_Strict):
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)
     max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
+    command_output: Literal["analog", "pulse"] = Field(
+        "analog", description="analog: +-10 V from the card's PID, drives in velocity mode; "
+                              "pulse: step/direction pulses, drives in position mode")
     program: ProgramSpec
 
 
@@ -358,12 +374,18 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     model = load_model(model_path)
     info = model_info(model)
     axes = _convert_axes(spec.axes, info)
+    if spec.command_output == "pulse":
+        _check_pulse_rates(axes, label)
     if isinstance(spec.program, SurfacePolishProgram):
         from cnc_twin import scenario_surface
 
         program = scenario_surface.convert(spec.program, axes, model_path, label)
     elif isinstance(spec.program, NurbsCurveProgram):
         program = _convert_nurbs(spec.program, axes, model, label)
+    elif isinstance(spec.program, ContourProgramSpec):
+        from cnc_twin import scenario_contour
+
+        program = scenario_contour.convert(spec.program, axes, model, info.home, label)
     else:
         program = _convert_program(spec.program, axes, info, label)
     if source_text is None:
@@ -389,6 +411,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         whiteboard=WhiteboardConfig(words=spec.whiteboard.words, chunk_words=spec.whiteboard.chunk // 2),
         faults=tuple(_convert_fault(f) for f in spec.faults),
         max_time=spec.max_time,
+        command_output=spec.command_output,
     )
 
 
@@ -519,9 +542,25 @@ def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],
                 speed_per_volt=info.speed_per_volt[i],
+                pulse_max_rate=a.pulse.max_rate * 1e3,
+                drive_position_gain=a.pulse.position_gain,
+                drive_velocity_ff=a.pulse.velocity_ff,
+                drive_ff_filter=a.pulse.ff_filter * units.MS,
             )
         )
     return tuple(out)
+
+
+def _check_pulse_rates(axes: tuple[AxisConfig, ...], label: Path) -> None:
+    """Pulse output: every axis's top speed must fit its pulse rate limit (the planner plans up to it)."""
+    for cfg in axes:
+        needed = cfg.max_velocity * cfg.counts_per_unit
+        if needed > cfg.pulse_max_rate * (1.0 + 1e-9):
+            speed = cfg.max_velocity * cfg.display_factor * 60.0
+            raise ScenarioError(label, f"axes.{cfg.name}.pulse.max_rate",
+                                f"{cfg.name}'s max_velocity {speed:g} {cfg.display_unit}/min needs "
+                                f"{needed / 1e3:g} kHz of step pulses; the limit is {cfg.pulse_max_rate / 1e3:g} kHz "
+                                f"(raise it or lower max_velocity)")
 
 
 def _convert_nurbs(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label: Path) -> NurbsProgram:

@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_twin.config import NurbsProgram, Scenario, SurfaceProgram
+from cnc_twin.axes import AXES
+from cnc_twin.config import ContourProgram, NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.task import DspTask
@@ -127,10 +128,17 @@ class Twin:
         else:
             self.plant = Plant(load_model(scenario.model_file), timestep=timing.physics_timestep)
         self.servo = ServoTask(
-            scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor
+            scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor,
+            output=scenario.command_output,
         )
+        self.drives = None
+        if scenario.command_output == "pulse":
+            from cnc_twin.drive import PositionModeDrives
+
+            self.drives = PositionModeDrives(scenario.axes, tick=timing.servo_period, power_on=scenario.home)
         self.interpolator = SegmentInterpolator(
-            axes=scenario.axes, power_on=scenario.home, period=timing.interpolation_period
+            axes=scenario.axes, power_on=scenario.home, period=timing.interpolation_period,
+            ticks_per_period=timing.ticks_per_period,
         )
         self.job = PlannerJob(
             program=scenario.program,
@@ -228,6 +236,9 @@ class Twin:
         k = 0
         t = 0
         wall_start = time.perf_counter()
+        drives = self.drives
+        if drives is not None:
+            tick_pulses, drive = servo.tick_pulses, drives.update
         while k < max_periods:
             if self.stop_reason is not None:
                 break
@@ -236,11 +247,19 @@ class Twin:
             dsp.begin_period(k)
             if t + ticks_per_period > len(rows):
                 rows = frames.grow()
-            for j in tick_range:
-                apply_volts(tick(j, axis_positions(), pad_force()))
-                step(substeps)
-                rows[t] = frame
-                t += 1
+            if drives is None:
+                for j in tick_range:
+                    apply_volts(tick(j, axis_positions(), pad_force()))
+                    step(substeps)
+                    rows[t] = frame
+                    t += 1
+            else:  # step pulses -> the amplifiers' position loops -> their speed loops
+                for j in tick_range:
+                    positions = axis_positions()
+                    apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
+                    step(substeps)
+                    rows[t] = frame
+                    t += 1
             k += 1
             if removal_every and k % removal_every == 0:
                 removal.update()
@@ -293,6 +312,9 @@ class Twin:
         port = dsp.port
         latency = np.asarray(port.latency_ns, dtype=np.float64) / 1e3
         metrics["mode"] = sc.timing.mode
+        metrics["command_output"] = sc.command_output
+        if self.drives is not None:
+            metrics["pulse_limited_ticks"] = dict(zip(AXES, self.servo.pulse_limited_ticks))
         metrics["final_state"] = DspState.NAMES[dsp.state]
         metrics["fault"] = None if dsp.fault == FaultCode.NONE else {
             "code": FaultCode.NAMES[dsp.fault], "message": dsp.fault_message, "time_s": dsp.fault_time,
@@ -316,6 +338,10 @@ class Twin:
         if isinstance(sc.program, NurbsProgram):
             metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
                                            plan_us=self.plan_us, plan_blocks=self.plan_blocks)
+        if isinstance(sc.program, ContourProgram):
+            from cnc_twin.contour_metrics import contour_metrics
+
+            metrics["contour"] = contour_metrics(trace, sc)
         if isinstance(sc.program, SurfaceProgram):
             from cnc_twin.polish import force_metrics, preston_by_hand, removal_metrics
 
@@ -346,7 +372,7 @@ def _lookahead_periods(scenario: Scenario) -> int:
     """
     period = scenario.timing.interpolation_period
     periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
-    if periods and isinstance(scenario.program, (NurbsProgram, SurfaceProgram)):
+    if periods and isinstance(scenario.program, (NurbsProgram, SurfaceProgram, ContourProgram)):
         lim = scenario.program.limits
         a, j = lim.tangential_acceleration, lim.tangential_jerk
         stop_time = lim.feed / a + a / j

@@ -37,6 +37,12 @@ ForceControl records wait at the head of the queue until the force loop
 (off); in between the loop's ``depth`` is added along the tool axis every period and its feed
 factor scales the path's speed. Spindle records put C in speed mode: its angle advances by the
 ramped speed each period, on top of every C setpoint.
+
+Step contours (StepContour records, the older cards' point-by-point and DDA interpolation):
+each element runs its own clock along its S-curve (:mod:`cnc_twin.dsp.step_interpolator`) and
+hands the servo task a lattice point for every tick (``tick_commands``); hold and override
+scale that clock like a move's (capped at 1: the S-curve already runs at the programmed feed).
+Mark records set ``mark``, which the trace records.
 """
 
 from __future__ import annotations
@@ -48,14 +54,15 @@ from collections.abc import Sequence
 from cnc_twin.config import AxisConfig
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.force import ForceController, ForceState
+from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.geometry.kinematics import pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
 from cnc_twin.geometry.surface_path import SurfacePathEvaluator
 from cnc_twin.planner.segments import DwellSegment, MoveSegment
 from cnc_twin.whiteboard.records import (
-    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Move,
-    Record, Spindle, SurfaceCurve, SurfaceGeometry,
+    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
+    Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
 SLEW_MARGIN = 0.9
@@ -160,13 +167,18 @@ class SegmentInterpolator:
     axes : the six axes (limits and encoder resolution).
     power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
     period : interpolation period [s].
+    ticks_per_period : servo ticks per period (a step interpolator gives a point for each).
     """
 
-    def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float):
+    def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float,
+                 ticks_per_period: int = 1):
         self.axes = tuple(axes)
         self.counts_per_unit = [a.counts_per_unit for a in axes]
         self.power_on = [float(p) for p in power_on]
         self.period = period
+        self.ticks_per_period = ticks_per_period
+        self.mark = 0
+        """the last Mark record's number (0 before any)"""
         self.programmed = tuple(self.power_on)
         """end position of the last move accepted [m | rad]"""
         self._queue: deque[tuple[int, Record | MoveSegment | DwellSegment]] = deque()
@@ -218,6 +230,9 @@ class SegmentInterpolator:
         """curve parameter at the end of the last period; -1 when not on a curve"""
         self.path_ds = 0.0
         """arc length commanded in the last period [m]"""
+        self.tick_commands: list[list[float]] | None = None
+        """a step interpolator's command for every servo tick of the coming period [counts], or
+        None (the servo task interpolates linearly to the period's setpoint)"""
 
     # --- queue -------------------------------------------------------------------------------
     def push(self, seq: int, record: Record) -> None:
@@ -250,6 +265,15 @@ class SegmentInterpolator:
                 self.programmed = wait.clear_pose
             self._queue.append((seq, wait))
             self._path_open = False
+        elif isinstance(record, StepContour):
+            run = StepRun(record, self._counts_of(self.programmed))
+            run.periods = math.ceil(record.profile.duration / self.period)
+            end = run.end
+            self.programmed = (end[0] / self.counts_per_unit[0] + self.power_on[0],
+                               end[1] / self.counts_per_unit[1] + self.power_on[1], *self.programmed[2:])
+            self._queue.append((seq, run))
+            self._queued_periods += run.periods
+            self._path_open = False
         elif isinstance(record, CurveBlock):
             block = _Block(record, self._pending_curve, self.period)
             self._queue.append((seq, block))
@@ -270,7 +294,7 @@ class SegmentInterpolator:
 
     @property
     def in_motion(self) -> bool:
-        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block))
+        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block, StepRun))
                 and self.override > 0.0)
 
     @property
@@ -322,6 +346,7 @@ class SegmentInterpolator:
         """Commanded position at the end of the coming period [counts], shape ``(6,)``."""
         force = self.force
         depth = force.update(self.measured_force, self.path_s) if force.state != ForceState.OFF else 0.0
+        self.tick_commands = None
         if self._current is None:
             self._start_next()
         self.path_ds = 0.0
@@ -331,6 +356,9 @@ class SegmentInterpolator:
             seq, seg = self._current
             if isinstance(seg, _Block):
                 counts = self._advance_block(seq, seg)
+            elif isinstance(seg, StepRun):
+                self.path_u = -1.0
+                counts = self._advance_steps(seq, seg)
             elif isinstance(seg, _ForceWait):
                 self.path_u = -1.0
                 self._axis = seg.axis
@@ -373,10 +401,13 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
             seq, item = self._queue.popleft()
-            if isinstance(item, (MoveSegment, DwellSegment, _Block)):
+            if isinstance(item, (MoveSegment, DwellSegment, _Block, StepRun)):
                 self._queued_periods -= item.periods
             if isinstance(item, _Block):
                 self._begin_block(seq, item, 0.0)
+            elif isinstance(item, StepRun):
+                self._current = (seq, item)
+                self._tau = 0.0
             elif isinstance(item, (_Curve, _SurfaceRun)):
                 self._curve = item
                 self.last_seq_executed = seq
@@ -405,6 +436,8 @@ class SegmentInterpolator:
             self.force_setpoint = record.newtons
         elif isinstance(record, Spindle):
             self.spindle_on, self.spindle_speed = record.on, record.speed
+        elif isinstance(record, Mark):
+            self.mark = record.number
         elif isinstance(record, EndOfProgram):
             self.finished = True
 
@@ -444,6 +477,23 @@ class SegmentInterpolator:
             return self._counts_of(seg.end)
         s = prof.evaluate(self._tau)[0]
         return [c0 + s * dc for c0, dc in zip(self._start_counts, self._delta_counts)]
+
+    def _advance_steps(self, seq: int, run: StepRun) -> list[float]:
+        """One period of a step interpolator: its lattice point at every tick; the last is the setpoint."""
+        prof = run.profile
+        lam = self.override
+        target = 0.0 if self.hold else min(self.override_target, 1.0)
+        if lam != target:
+            _, v, a = prof.state(self._tau)
+            lam = _slew(lam, target, v, a, prof.a_max, self.period)
+            self.override = lam
+        tau, dt = self._tau, lam * self.period / self.ticks_per_period
+        ticks = [run.point_at(tau + dt * (j + 1)) for j in range(self.ticks_per_period)]
+        self._tau = tau + lam * self.period
+        self.tick_commands = ticks
+        if self._tau >= prof.duration - 1e-9 * self.period:
+            self._complete(seq)
+        return ticks[-1]
 
     def _begin_block(self, seq: int, block: _Block, tau: float) -> None:
         """Make ``block`` the running segment, ``tau`` [s] into its clock (0 at a fresh start;

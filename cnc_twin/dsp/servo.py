@@ -14,6 +14,14 @@ Per servo tick ``j`` of ``n`` in the period (``tick``), for each axis::
     volts    = DAC.write(volts)                              # 12-bit, saturation counted
     force    = ADC.convert(load cell) - tare                 # [N], tare taken on the first tick
 
+A step interpolator (point-by-point, DDA) hands its own lattice point for every tick instead of
+the linear fine interpolation (``begin_period(setpoint, ticks)``).
+
+Pulse output (``tick_pulses``): no PID and no DAC; each axis's step generator
+(:mod:`cnc_twin.dsp.step_output`) emits the pulses that bring its count to the command, and
+the amplifiers, in position mode, close the loop (:mod:`cnc_twin.drive`). The card still reads
+its encoders, for the following error it reports.
+
 The tick fills ``frame`` (a flat list: command x6, actual x6, DAC code x6, force, then the
 per-period fields of ``PERIOD_FIELDS`` that the period task writes) for the recorder, so nothing
 is allocated per tick besides the returned voltages.
@@ -27,13 +35,14 @@ from cnc_twin.dsp.adc import Adc
 from cnc_twin.dsp.dac import Dac12
 from cnc_twin.dsp.encoder import QuadratureEncoder
 from cnc_twin.dsp.pid import PidFF
+from cnc_twin.dsp.step_output import StepGenerator
 from cnc_twin.config import AxisConfig, ForceSensorConfig, Timing
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
 PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchanges", "records_rejected",
                  "last_seq_executed", "path_u", "path_ds", "force_state", "force_setpoint", "force_depth",
-                 "feed_factor")
+                 "feed_factor", "mark")
 """per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 
@@ -46,6 +55,8 @@ class ServoTask:
     timing : the scenario's rates.
     power_on : axis positions when the card powered up [m | rad]; encoders count from here.
     force_sensor : load-cell ADC configuration.
+    output : ``analog`` (PID + DAC per axis, :meth:`tick`) or ``pulse`` (step generators,
+        :meth:`tick_pulses`; the ``dac`` slots of ``frame`` then hold the pulses of the tick).
     """
 
     def __init__(
@@ -55,6 +66,7 @@ class ServoTask:
         timing: Timing,
         power_on: Sequence[float],
         force_sensor: ForceSensorConfig,
+        output: str = "analog",
     ):
         self.n_axes = len(axes)
         self.ticks_per_period = timing.ticks_per_period
@@ -84,9 +96,19 @@ class ServoTask:
         self.period_slot = len(FRAME_FIELDS) * n + 1
         """index in ``frame`` of the first per-period field"""
         self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
+        self.output = output
+        self.steppers = [StepGenerator(cfg.pulse_max_rate, timing.servo_period) for cfg in axes] \
+            if output == "pulse" else []
+        self._pulse_channels = list(zip(range(n), self.encoders, self.steppers))
+        self._tick_commands: list[list[float]] | None = None
 
-    def begin_period(self, setpoint: Sequence[float]) -> None:
-        """Latch the next period's end setpoint [counts] and derive the feed-forward terms."""
+    def begin_period(self, setpoint: Sequence[float], ticks: list[list[float]] | None = None) -> None:
+        """Latch the next period's end setpoint [counts] and derive the feed-forward terms.
+
+        ``ticks`` (optional, one command per tick, each shape ``(6,)`` [counts]) replaces the
+        linear fine interpolation for this period: a step interpolator's own lattice points.
+        """
+        self._tick_commands = ticks
         inv_t = self._inv_period
         self._p_prev = self._p_next
         self._p_next = list(setpoint)
@@ -111,18 +133,44 @@ class ServoTask:
         frame = self.frame
         n = self.n_axes
         volts = [0.0] * n
+        ticks = self._tick_commands
         for i, encoder, loop, dac in self._channels:
-            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac
+            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac if ticks is None else ticks[j][i]
             actual = encoder.sample(positions[i])
             volts[i] = dac.write(loop.update(command, actual, vel[i], acc[i]))
             frame[i] = command
             frame[n + i] = actual
             frame[2 * n + i] = dac.code
+        self._read_force(pad_force)
+        return volts
+
+    def tick_pulses(self, j: int, positions: Sequence[float], pad_force: float) -> list[int]:
+        """One servo interrupt in pulse output: the step pulses per axis for tick ``j`` (signed)."""
+        frac = self._fractions[j]
+        p_prev, p_next = self._p_prev, self._p_next
+        frame = self.frame
+        n = self.n_axes
+        pulses = [0] * n
+        ticks = self._tick_commands
+        for i, encoder, stepper in self._pulse_channels:
+            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac if ticks is None else ticks[j][i]
+            pulses[i] = stepper.emit(command)
+            frame[i] = command
+            frame[n + i] = encoder.sample(positions[i])
+            frame[2 * n + i] = pulses[i]
+        self._read_force(pad_force)
+        return pulses
+
+    def _read_force(self, pad_force: float) -> None:
         measured = self.force_adc.convert(pad_force)
         if self._force_tare is None:
             self._force_tare = measured
-        frame[3 * n] = measured - self._force_tare
-        return volts
+        self.frame[3 * self.n_axes] = measured - self._force_tare
+
+    @property
+    def pulse_limited_ticks(self) -> list[int]:
+        """Ticks each step generator spent at its rate limit, per axis (pulse output)."""
+        return [s.limited_ticks for s in self.steppers]
 
     @property
     def dac_saturations(self) -> list[int]:

@@ -96,7 +96,7 @@ class DspTask:
             self.interpolator_ns.append(perf_counter_ns() - started)
         else:
             setpoint = interp.next_period()
-        self.servo.begin_period(setpoint)
+        self.servo.begin_period(setpoint, interp.tick_commands)
         self._update_state()
         frame, base = self.servo.frame, self.servo.period_slot
         frame[base] = self.state
@@ -113,6 +113,7 @@ class DspTask:
         frame[base + 10] = force.target
         frame[base + 11] = force.depth
         frame[base + 12] = force.feed_factor
+        frame[base + 13] = interp.mark
 
     def raise_fault(self, code: int, message: str, k: int) -> None:
         """Record a fault and start a controlled stop (the first fault wins)."""

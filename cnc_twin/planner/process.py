@@ -31,14 +31,16 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from cnc_twin.config import AxisConfig, FaultInjection, NurbsProgram, PointToPoint, SurfaceProgram
+from cnc_twin.config import AxisConfig, ContourProgram, FaultInjection, NurbsProgram, PointToPoint, SurfaceProgram
 from cnc_twin.planner.ptp import plan_move, plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbell
 from cnc_twin.whiteboard.ports import PcPort
-from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, Dwell, EndOfProgram, Move, Record, encode
+from cnc_twin.whiteboard.records import (
+    CurveBlock, CurveGeometry, Dwell, EndOfProgram, Move, Record, StepContour, encode,
+)
 from cnc_twin.whiteboard.status import DspState
 
 
@@ -46,7 +48,7 @@ from cnc_twin.whiteboard.status import DspState
 class PlannerJob:
     """Everything the planner process needs, as plain picklable data."""
 
-    program: PointToPoint | NurbsProgram | SurfaceProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram
     axes: tuple[AxisConfig, ...]
     home: tuple[float, ...]
     period: float
@@ -127,7 +129,12 @@ class Program:
         self.job = job
         self.segments: list[Segment] | None = None
         self.surface = None
-        if isinstance(job.program, SurfaceProgram):
+        self.contour = None
+        if isinstance(job.program, ContourProgram):
+            from cnc_twin.planner.contour_program import ContourPlan
+
+            self.contour = ContourPlan(job.program, job.axes, job.home, job.period)
+        elif isinstance(job.program, SurfaceProgram):
             from cnc_twin.planner.surface_program import SurfacePlan
 
             self.surface = SurfacePlan(job.program, job.axes, job.home, job.period)
@@ -145,6 +152,8 @@ class Program:
 
         if self.surface is not None:
             return self.surface.estimated_periods
+        if self.contour is not None:
+            return self.contour.estimated_periods
         if self.segments is not None:
             return sum(seg.periods for seg in self.segments)
         prog, period = self.job.program, self.job.period
@@ -155,6 +164,9 @@ class Program:
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
         if self.surface is not None:
             yield from self.surface.chunks()
+            return
+        if self.contour is not None:
+            yield from self.contour.chunks()
             return
         if self.segments is not None:
             yield segments_to_records(self.segments)
@@ -191,7 +203,7 @@ def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
     for chunk, chunk_periods in Program(job).chunks():
         records += chunk
         periods += chunk_periods
-    return records, periods, sum(isinstance(r, (Move, CurveBlock)) for r in records)
+    return records, periods, sum(isinstance(r, (Move, CurveBlock, StepContour)) for r in records)
 
 
 class Feeder:

@@ -43,6 +43,10 @@ type   record           payload                                                 
                         seek_speed, standoff, contact_threshold, kp, ki, max_depth,
                         retract_speed, adapt_threshold, adapt_feed, adapt_hold f64
                         x12; profile (path length [m], force [N]) f64 x 2n
+13     StepContour      method, kind, clockwise, pad, dda bits, pad u16 x6; start,   42
+                        end, centre (X, Y) i32 x6 [counts from power-on]; the step
+                        clock's S-curve: length, v0, vp, v1, a_max, j_max f64 x6
+14     Mark             number u32 (0 = none): a program mark the trace records    2
 =====  ===============  =========================================================  ======
 
 DataBlock, CurveGeometry and the surface records have variable length: their span is fixed by the length and its
@@ -174,8 +178,41 @@ class ForceControlRecord:
     params: ForceControl
 
 
+
+@dataclass(frozen=True)
+class StepContour:
+    """A line or arc in the X/Y plane for the older cards' step interpolators, in pulses.
+
+    ``method`` is ``STEP_POINT_BY_POINT`` or ``STEP_DDA``; ``kind`` ``STEP_LINE`` or ``STEP_ARC``.
+    Points are lattice points [counts from the encoders' power-on position]; ``start == end`` on
+    an arc is a full circle. ``profile`` is the rest-to-rest S-curve over the element's length
+    [m] that clocks the interpolator (its cycles follow the profile's path position).
+    ``dda_bits`` is the register length, 0 = the smallest that holds the element.
+    """
+
+    method: int
+    kind: int
+    start: tuple[int, int]
+    end: tuple[int, int]
+    center: tuple[int, int]
+    clockwise: bool
+    profile: SCurve
+    dda_bits: int = 0
+
+
+STEP_POINT_BY_POINT, STEP_DDA = 1, 2
+STEP_LINE, STEP_ARC = 1, 2
+
+
+@dataclass(frozen=True)
+class Mark:
+    """A program mark (like an N number): the card shows it in the trace from here on."""
+
+    number: int
+
+
 Record = (Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
-          | SurfaceCurve | ForceControlRecord)
+          | SurfaceCurve | ForceControlRecord | StepContour | Mark)
 
 _MOVE = struct.Struct("<6d4dI")
 _DWELL = struct.Struct("<I")
@@ -184,11 +221,14 @@ _SPINDLE = struct.Struct("<HHd")
 _HEADER = struct.Struct("<HHHI")
 
 _TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7,
-            CurveGeometry: 8, CurveBlock: 9, SurfaceGeometry: 10, SurfaceCurve: 11, ForceControlRecord: 12}
+            CurveGeometry: 8, CurveBlock: 9, SurfaceGeometry: 10, SurfaceCurve: 11, ForceControlRecord: 12,
+            StepContour: 13, Mark: 14}
+_STEP_CONTOUR = struct.Struct("<6H6i6d")
+_MARK = struct.Struct("<I")
 _CURVE_HEAD = struct.Struct("<HHHH3d")
 _CURVE_BLOCK = struct.Struct("<6d")
 _PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0,
-                  9: _CURVE_BLOCK.size // 2}
+                  9: _CURVE_BLOCK.size // 2, 13: _STEP_CONTOUR.size // 2, 14: _MARK.size // 2}
 _DATA_BLOCK = 7
 _CURVE_GEOMETRY = 8
 _SURFACE, _SURFACE_CURVE, _FORCE = 10, 11, 12
@@ -259,6 +299,13 @@ def _payload(record: Record) -> bytes:
         if f.profile:
             body += np.asarray(f.profile, "<f8").ravel().tobytes()
         return _checked_size(body, f"force profile of {len(f.profile)} points")
+    if isinstance(record, StepContour):
+        p = record.profile
+        return _STEP_CONTOUR.pack(record.method, record.kind, 1 if record.clockwise else 0, 0, record.dda_bits, 0,
+                                  *record.start, *record.end, *record.center,
+                                  p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
+    if isinstance(record, Mark):
+        return _MARK.pack(record.number)
     raise TypeError(f"not a record: {record!r}")
 
 
@@ -405,6 +452,12 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
         record = _decode_curve(bytes(payload))
     elif kind == 9:
         record = CurveBlock(SCurve(*_CURVE_BLOCK.unpack(payload)))
+    elif kind == 13:
+        v = _STEP_CONTOUR.unpack(payload)
+        record = StepContour(method=v[0], kind=v[1], clockwise=bool(v[2]), dda_bits=v[4], start=v[6:8],
+                             end=v[8:10], center=v[10:12], profile=SCurve(*v[12:18]))
+    elif kind == 14:
+        record = Mark(number=_MARK.unpack(payload)[0])
     elif kind == _SURFACE:
         record = _decode_surface(bytes(payload))
     elif kind == _SURFACE_CURVE:
