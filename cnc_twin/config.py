@@ -67,6 +67,10 @@ class AxisConfig:
     """pulse output: the amplifier's velocity feed-forward [-]"""
     drive_ff_filter: float = 1e-3
     """pulse output: time constant of the amplifier's feed-forward filter [s]"""
+    index_period: float = 0.0
+    """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
+    index_offset: float = 0.0
+    """position of one index pulse [m | rad]"""
 
     @property
     def display_factor(self) -> float:
@@ -216,6 +220,42 @@ class ContourProgram:
     """[s] at the start before each pass"""
     settle: float
     """[s] after the last pass"""
+
+
+@dataclass(frozen=True)
+class ChipStep:
+    """One motion-chip command in counts (see :class:`cnc_twin.whiteboard.records.ChipCommand`),
+    or a dwell (``op == "dwell"``)."""
+
+    op: str
+    """``index``, ``linear``, ``jog``, ``home`` or ``dwell``"""
+    axis: int = 0
+    deltas: tuple[int, int, int] = (0, 0, 0)
+    """linear: [counts] X, Y, Z"""
+    distance: int = 0
+    """index: [counts] on ``axis``"""
+    speed: float = 0.0
+    """[counts/s]; signed for jog"""
+    creep: float = 0.0
+    """home return's creep speed [counts/s]"""
+    accel: float = 0.0
+    """[counts/s^2]"""
+    jerk: float = 0.0
+    """[counts/s^3]"""
+    time: float = 0.0
+    """jog duration or dwell [s]"""
+    span: float = 0.0
+    """home return: the axis's travel [counts], for the time estimate"""
+
+
+@dataclass(frozen=True)
+class MotionChipProgram:
+    """Commands for the card's motion chip, in order; every profile of one kind."""
+
+    profile: str
+    """``constant``, ``trapezoid`` or ``s_curve``"""
+    commands: tuple[ChipStep, ...]
+    settle: float
 
 
 @dataclass(frozen=True)
@@ -379,7 +419,7 @@ class Scenario:
     axes: tuple[AxisConfig, ...]
     """in X Y Z A B C order"""
     force_sensor: ForceSensorConfig
-    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
     planner: PlannerConfig

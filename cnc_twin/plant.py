@@ -24,6 +24,10 @@ PAD_FORCE_SENSOR = "pad_force"
 TOOL_POS_SENSOR = "tool_pos"
 HOME_KEYFRAME = "home"
 
+SWITCH_HOME, SWITCH_LIMIT_POS, SWITCH_LIMIT_NEG = 1, 2, 4
+"""bits of an axis's switch inputs (:meth:`Plant.switch_inputs`)"""
+_SWITCH_SENSORS = (("home", SWITCH_HOME, 1.0), ("lim_pos", SWITCH_LIMIT_POS, 1.0), ("lim_neg", SWITCH_LIMIT_NEG, -1.0))
+
 
 @dataclass(frozen=True)
 class ModelInfo:
@@ -122,6 +126,14 @@ class Plant:
         self._ctrl = self.data.ctrl
         self._sensordata = self.data.sensordata
         self._n_drives = len(AXES)
+        # Switches (optional in a model): framepos of the axis's dog in the switch's frame; the
+        # switch is on when the dog is past it: coordinate along the axis >= 0 (<= 0 for -limit).
+        self._switches = []
+        for i, axis in enumerate(AXES[:3]):
+            for suffix, bit, sign in _SWITCH_SENSORS:
+                sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{axis.lower()}_{suffix}")
+                if sid >= 0:
+                    self._switches.append((i, bit, int(model.sensor_adr[sid]) + i, sign))
         self.reset()
 
     def reset(self) -> None:
@@ -152,6 +164,15 @@ class Plant:
         is flipped. With no contact it reads minus the pad's weight (about -1.5 N) when vertical.
         """
         return -float(self._sensordata[self._force_z_adr])
+
+    def switch_inputs(self) -> list[int]:
+        """Home and limit switch states per axis, shape ``(6,)``: bits ``SWITCH_*`` (0 without switches)."""
+        out = [0] * self._n_drives
+        data = self._sensordata
+        for i, bit, adr, sign in self._switches:
+            if sign * data[adr] >= 0.0:
+                out[i] |= bit
+        return out
 
     def tool_position(self) -> np.ndarray:
         """Tool-tip (pad face centre) position in the world frame [m], shape ``(3,)``."""

@@ -29,6 +29,8 @@ column              unit    meaning
 ``force_depth``     m       force loop's push along the tool axis (negative: standing off)
 ``feed_factor``     -       feed adaptation factor (1, or reduced while the force error is large)
 ``mark``            -       number of the last Mark record executed (0 before any)
+``events``          -       motion-chip events raised in the period: bits ``event << 4 axis``
+                            (1 motion done, 2 home found, 4 + limit, 8 - limit; :mod:`cnc_twin.dsp.chip`)
 ==================  ======  ===========================================================
 
 A run directory holds ``scenario.yaml`` (the file as written), ``trace.parquet`` and
@@ -150,7 +152,7 @@ _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "
           "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
           "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",
           "path_u": "1", "path_ds": "m", "force_state": "1", "force_setpoint": "N", "force_depth": "m",
-          "feed_factor": "1", "mark": "1"}
+          "feed_factor": "1", "mark": "1", "events": "1"}
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:

@@ -17,6 +17,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
+import mujoco
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -42,6 +43,7 @@ from cnc_twin.resources import resolve_model_file
 from cnc_twin.schema_base import KeyedValueError as _KeyedValueError
 from cnc_twin.schema_base import PathLimitsSpec
 from cnc_twin.schema_base import Strict as _Strict
+from cnc_twin.scenario_chip import MotionChipProgramSpec
 from cnc_twin.scenario_contour import ContourProgramSpec
 from cnc_twin.scenario_surface import SurfacePolishProgram
 
@@ -55,6 +57,7 @@ class EncoderSpec(_Strict):
     lines_per_rev: int = Field(gt=0, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
     gear_ratio: float = Field(1.0, gt=0, description="motor revolutions per screw (linear) or axis (rotary) revolution")
     pitch: float | None = Field(None, gt=0, description="ball-screw lead [mm per screw revolution]; linear axes only")
+    index_offset: float = Field(0.0, description="where one of the index pulses (one per motor revolution) is [mm | deg]")
 
 
 class ServoSpec(_Strict):
@@ -269,7 +272,8 @@ class NurbsCurveProgram(_Strict):
     settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
 
 
-ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec],
+ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec,
+                              MotionChipProgramSpec],
                         Field(discriminator="type")]
 
 
@@ -386,6 +390,13 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         from cnc_twin import scenario_contour
 
         program = scenario_contour.convert(spec.program, axes, model, info.home, label)
+    elif isinstance(spec.program, MotionChipProgramSpec):
+        from cnc_twin import scenario_chip
+
+        def has_home_switch(i: int) -> bool:
+            return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{AXES[i].lower()}_home") >= 0
+
+        program = scenario_chip.convert(spec.program, axes, has_home_switch, label)
     else:
         program = _convert_program(spec.program, axes, info, label)
     if source_text is None:
@@ -520,6 +531,13 @@ def _counts_per_unit(axis: str, enc: EncoderSpec) -> float:
     return counts_per_motor_rev * enc.gear_ratio / (enc.pitch * units.MM)
 
 
+def _index_period(axis: str, enc: EncoderSpec) -> float:
+    """One motor revolution at the axis [m | rad]: the distance between index pulses."""
+    if is_rotary(axis):
+        return 2.0 * math.pi / enc.gear_ratio
+    return enc.pitch * units.MM / enc.gear_ratio
+
+
 def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
     out = []
     for i, axis in enumerate(AXES):
@@ -546,6 +564,8 @@ def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
                 drive_position_gain=a.pulse.position_gain,
                 drive_velocity_ff=a.pulse.velocity_ff,
                 drive_ff_filter=a.pulse.ff_filter * units.MS,
+                index_period=_index_period(axis, a.encoder),
+                index_offset=a.encoder.index_offset * units.position_factor(rotary),
             )
         )
     return tuple(out)

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.axes import AXES
-from cnc_twin.config import ContourProgram, NurbsProgram, Scenario, SurfaceProgram
+from cnc_twin.config import ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.task import DspTask
@@ -185,8 +185,10 @@ class Twin:
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
             self.port, self.process = port, process  # for observers (diagnostics, tests)
+            # the card reads its switch inputs only where a program uses them (motion-chip commands)
+            inputs = self.plant.switch_inputs if isinstance(sc.program, MotionChipProgram) else None
             dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
-                          period=sc.timing.interpolation_period)
+                          period=sc.timing.interpolation_period, read_inputs=inputs)
             try:
                 planned = port.wait_ready(sc.planner.start_timeout)
             except PlannerLost as exc:
@@ -338,6 +340,17 @@ class Twin:
         if isinstance(sc.program, NurbsProgram):
             metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
                                            plan_us=self.plan_us, plan_blocks=self.plan_blocks)
+        if dsp.event_log:
+            from cnc_twin.dsp.chip import EVENT_NAMES
+
+            def shown(axis: int, count: int) -> float:  # [mm | deg]
+                cfg = sc.axes[axis]
+                return (count / cfg.counts_per_unit + sc.home[axis]) * cfg.display_factor
+
+            metrics["events"] = [
+                {"time_s": t, "axis": AXES[axis], "event": EVENT_NAMES[code], "count": value,
+                 "position": shown(axis, value)}
+                for t, axis, code, value in dsp.event_log]
         if isinstance(sc.program, ContourProgram):
             from cnc_twin.contour_metrics import contour_metrics
 

@@ -10,15 +10,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cnc_twin.dsp.profiles import Trapezoid
+from cnc_twin.dsp.scurve import SCurve
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.records import (
-    MAX_RECORD_WORDS, DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Move, RecordError, Spindle, crc16, decode,
-    encode,
+    MAX_RECORD_WORDS, DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Mark, Move, RecordError, Spindle,
+    StepContour, crc16, decode, encode,
 )
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 seqs = st.integers(min_value=0, max_value=2**32 - 1)
+i32 = st.integers(-2**31, 2**31 - 1)
 
 moves = st.builds(
     Move,
@@ -33,6 +35,13 @@ records = st.one_of(
     st.builds(ForceSetpoint, newtons=finite),
     st.builds(Spindle, on=st.booleans(), speed=finite),
     st.just(EndOfProgram()),
+    st.builds(Mark, number=st.integers(0, 2**32 - 1)),
+    st.builds(
+        StepContour, method=st.sampled_from([1, 2]), kind=st.sampled_from([1, 2]),
+        start=st.tuples(i32, i32), end=st.tuples(i32, i32), center=st.tuples(i32, i32), clockwise=st.booleans(),
+        profile=st.builds(lambda length, v: SCurve.plan(length, 0.0, 0.0, v_max=v, a_max=2.0, j_max=50.0),
+                          st.floats(1e-6, 1.0), st.floats(1e-3, 0.5)),
+        dda_bits=st.integers(0, 30)),
 )
 
 

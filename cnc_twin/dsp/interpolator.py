@@ -43,6 +43,11 @@ each element runs its own clock along its S-curve (:mod:`cnc_twin.dsp.step_inter
 hands the servo task a lattice point for every tick (``tick_commands``); hold and override
 scale that clock like a move's (capped at 1: the S-curve already runs at the programmed feed).
 Mark records set ``mark``, which the trace records.
+
+Motion-chip commands (ChipCommand, :mod:`cnc_twin.dsp.chip`) run one chip cycle per period from
+where the axes are commanded when they start; they read the switch ``inputs`` and the encoder
+counts ``actual`` the period task hands in, and raise ``events``. A program of chip commands
+holds no Move records (a chip command's end is known only when it ends).
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ from collections.abc import Sequence
 
 from cnc_twin.config import AxisConfig
 from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.geometry.kinematics import pose_to_axes
@@ -61,7 +67,7 @@ from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
 from cnc_twin.geometry.surface_path import SurfacePathEvaluator
 from cnc_twin.planner.segments import DwellSegment, MoveSegment
 from cnc_twin.whiteboard.records import (
-    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
+    ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
@@ -179,6 +185,14 @@ class SegmentInterpolator:
         self.ticks_per_period = ticks_per_period
         self.mark = 0
         """the last Mark record's number (0 before any)"""
+        self.inputs = [0] * len(axes)
+        """switch inputs per axis, set by the period task (:data:`cnc_twin.plant.SWITCH_HOME` ...)"""
+        self.actual = [0] * len(axes)
+        """encoder counts per axis at the last tick, set by the period task"""
+        self.events: list[tuple[int, int, int]] = []
+        """``(axis, event bit, value)`` raised in the last period (:mod:`cnc_twin.dsp.chip`)"""
+        self.index_marks = [IndexMarks(a.counts_per_unit, a.index_period, a.index_offset, p)
+                            if a.index_period > 0 else None for a, p in zip(axes, power_on)]
         self.programmed = tuple(self.power_on)
         """end position of the last move accepted [m | rad]"""
         self._queue: deque[tuple[int, Record | MoveSegment | DwellSegment]] = deque()
@@ -294,7 +308,7 @@ class SegmentInterpolator:
 
     @property
     def in_motion(self) -> bool:
-        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block, StepRun))
+        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block, StepRun, ChipRun))
                 and self.override > 0.0)
 
     @property
@@ -335,7 +349,7 @@ class SegmentInterpolator:
             seg = self._current[1]
             if isinstance(seg, DwellSegment):
                 left = self._dwell_left
-            elif isinstance(seg, _ForceWait):  # as long as force control needs: not motion the planner queued
+            elif isinstance(seg, (_ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
                 left = 0
             else:  # move or curve block
                 left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
@@ -347,6 +361,7 @@ class SegmentInterpolator:
         force = self.force
         depth = force.update(self.measured_force, self.path_s) if force.state != ForceState.OFF else 0.0
         self.tick_commands = None
+        self.events = []
         if self._current is None:
             self._start_next()
         self.path_ds = 0.0
@@ -359,6 +374,14 @@ class SegmentInterpolator:
             elif isinstance(seg, StepRun):
                 self.path_u = -1.0
                 counts = self._advance_steps(seq, seg)
+            elif isinstance(seg, ChipRun):
+                self.path_u = -1.0
+                counts = list(seg.step(self.inputs, self.actual))
+                self.events = seg.events
+                if seg.done:
+                    self._complete(seq)
+                    self.programmed = tuple(c / cpu + zero for c, cpu, zero
+                                            in zip(counts, self.counts_per_unit, self.power_on))
             elif isinstance(seg, _ForceWait):
                 self.path_u = -1.0
                 self._axis = seg.axis
@@ -371,7 +394,7 @@ class SegmentInterpolator:
             elif isinstance(seg, DwellSegment):
                 self.path_u = -1.0
                 self._dwell_left -= 1
-                counts = self._counts_of(seg.position)
+                counts = list(self._hold_counts)  # where the axes are commanded (a chip command's end too)
                 if self._dwell_left <= 0:
                     self._complete(seq)
             else:
@@ -408,6 +431,8 @@ class SegmentInterpolator:
             elif isinstance(item, StepRun):
                 self._current = (seq, item)
                 self._tau = 0.0
+            elif isinstance(item, ChipCommand):  # starts from where the axes are commanded now
+                self._current = (seq, ChipRun(item, list(self._hold_counts), dt=self.period, marks=self.index_marks))
             elif isinstance(item, (_Curve, _SurfaceRun)):
                 self._curve = item
                 self.last_seq_executed = seq

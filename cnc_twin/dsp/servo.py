@@ -42,7 +42,7 @@ FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
 PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchanges", "records_rejected",
                  "last_seq_executed", "path_u", "path_ds", "force_state", "force_setpoint", "force_depth",
-                 "feed_factor", "mark")
+                 "feed_factor", "mark", "events")
 """per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 

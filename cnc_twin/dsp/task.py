@@ -27,6 +27,7 @@ from __future__ import annotations
 from array import array
 from time import perf_counter_ns
 
+from cnc_twin.dsp.chip import EVENT_HOME_FOUND
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
@@ -52,7 +53,8 @@ class DspTask:
     period : interpolation period [s].
     """
 
-    def __init__(self, *, servo: ServoTask, interpolator: SegmentInterpolator, port: DspPort, period: float):
+    def __init__(self, *, servo: ServoTask, interpolator: SegmentInterpolator, port: DspPort, period: float,
+                 read_inputs=None):
         self.servo = servo
         self.interpolator = interpolator
         self.port = port
@@ -66,6 +68,14 @@ class DspTask:
         self.records_rejected = 0
         self.underrun_periods = 0
         self.planner_lost = False
+        self.read_inputs = read_inputs
+        """callable returning the switch inputs per axis (the card's digital inputs), or None"""
+        self.event_log: list[tuple[float, int, int, int]] = []
+        """``(time [s], axis, event bit, value)`` of every event (:mod:`cnc_twin.dsp.chip`)"""
+        self.pending_events = [0] * servo.n_axes
+        """event bits per axis raised since the last published status"""
+        self.index_latch = [0] * servo.n_axes
+        """the last count latched at an index pulse by a home return, per axis"""
         self.interpolator_ns = array("q")
         """wall-clock cost of each coarse interpolation period on a curve [ns] (metrics only)"""
 
@@ -89,7 +99,11 @@ class DspTask:
         if acquired:
             self._publish(k)
         interp = self.interpolator
-        interp.measured_force = self.servo.frame[3 * self.servo.n_axes]
+        n = self.servo.n_axes
+        interp.measured_force = self.servo.frame[3 * n]
+        if self.read_inputs is not None:
+            interp.inputs = self.read_inputs()
+            interp.actual = self.servo.frame[n:2 * n]
         if interp.path_u >= 0.0 or interp.on_curve:
             started = perf_counter_ns()
             setpoint = interp.next_period()
@@ -114,6 +128,14 @@ class DspTask:
         frame[base + 11] = force.depth
         frame[base + 12] = force.feed_factor
         frame[base + 13] = interp.mark
+        bits = 0
+        for axis, code, value in interp.events:
+            self.event_log.append((k * self.period, axis, code, value))
+            self.pending_events[axis] |= code
+            bits |= code << (4 * axis)
+            if code == EVENT_HOME_FOUND:
+                self.index_latch[axis] = value
+        frame[base + 14] = bits
 
     def raise_fault(self, code: int, message: str, k: int) -> None:
         """Record a fault and start a controlled stop (the first fault wins)."""
@@ -174,4 +196,6 @@ class DspTask:
             self.records_accepted, self.records_rejected, port.missed_exchanges, self.underrun_periods,
             interp.queued_periods, k * self.period, interp.override, frame[3 * n],
             *frame[0:3 * n], *map(float.__sub__, frame[0:n], frame[n:2 * n]),
+            *self.pending_events, *self.index_latch,
         ))
+        self.pending_events = [0] * n

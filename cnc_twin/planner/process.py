@@ -31,7 +31,9 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from cnc_twin.config import AxisConfig, ContourProgram, FaultInjection, NurbsProgram, PointToPoint, SurfaceProgram
+from cnc_twin.config import (
+    AxisConfig, ContourProgram, FaultInjection, MotionChipProgram, NurbsProgram, PointToPoint, SurfaceProgram,
+)
 from cnc_twin.planner.ptp import plan_move, plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
@@ -48,7 +50,7 @@ from cnc_twin.whiteboard.status import DspState
 class PlannerJob:
     """Everything the planner process needs, as plain picklable data."""
 
-    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram
     axes: tuple[AxisConfig, ...]
     home: tuple[float, ...]
     period: float
@@ -130,7 +132,11 @@ class Program:
         self.segments: list[Segment] | None = None
         self.surface = None
         self.contour = None
-        if isinstance(job.program, ContourProgram):
+        if isinstance(job.program, MotionChipProgram):
+            from cnc_twin.planner.chip_program import ChipPlan
+
+            self.contour = ChipPlan(job.program, job.period)  # same interface: estimated_periods, chunks()
+        elif isinstance(job.program, ContourProgram):
             from cnc_twin.planner.contour_program import ContourPlan
 
             self.contour = ContourPlan(job.program, job.axes, job.home, job.period)

@@ -47,6 +47,9 @@ type   record           payload                                                 
                         end, centre (X, Y) i32 x6 [counts from power-on]; the step
                         clock's S-curve: length, v0, vp, v1, a_max, j_max f64 x6
 14     Mark             number u32 (0 = none): a program mark the trace records    2
+15     ChipCommand      op, axis, profile, pad u16 x4; deltas X Y Z, distance i32 x4 32
+                        [counts]; speed, creep [counts/s], accel [counts/s^2],
+                        jerk [counts/s^3], time [s] f64 x5
 =====  ===============  =========================================================  ======
 
 DataBlock, CurveGeometry and the surface records have variable length: their span is fixed by the length and its
@@ -211,8 +214,35 @@ class Mark:
     number: int
 
 
+@dataclass(frozen=True)
+class ChipCommand:
+    """A motion-chip command (the 4-axis chip's own profiles, in pulses; see
+    :mod:`cnc_twin.dsp.chip`). ``op`` is one of ``CHIP_*``; ``profile`` ``CHIP_CONSTANT`` (no
+    ramps), ``CHIP_TRAPEZOID`` (``accel``) or ``CHIP_S_CURVE`` (``accel`` and ``jerk``).
+
+    index:  ``distance`` pulses on ``axis`` at ``speed``;  linear: ``deltas`` (X, Y, Z) along a line at ``speed``;
+    jog:    at ``speed`` (signed) for ``time`` seconds, then stop;
+    home:   to the home switch at ``speed``, off it at ``creep``, on to the encoder index, latch, return.
+    """
+
+    op: int
+    axis: int
+    profile: int
+    deltas: tuple[int, int, int]
+    speed: float
+    distance: int = 0
+    creep: float = 0.0
+    accel: float = 0.0
+    jerk: float = 0.0
+    time: float = 0.0
+
+
+CHIP_INDEX, CHIP_LINEAR, CHIP_JOG, CHIP_HOME = 1, 2, 3, 4
+CHIP_CONSTANT, CHIP_TRAPEZOID, CHIP_S_CURVE = 0, 1, 2
+
+
 Record = (Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
-          | SurfaceCurve | ForceControlRecord | StepContour | Mark)
+          | SurfaceCurve | ForceControlRecord | StepContour | Mark | ChipCommand)
 
 _MOVE = struct.Struct("<6d4dI")
 _DWELL = struct.Struct("<I")
@@ -222,13 +252,15 @@ _HEADER = struct.Struct("<HHHI")
 
 _TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7,
             CurveGeometry: 8, CurveBlock: 9, SurfaceGeometry: 10, SurfaceCurve: 11, ForceControlRecord: 12,
-            StepContour: 13, Mark: 14}
+            StepContour: 13, Mark: 14, ChipCommand: 15}
+_CHIP = struct.Struct("<4H4i5d")
 _STEP_CONTOUR = struct.Struct("<6H6i6d")
 _MARK = struct.Struct("<I")
 _CURVE_HEAD = struct.Struct("<HHHH3d")
 _CURVE_BLOCK = struct.Struct("<6d")
 _PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPINDLE.size // 2, 6: 0,
-                  9: _CURVE_BLOCK.size // 2, 13: _STEP_CONTOUR.size // 2, 14: _MARK.size // 2}
+                  9: _CURVE_BLOCK.size // 2, 13: _STEP_CONTOUR.size // 2, 14: _MARK.size // 2,
+                  15: _CHIP.size // 2}
 _DATA_BLOCK = 7
 _CURVE_GEOMETRY = 8
 _SURFACE, _SURFACE_CURVE, _FORCE = 10, 11, 12
@@ -306,6 +338,9 @@ def _payload(record: Record) -> bytes:
                                   p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
     if isinstance(record, Mark):
         return _MARK.pack(record.number)
+    if isinstance(record, ChipCommand):
+        return _CHIP.pack(record.op, record.axis, record.profile, 0, *record.deltas, record.distance,
+                          record.speed, record.creep, record.accel, record.jerk, record.time)
     raise TypeError(f"not a record: {record!r}")
 
 
@@ -458,6 +493,10 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
                              end=v[8:10], center=v[10:12], profile=SCurve(*v[12:18]))
     elif kind == 14:
         record = Mark(number=_MARK.unpack(payload)[0])
+    elif kind == 15:
+        v = _CHIP.unpack(payload)
+        record = ChipCommand(op=v[0], axis=v[1], profile=v[2], deltas=v[4:7], distance=v[7], speed=v[8], creep=v[9], accel=v[10],
+                             jerk=v[11], time=v[12])
     elif kind == _SURFACE:
         record = _decode_surface(bytes(payload))
     elif kind == _SURFACE_CURVE:

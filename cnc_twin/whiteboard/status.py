@@ -24,6 +24,9 @@ command                f64 x6      commanded position [counts]
 actual                 i32 x6      encoder position [counts]
 dac                    i16 x6      DAC code
 following_error        f64 x6      command - actual [counts]
+events                 u16 x6      motion-chip event bits raised since the last status
+                                   (1 motion done, 2 home found, 4 + limit, 8 - limit)
+index_latch            i32 x6      count latched at the index pulse by the last home return
 =====================  ==========  ===============================================================
 """
 
@@ -53,6 +56,8 @@ STATUS_DTYPE = np.dtype(
         ("actual", "<i4", (6,)),
         ("dac", "<i2", (6,)),
         ("following_error", "<f8", (6,)),
+        ("events", "<u2", (6,)),
+        ("index_latch", "<i4", (6,)),
     ],
     align=True,
 )
