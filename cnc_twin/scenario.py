@@ -213,7 +213,7 @@ FaultSpec = Annotated[
     Union[PlannerStallFault, PlannerDelayFault, PlannerKillFault, RecordBitflipFault], Field(discriminator="type")
 ]
 _UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip", "point_to_point", "nurbs_curve",
-               "surface_polish"}
+               "surface_polish", "contour", "motion_chip"}
 
 
 class MoveSpec(_Strict):

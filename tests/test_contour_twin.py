@@ -121,7 +121,7 @@ def test_the_step_clock_follows_the_s_curve():
      "program.elements[0]", "exactly one of"),
     ({"method": []}, "program.method", "at least one"),
     ({"method": "bresenham"}, "program.method", ""),
-    ({"elements": [{"line": {"to": [0, 0]}}]}, "program.elements", "zero length|shorter"),
+    ({"elements": [{"line": {"to": [0, 0]}}]}, "program.elements", "zero.length|shorter"),
 ])
 def test_bad_contours_are_refused_with_the_key_path(change, key, message):
     with pytest.raises(ScenarioError) as info:

@@ -171,11 +171,12 @@ def test_status_struct_has_the_numpy_layout():
     assert STATUS_STRUCT.size == STATUS_DTYPE.itemsize
     values = (7, 1, 0, 100, 12, 11, 11, 0, 3, 2, 480, 0.007, 0.5, 19.5,
               1.0, 2.0, 3.0, 4.0, 5.0, 6.0, -1, -2, -3, -4, -5, -6, 10, -20, 30, -40, 50, -2048,
-              0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+              0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 1, 2, 4, 8, 0, 3, 365000, -25000, 0, 0, 0, -7)
     rec = np.frombuffer(STATUS_STRUCT.pack(*values), dtype=STATUS_DTYPE)[0]
     assert rec["period"] == 7 and rec["queued_periods"] == 480 and rec["pad_force"] == 19.5
     assert list(rec["actual"]) == [-1, -2, -3, -4, -5, -6] and rec["dac"][-1] == -2048
     assert rec["following_error"][5] == 0.6 and rec["command"][0] == 1.0
+    assert list(rec["events"]) == [1, 2, 4, 8, 0, 3] and list(rec["index_latch"]) == [365000, -25000, 0, 0, 0, -7]
 
 
 def test_curve_records_round_trip_and_every_bit_flip_is_caught():
