@@ -257,7 +257,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 def describe_program(program) -> str:
     """One line on what a program does."""
-    from cnc_twin.config import ContourProgram, NurbsProgram, SurfaceProgram
+    from cnc_twin.config import ContourProgram, MotionChipProgram, NurbsProgram, SurfaceProgram
 
     if isinstance(program, SurfaceProgram):
         s = program.surface
@@ -269,6 +269,8 @@ def describe_program(program) -> str:
     if isinstance(program, ContourProgram):
         return (f"contour of {len(program.elements)} element(s), {len(program.methods)} pass(es): "
                 f"{', '.join(program.methods)}")
+    if isinstance(program, MotionChipProgram):
+        return f"{len(program.commands)} motion-chip command(s), {program.profile} profiles"
     return f"{len(program.moves)} moves"
 
 

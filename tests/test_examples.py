@@ -15,6 +15,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
     ("tune_axis.py", "proposal: kp"),
     ("sweep_gains.py", "following error rms"),
     ("compare_tool_axis.py", "nurbs_tilted.yaml"),
+    ("compare_interpolation.py", "pulse   dda"),
 ])
 def test_example_runs(script, expect):
     proc = subprocess.run([sys.executable, str(EXAMPLES / script)], capture_output=True, text=True, timeout=600)
