@@ -20,7 +20,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from cnc_twin.config import Scenario, SurfaceProgram
+from cnc_twin.config import SurfaceProgram
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface

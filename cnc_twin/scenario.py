@@ -19,7 +19,7 @@ from typing import Annotated, Any, Literal, Union
 
 import mujoco
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from cnc_twin import units
 from cnc_twin.axes import AXES, is_rotary

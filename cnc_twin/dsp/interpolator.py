@@ -65,7 +65,7 @@ from cnc_twin.geometry.kinematics import pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
 from cnc_twin.geometry.surface_path import SurfacePathEvaluator
-from cnc_twin.planner.segments import DwellSegment, MoveSegment
+from cnc_twin.planner.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
     ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
@@ -195,8 +195,8 @@ class SegmentInterpolator:
                             if a.index_period > 0 else None for a, p in zip(axes, power_on)]
         self.programmed = tuple(self.power_on)
         """end position of the last move accepted [m | rad]"""
-        self._queue: deque[tuple[int, Record | MoveSegment | DwellSegment]] = deque()
-        self._current: tuple[int, MoveSegment | DwellSegment] | None = None
+        self._queue: deque[tuple[int, Record | MoveSegment]] = deque()
+        self._current: tuple[int, MoveSegment | Dwell] | None = None
         self._tau = 0.0
         self._dwell_left = 0
         self._a_lim = self._v_lim = math.inf
@@ -257,8 +257,8 @@ class SegmentInterpolator:
             self.programmed = segment.end
             self._queue.append((seq, segment))
             self._queued_periods += record.periods
-        elif isinstance(record, Dwell):
-            self._queue.append((seq, DwellSegment(position=self.programmed, periods=record.periods)))
+        elif isinstance(record, Dwell):  # holds wherever the axes are commanded when it starts
+            self._queue.append((seq, record))
             self._queued_periods += record.periods
         elif isinstance(record, CurveGeometry):
             # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
@@ -282,9 +282,7 @@ class SegmentInterpolator:
         elif isinstance(record, StepContour):
             run = StepRun(record, self._counts_of(self.programmed))
             run.periods = math.ceil(record.profile.duration / self.period)
-            end = run.end
-            self.programmed = (end[0] / self.counts_per_unit[0] + self.power_on[0],
-                               end[1] / self.counts_per_unit[1] + self.power_on[1], *self.programmed[2:])
+            self.programmed = (*self._position_of(run.end)[:2], *self.programmed[2:])
             self._queue.append((seq, run))
             self._queued_periods += run.periods
             self._path_open = False
@@ -347,7 +345,7 @@ class SegmentInterpolator:
         left = 0
         if self._current is not None:
             seg = self._current[1]
-            if isinstance(seg, DwellSegment):
+            if isinstance(seg, Dwell):
                 left = self._dwell_left
             elif isinstance(seg, (_ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
                 left = 0
@@ -380,8 +378,7 @@ class SegmentInterpolator:
                 self.events = seg.events
                 if seg.done:
                     self._complete(seq)
-                    self.programmed = tuple(c / cpu + zero for c, cpu, zero
-                                            in zip(counts, self.counts_per_unit, self.power_on))
+                    self.programmed = self._position_of(counts)
             elif isinstance(seg, _ForceWait):
                 self.path_u = -1.0
                 self._axis = seg.axis
@@ -391,10 +388,10 @@ class SegmentInterpolator:
                     if not seg.on:  # retracted: from here on the pose is the clear pose, no offset
                         counts = self._counts_of(seg.clear_pose)
                         depth = 0.0
-            elif isinstance(seg, DwellSegment):
+            elif isinstance(seg, Dwell):
                 self.path_u = -1.0
                 self._dwell_left -= 1
-                counts = list(self._hold_counts)  # where the axes are commanded (a chip command's end too)
+                counts = list(self._hold_counts)
                 if self._dwell_left <= 0:
                     self._complete(seq)
             else:
@@ -424,7 +421,7 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
             seq, item = self._queue.popleft()
-            if isinstance(item, (MoveSegment, DwellSegment, _Block, StepRun)):
+            if isinstance(item, (MoveSegment, Dwell, _Block, StepRun)):
                 self._queued_periods -= item.periods
             if isinstance(item, _Block):
                 self._begin_block(seq, item, 0.0)
@@ -447,7 +444,7 @@ class SegmentInterpolator:
                 self.last_seq_executed = seq
             elif isinstance(item, MoveSegment):
                 self._begin_move(seq, item)
-            elif isinstance(item, DwellSegment):
+            elif isinstance(item, Dwell):
                 self._current = (seq, item)
                 self._dwell_left = item.periods
             else:
@@ -591,6 +588,10 @@ class SegmentInterpolator:
 
     def _counts_of(self, positions) -> list[float]:
         return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]
+
+    def _position_of(self, counts) -> tuple[float, ...]:
+        """The inverse of :meth:`_counts_of`: axis positions [m | rad] of commands [counts]."""
+        return tuple(c / cpu + zero for c, cpu, zero in zip(counts, self.counts_per_unit, self.power_on))
 
     def _complete(self, seq: int) -> None:
         self._current = None

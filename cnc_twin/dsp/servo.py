@@ -96,7 +96,6 @@ class ServoTask:
         self.period_slot = len(FRAME_FIELDS) * n + 1
         """index in ``frame`` of the first per-period field"""
         self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
-        self.output = output
         self.steppers = [StepGenerator(cfg.pulse_max_rate, timing.servo_period) for cfg in axes] \
             if output == "pulse" else []
         self._pulse_channels = list(zip(range(n), self.encoders, self.steppers))

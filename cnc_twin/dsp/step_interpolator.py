@@ -57,19 +57,12 @@ class StepRun:
     """
 
     def __init__(self, record: StepContour, held: list[float]):
-        self.record = record
         self.profile = record.profile
-        steps = np.fromiter((c for step in lattice_steps(record) for c in step), dtype=np.int64).reshape(-1, 2)
-        points = np.empty((len(steps) + 1, 2), dtype=np.int64)
-        points[0] = record.start
-        np.cumsum(steps, axis=0, out=points[1:])
-        points[1:] += points[0]
+        points = point_by_point.trace(lattice_steps(record), record.start)
         if tuple(points[-1]) != tuple(record.end):  # the generators' end-point judgement guarantees this
             raise ValueError(f"step interpolation ended at {tuple(points[-1])}, not {record.end}")
-        self.cycles = len(steps)
+        self.cycles = len(points) - 1
         """N, the element's interpolation cycles (steps for point-by-point, iterations for DDA)"""
-        self.steps = int(np.abs(steps).sum())
-        """step pulses over both axes"""
         self._x = points[:, 0].astype(np.float64).tolist()
         self._y = points[:, 1].astype(np.float64).tolist()
         self.held = list(held)

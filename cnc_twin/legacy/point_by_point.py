@@ -94,7 +94,8 @@ def _arc_steps(pieces, r2: int) -> Iterator[tuple[int, int]]:
 
 def trace(steps: Iterable[tuple[int, int]], start: tuple[int, int] = (0, 0)) -> np.ndarray:
     """Lattice points visited by ``steps`` from ``start``: int64 array of shape (n + 1, 2)."""
-    moves = np.array(list(steps), dtype=np.int64).reshape(-1, 2)
+    # fromiter over the flattened pairs: no list of tuples (a DDA circle has ~10^6 iterations)
+    moves = np.fromiter((c for step in steps for c in step), dtype=np.int64).reshape(-1, 2)
     out = np.empty((len(moves) + 1, 2), dtype=np.int64)
     out[0] = start
     np.cumsum(moves, axis=0, out=out[1:])

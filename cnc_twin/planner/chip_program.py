@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 from cnc_twin.config import ChipStep, MotionChipProgram
+from cnc_twin.planner.ptp import dwell_chunk, dwell_periods
 from cnc_twin.whiteboard.records import (
     CHIP_CONSTANT, CHIP_HOME, CHIP_INDEX, CHIP_JOG, CHIP_LINEAR, CHIP_S_CURVE, CHIP_TRAPEZOID, ChipCommand, Dwell,
     EndOfProgram, Record,
@@ -52,14 +53,11 @@ class ChipPlan:
         periods: list[int] = []
         for step in self.prog.commands:
             if step.op == "dwell":
-                n = max(1, math.ceil(step.time / self.period - 1e-9))
+                n = dwell_periods(step.time, self.period)
                 records.append(Dwell(periods=n))
                 periods.append(n)
             else:
                 records.append(chip_record(step, self.prog.profile))
                 periods.append(0)
-        if self.prog.settle > 0:
-            n = max(1, math.ceil(self.prog.settle / self.period - 1e-9))
-            records.append(Dwell(periods=n))
-            periods.append(n)
-        yield records + [EndOfProgram()], periods + [0]
+        settle = dwell_chunk(self.prog.settle, self.period)
+        yield records + settle[0] + [EndOfProgram()], periods + settle[1] + [0]

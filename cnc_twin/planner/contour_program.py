@@ -21,10 +21,9 @@ import math
 from cnc_twin.config import AxisConfig, ContourProgram, LatticeElement
 from cnc_twin.dsp.scurve import SCurve
 from cnc_twin.geometry.contour import element_length
-from cnc_twin.planner.ptp import plan_move
+from cnc_twin.planner.ptp import dwell_chunk, move_chunk
 from cnc_twin.whiteboard.records import (
-    STEP_ARC, STEP_DDA, STEP_LINE, STEP_POINT_BY_POINT, CurveBlock, Dwell, EndOfProgram, Mark, Move, Record,
-    StepContour,
+    STEP_ARC, STEP_DDA, STEP_LINE, STEP_POINT_BY_POINT, CurveBlock, EndOfProgram, Mark, StepContour,
 )
 
 STEP_METHODS = {"point_by_point": STEP_POINT_BY_POINT, "dda": STEP_DDA}
@@ -49,18 +48,6 @@ class ContourPlan:
         self.lengths = [element_length(e) for e in prog.elements]
         self.end = (prog.elements[-1].end[0], prog.elements[-1].end[1], *prog.start[2:])
 
-    def _move(self, start, end, feed=None) -> tuple[list[Record], list[int]]:
-        seg = plan_move(tuple(start), tuple(end), self.axes, feed=feed, period=self.period)
-        if seg is None:
-            return [], []
-        return [Move(end=seg.end, profile=seg.profile, periods=seg.periods)], [seg.periods]
-
-    def _dwell(self, seconds: float) -> tuple[list[Record], list[int]]:
-        if seconds <= 0:
-            return [], []
-        n = max(1, math.ceil(seconds / self.period - 1e-9))
-        return [Dwell(periods=n)], [n]
-
     @property
     def estimated_periods(self) -> int:
         p, T = self.prog, self.period
@@ -77,8 +64,8 @@ class ContourPlan:
         prog, T = self.prog, self.period
         here = self.home
         for number, method in enumerate(prog.methods, start=1):
-            records, periods = self._move(here, prog.start, prog.approach_feed)
-            dwell = self._dwell(prog.dwell)
+            records, periods = move_chunk(here, prog.start, self.axes, feed=prog.approach_feed, period=T)
+            dwell = dwell_chunk(prog.dwell, T)
             yield records + dwell[0] + [Mark(number)], periods + dwell[1] + [0]
             for i, curve_prog in enumerate(prog.curves):
                 if method == "nurbs":
@@ -92,7 +79,7 @@ class ContourPlan:
             yield [Mark(0)], [0]
             here = self.end
         up = (here[0], here[1], self.home[2], *here[3:])
-        tail, tail_periods = self._move(here, up)
-        home, home_periods = self._move(up, self.home)
-        settle = self._dwell(prog.settle)
+        tail, tail_periods = move_chunk(here, up, self.axes, period=T)
+        home, home_periods = move_chunk(up, self.home, self.axes, period=T)
+        settle = dwell_chunk(prog.settle, T)
         yield tail + home + settle[0] + [EndOfProgram()], tail_periods + home_periods + settle[1] + [0]

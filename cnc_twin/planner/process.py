@@ -34,7 +34,7 @@ import numpy as np
 from cnc_twin.config import (
     AxisConfig, ContourProgram, FaultInjection, MotionChipProgram, NurbsProgram, PointToPoint, SurfaceProgram,
 )
-from cnc_twin.planner.ptp import plan_move, plan_point_to_point
+from cnc_twin.planner.ptp import dwell_chunk, plan_move, plan_point_to_point
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
@@ -124,26 +124,26 @@ class Program:
     Point-to-point: all moves are planned here, one chunk. Curves: the curve, its kinematics and
     the approach move are set up here; :meth:`chunks` then yields the approach and the curve,
     the S-curve blocks window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`), and
-    settle and end of program.
+    settle and end of program. Surface, contour and motion-chip programs have their own plan
+    objects (``estimated_periods`` and ``chunks()``), kept in ``plan``.
     """
 
     def __init__(self, job: PlannerJob):
         self.job = job
         self.segments: list[Segment] | None = None
-        self.surface = None
-        self.contour = None
+        self.plan = None
         if isinstance(job.program, MotionChipProgram):
             from cnc_twin.planner.chip_program import ChipPlan
 
-            self.contour = ChipPlan(job.program, job.period)  # same interface: estimated_periods, chunks()
+            self.plan = ChipPlan(job.program, job.period)
         elif isinstance(job.program, ContourProgram):
             from cnc_twin.planner.contour_program import ContourPlan
 
-            self.contour = ContourPlan(job.program, job.axes, job.home, job.period)
+            self.plan = ContourPlan(job.program, job.axes, job.home, job.period)
         elif isinstance(job.program, SurfaceProgram):
             from cnc_twin.planner.surface_program import SurfacePlan
 
-            self.surface = SurfacePlan(job.program, job.axes, job.home, job.period)
+            self.plan = SurfacePlan(job.program, job.axes, job.home, job.period)
         elif isinstance(job.program, NurbsProgram):
             self.curve, start, self.axis_path, self.axis_limits, self.geometry = curve_setup(job.program)
             self.approach = plan_move(tuple(job.home), start, job.axes, feed=job.program.approach_feed,
@@ -156,10 +156,8 @@ class Program:
         """Program length [periods]: exact for moves, estimated (1.2x the curve at feed) for curves."""
         import math
 
-        if self.surface is not None:
-            return self.surface.estimated_periods
-        if self.contour is not None:
-            return self.contour.estimated_periods
+        if self.plan is not None:
+            return self.plan.estimated_periods
         if self.segments is not None:
             return sum(seg.periods for seg in self.segments)
         prog, period = self.job.program, self.job.period
@@ -168,11 +166,8 @@ class Program:
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
-        if self.surface is not None:
-            yield from self.surface.chunks()
-            return
-        if self.contour is not None:
-            yield from self.contour.chunks()
+        if self.plan is not None:
+            yield from self.plan.chunks()
             return
         if self.segments is not None:
             yield segments_to_records(self.segments)
@@ -193,12 +188,7 @@ class Program:
         for blocks in plan_feed_windows(self.curve, prog.limits, period=job.period, window=job.window,
                                         axis_path=self.axis_path, axis_limits=self.axis_limits):
             yield ([CurveBlock(b) for b in blocks], [math.ceil(b.duration / job.period) for b in blocks])
-        tail: list[Record] = []
-        tail_periods: list[int] = []
-        if prog.settle > 0:
-            n = max(1, math.ceil(prog.settle / job.period - 1e-9))
-            tail.append(Dwell(periods=n))
-            tail_periods.append(n)
+        tail, tail_periods = dwell_chunk(prog.settle, job.period)
         yield tail + [EndOfProgram()], tail_periods + [0]
 
 

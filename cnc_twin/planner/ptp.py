@@ -19,6 +19,7 @@ from cnc_twin.axes import LINEAR_AXES
 from cnc_twin.dsp.profiles import Trapezoid
 from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.config import AxisConfig, PointToPoint
+from cnc_twin.whiteboard.records import Dwell, Move, Record
 
 
 def plan_point_to_point(
@@ -46,9 +47,9 @@ def plan_point_to_point(
             segments.append(segment)
         here = target
         if move.dwell > 0:
-            segments.append(DwellSegment(position=here, periods=_periods(move.dwell, period)))
+            segments.append(DwellSegment(position=here, periods=dwell_periods(move.dwell, period)))
     if program.settle > 0:
-        segments.append(DwellSegment(position=here, periods=_periods(program.settle, period)))
+        segments.append(DwellSegment(position=here, periods=dwell_periods(program.settle, period)))
     return segments
 
 
@@ -75,5 +76,23 @@ def plan_move(
     return MoveSegment(start=start, end=end, profile=profile, periods=periods)
 
 
-def _periods(seconds: float, period: float) -> int:
+def dwell_periods(seconds: float, period: float) -> int:
+    """Whole interpolation periods of a dwell of ``seconds`` (at least one)."""
     return max(1, math.ceil(seconds / period - 1e-9))
+
+
+def move_chunk(start: tuple[float, ...], end: tuple[float, ...], axes: Sequence[AxisConfig], *,
+               feed: float | None = None, period: float) -> tuple[list[Record], list[int]]:
+    """A planned move as ``([Move], [periods])``, or ``([], [])`` when nothing moves."""
+    seg = plan_move(tuple(start), tuple(end), axes, feed=feed, period=period)
+    if seg is None:
+        return [], []
+    return [Move(end=seg.end, profile=seg.profile, periods=seg.periods)], [seg.periods]
+
+
+def dwell_chunk(seconds: float, period: float) -> tuple[list[Record], list[int]]:
+    """A dwell as ``([Dwell], [periods])``, or ``([], [])`` for none (``seconds <= 0``)."""
+    if seconds <= 0:
+        return [], []
+    n = dwell_periods(seconds, period)
+    return [Dwell(periods=n)], [n]

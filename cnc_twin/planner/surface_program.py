@@ -29,7 +29,7 @@ from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface
 from cnc_twin.geometry.surface_path import SurfacePath
-from cnc_twin.planner.ptp import plan_move
+from cnc_twin.planner.ptp import dwell_chunk, move_chunk, plan_move
 from cnc_twin.whiteboard.records import (
     CurveBlock, Dwell, EndOfProgram, ForceControlRecord, Move, Record, Spindle, SurfaceCurve, SurfaceGeometry,
 )
@@ -76,10 +76,6 @@ class SurfacePlan:
         self.paths = section_paths(prog, self.surface)
         self.start = approach_pose(prog, self.paths[0], self.home)
         self.approach = plan_move(self.home, self.start, axes, feed=prog.approach_feed, period=period)
-
-    def _move(self, start, end) -> tuple[Move, int] | None:
-        seg = plan_move(start, end, self.axes, feed=None, period=self.period)
-        return None if seg is None else (Move(end=seg.end, profile=seg.profile, periods=seg.periods), seg.periods)
 
     @property
     def estimated_periods(self) -> int:
@@ -131,13 +127,8 @@ class SurfacePlan:
         clear = head_of(prog).axes_from_pose(last.point([t1]) + prog.force.standoff * axis, axis)[0]
         here = tuple(float(x) for x in clear) + (self.home[5],)
         up = (here[0], here[1], self.home[2], here[3], here[4], here[5])
-        for a, b in ((here, up), (up, self.home)):
-            move = self._move(a, b)
-            if move is not None:
-                tail.append(move[0])
-                tail_periods.append(move[1])
-        if prog.settle > 0:
-            n = max(1, math.ceil(prog.settle / T - 1e-9))
-            tail.append(Dwell(periods=n))
-            tail_periods.append(n)
+        for chunk in (move_chunk(here, up, self.axes, period=T), move_chunk(up, self.home, self.axes, period=T),
+                      dwell_chunk(prog.settle, T)):
+            tail += chunk[0]
+            tail_periods += chunk[1]
         yield tail + [EndOfProgram()], tail_periods + [0]
