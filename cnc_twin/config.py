@@ -71,6 +71,20 @@ class AxisConfig:
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0
     """position of one index pulse [m | rad]"""
+    following_error_limit: float = 0.0
+    """the supervisor's following-error limit [m | rad]; 0 = not checked"""
+    soft_limits: tuple[float, float] | None = None
+    """the supervisor's soft limits [m | rad]; None = the hard travel only"""
+
+    @property
+    def allowed(self) -> tuple[float, float] | None:
+        """Where programs may go [m | rad]: the soft limits if set, else the travel (None: anywhere)."""
+        return self.soft_limits if self.soft_limits is not None else self.travel
+
+    @property
+    def allowed_name(self) -> str:
+        """What :attr:`allowed` is called in messages: ``soft limits`` or ``travel``."""
+        return "soft limits" if self.soft_limits is not None else "travel"
 
     @property
     def display_factor(self) -> float:
@@ -389,19 +403,55 @@ class WhiteboardConfig:
     """most FIFO words the planner writes per exchange"""
 
 
+PLANNER_FAULTS = frozenset({"planner_stall", "planner_delay", "planner_kill", "record_bitflip"})
+"""fault kinds injected on the PC side (the planner process); the rest act on the card or machine"""
+
+
 @dataclass(frozen=True)
 class FaultInjection:
-    """One injected fault. ``at`` is simulated time [s]; other fields as the kind needs."""
+    """One injected fault. ``at`` is simulated time [s]; other fields as the kind needs
+    (see :mod:`cnc_twin.scenario_faults` for what each kind means)."""
 
     kind: str
-    """planner_stall | planner_delay | planner_kill | record_bitflip"""
+    """planner_stall | planner_delay | planner_kill | record_bitflip | encoder_loss | encoder_noise |
+    dac_stuck | dac_dead | torque_drop | force_spike | force_offset | collision | dsp_hang"""
     at: float
     duration: float = 0.0
-    """planner_stall: wall-clock stall [s]; planner_delay: simulated window [s]"""
+    """planner_stall, dsp_hang: wall-clock / simulated stall [s]; planner_delay, encoder_noise,
+    force_spike: simulated window [s] (0 = for good)"""
     delay: float = 0.0
     """planner_delay: wall-clock delay of each answer [s]"""
+    every: float = 0.0
+    """planner_delay: repeat the window every this much simulated time [s]; 0 = once"""
     bit: int = 0
     """record_bitflip: bit index in the record (wraps to its length)"""
+    axis: int = -1
+    """encoder_*, dac_*, torque_drop: the axis (index in X Y Z A B C)"""
+    value: float = 0.0
+    """encoder_loss: counts lost; encoder_noise: amplitude [counts]; torque_drop: fraction of the
+    peak force kept [-]; force_spike, force_offset: added force [N]"""
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """collision: obstacle centre in the world frame [m]"""
+    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """collision: obstacle half sizes [m]"""
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    """The card's fault supervisor (:mod:`cnc_twin.dsp.supervisor`); 0 turns a check off."""
+
+    following_error_stop: str = "disable"
+    """what a following-error fault does: ``disable`` the drives at once or a ``controlled`` stop"""
+    dac_saturation_time: float = 0.1
+    """a DAC channel clamped this long without a break is a fault [s]"""
+    max_force: float = 100.0
+    """pad force above which the tool retracts [N]"""
+    retract: float = 5e-3
+    """retract distance along the tool axis [m]"""
+    retract_speed: float = 0.05
+    """retract speed [m/s]"""
+    watchdog: float = 5e-3
+    """the card's watchdog timeout: servo interrupts missed this long disable the drives [s]"""
 
 
 @dataclass(frozen=True)
@@ -427,6 +477,7 @@ class Scenario:
     faults: tuple[FaultInjection, ...]
     max_time: float | None
     """cap on simulated time [s]; None = twice the planned program plus 5 s"""
+    supervisor: SupervisorConfig = SupervisorConfig()
     command_output: str = "analog"
     """``analog``: +-10 V speed commands from the card's PID (drives in velocity mode);
     ``pulse``: step/direction pulses (drives in position mode, :mod:`cnc_twin.drive`)"""

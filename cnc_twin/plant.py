@@ -83,6 +83,38 @@ def _require(model: mujoco.MjModel, path: Path) -> None:
         raise ScenarioError(path, "", f"MJCF lacks keyframe '{HOME_KEYFRAME}'")
 
 
+BRAKES = {2: 1e7, 3: 1e6, 4: 1e6}
+"""holding brakes that close when the drives are disabled: axis index -> joint damping
+[N s/m | N m s/rad]. Z's motor has one (it hangs on its counterbalance), and so do the A/B
+motors of the tilting head. A brake is modelled as heavy viscous damping rather than
+frictionloss: MuJoCo's soft frictionloss lets a load below it creep at a rate independent of
+its size, while damping of 1e7 N s/m lets Z's 88 N of unbalance creep under 10 um/s."""
+
+OBSTACLE_PARK = (0.0, 0.0, -50.0)
+"""where an obstacle waits until its time comes [m]: far below the table"""
+
+
+def add_obstacles(spec: mujoco.MjSpec, boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
+                  ) -> None:
+    """Add one mocap body per obstacle box (``(centre, half sizes)`` [m], world frame) to ``spec``,
+    parked at :data:`OBSTACLE_PARK`; :meth:`Plant.place_obstacle` puts one in place. Their geoms
+    collide with the head and pad as the workpiece does (contype 1, conaffinity 2)."""
+    for n, (_, size) in enumerate(boxes):
+        body = spec.worldbody.add_body(name=f"obstacle_{n}", mocap=True, pos=list(OBSTACLE_PARK))
+        body.add_geom(name=f"obstacle_{n}", type=mujoco.mjtGeom.mjGEOM_BOX, size=list(size), contype=1,
+                      conaffinity=2, group=3, rgba=[0.85, 0.2, 0.2, 1.0], density=0.0)
+
+
+def load_model_with_obstacles(path: Path, boxes) -> mujoco.MjModel:
+    """:func:`load_model` plus obstacle boxes (see :func:`add_obstacles`)."""
+    model = load_model(path)  # checks the file first, with its clear errors
+    if not boxes:
+        return model
+    spec = mujoco.MjSpec.from_file(str(path))
+    add_obstacles(spec, boxes)
+    return spec.compile()
+
+
 def model_info(model: mujoco.MjModel) -> ModelInfo:
     """Travel ranges, home positions and drive scaling of a checked model."""
     key = model.key(HOME_KEYFRAME)
@@ -173,6 +205,27 @@ class Plant:
             if sign * data[adr] >= 0.0:
                 out[i] |= bit
         return out
+
+    # --- faults and stops ----------------------------------------------------------------
+    def disable_drives(self) -> None:
+        """Amplifier enable off: the six drives make no force from now on (gains zeroed), and
+        the holding brakes (:data:`BRAKES`) close."""
+        model = self.model
+        ids = self.actuator_ids
+        model.actuator_gainprm[ids, 0] = 0.0
+        model.actuator_biasprm[ids, 2] = 0.0
+        self._ctrl[: self._n_drives] = 0.0
+        for axis, damping in BRAKES.items():
+            model.dof_damping[model.jnt_dofadr[self.qpos_adr[axis]]] = damping
+
+    def scale_force_limit(self, axis: int, fraction: float) -> None:
+        """The drive of ``axis`` can deliver only ``fraction`` of its force range from now on."""
+        self.model.actuator_forcerange[self.actuator_ids[axis]] *= fraction
+
+    def place_obstacle(self, index: int, centre: tuple[float, float, float]) -> None:
+        """Move obstacle ``index`` (see :func:`add_obstacles`) to ``centre`` [m], world frame."""
+        body = self.model.body(f"obstacle_{index}")
+        self.data.mocap_pos[body.mocapid[0]] = centre
 
     def tool_position(self) -> np.ndarray:
         """Tool-tip (pad face centre) position in the world frame [m], shape ``(3,)``."""

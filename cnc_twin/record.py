@@ -16,7 +16,7 @@ column              unit    meaning
 ``pad_force``       N       load cell through the ADC, tared at servo-on
 ``state``           -       controller state (0 IDLE, 1 RUNNING, 2 FEED_HOLD, 3 STOPPING,
                             4 FAULT, 5 FINISHED), per interpolation period
-``fault``           -       fault code (0 none, 1 PLANNER_LOST, 2 PLANNER_START, 3 RUN_TIMEOUT)
+``fault``           -       fault code (0 none, else :class:`~cnc_twin.whiteboard.status.FaultCode`)
 ``fifo_fill``       words   command FIFO fill after the period's exchange
 ``feed_override``   -       effective feed scale of the running move (0 while held)
 ``missed_exchanges`` -      periods so far whose exchange the planner missed (real-time mode)

@@ -28,7 +28,6 @@ from cnc_twin.plant import ModelInfo, load_model, model_info
 from cnc_twin.config import (
     AxisConfig,
     AxisCurve,
-    FaultInjection,
     ForceSensorConfig,
     Move,
     NurbsProgram,
@@ -45,6 +44,7 @@ from cnc_twin.schema_base import PathLimitsSpec
 from cnc_twin.schema_base import Strict as _Strict
 from cnc_twin.scenario_chip import MotionChipProgramSpec
 from cnc_twin.scenario_contour import ContourProgramSpec
+from cnc_twin.scenario_faults import FAULT_TAGS, FaultSpec, SupervisorSpec, convert_fault, convert_supervisor
 from cnc_twin.scenario_surface import SurfacePolishProgram
 
 
@@ -91,6 +91,16 @@ class AxisSpec(_Strict):
     encoder: EncoderSpec
     servo: ServoSpec
     pulse: PulseSpec = PulseSpec()
+    following_error_limit: float = Field(0.0, ge=0, description="the supervisor's following-error limit [mm | deg]; 0 = off")
+    soft_limits: list[float] | None = Field(None, min_length=2, max_length=2,
+                                            description="[low, high] the supervisor keeps the axis within [mm | deg]; "
+                                                        "default: the hard travel of the MJCF")
+
+    @model_validator(mode="after")
+    def _ordered_limits(self) -> "AxisSpec":
+        if self.soft_limits is not None and not self.soft_limits[0] < self.soft_limits[1]:
+            raise _KeyedValueError(("soft_limits",), f"expected [low, high] with low < high, got {self.soft_limits}")
+        return self
 
 
 class AxesSpec(_Strict):
@@ -177,43 +187,7 @@ class WhiteboardSpec(_Strict):
         return self
 
 
-class PlannerStallFault(_Strict):
-    """The planner stops answering (and beating) for a while."""
-
-    type: Literal["planner_stall"]
-    at: float = Field(ge=0, description="simulated time of the first status it does not answer in time [s]")
-    duration: float = Field(gt=0, description="wall-clock stall [ms]")
-
-
-class PlannerDelayFault(_Strict):
-    """Every answer of the planner is late by ``delay`` for a simulated time window."""
-
-    type: Literal["planner_delay"]
-    at: float = Field(ge=0, description="[s] simulated")
-    duration: float = Field(gt=0, description="window [s] simulated")
-    delay: float = Field(gt=0, description="wall-clock delay per answer [ms]")
-
-
-class PlannerKillFault(_Strict):
-    """The planner process dies (SIGKILL) when it sees a status at or after ``at``."""
-
-    type: Literal["planner_kill"]
-    at: float = Field(ge=0, description="[s] simulated")
-
-
-class RecordBitflipFault(_Strict):
-    """One bit of the next record written at or after ``at`` is flipped after its CRC was computed."""
-
-    type: Literal["record_bitflip"]
-    at: float = Field(ge=0, description="[s] simulated")
-    bit: int = Field(0, ge=0, description="bit index within the record (wraps to its length)")
-
-
-FaultSpec = Annotated[
-    Union[PlannerStallFault, PlannerDelayFault, PlannerKillFault, RecordBitflipFault], Field(discriminator="type")
-]
-_UNION_TAGS = {"planner_stall", "planner_delay", "planner_kill", "record_bitflip", "point_to_point", "nurbs_curve",
-               "surface_polish", "contour", "motion_chip"}
+_UNION_TAGS = FAULT_TAGS | {"point_to_point", "nurbs_curve", "surface_polish", "contour", "motion_chip"}
 
 
 class MoveSpec(_Strict):
@@ -290,6 +264,7 @@ class ScenarioFile(_Strict):
     planner: PlannerSpec = PlannerSpec()
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)
+    supervisor: SupervisorSpec = SupervisorSpec()
     max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
     command_output: Literal["analog", "pulse"] = Field(
         "analog", description="analog: +-10 V from the card's PID, drives in velocity mode; "
@@ -377,7 +352,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     timing = _convert_timing(spec.timing, label)
     model = load_model(model_path)
     info = model_info(model)
-    axes = _convert_axes(spec.axes, info)
+    axes = _convert_axes(spec.axes, info, label)
     if spec.command_output == "pulse":
         _check_pulse_rates(axes, label)
     if isinstance(spec.program, SurfacePolishProgram):
@@ -420,20 +395,11 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
             start_timeout=spec.planner.start_timeout,
         ),
         whiteboard=WhiteboardConfig(words=spec.whiteboard.words, chunk_words=spec.whiteboard.chunk // 2),
-        faults=tuple(_convert_fault(f) for f in spec.faults),
+        faults=tuple(convert_fault(f) for f in spec.faults),
+        supervisor=convert_supervisor(spec.supervisor),
         max_time=spec.max_time,
         command_output=spec.command_output,
     )
-
-
-def _convert_fault(f: Any) -> FaultInjection:
-    if isinstance(f, PlannerStallFault):
-        return FaultInjection(kind=f.type, at=f.at, duration=f.duration * units.MS)
-    if isinstance(f, PlannerDelayFault):
-        return FaultInjection(kind=f.type, at=f.at, duration=f.duration, delay=f.delay * units.MS)
-    if isinstance(f, RecordBitflipFault):
-        return FaultInjection(kind=f.type, at=f.at, bit=f.bit)
-    return FaultInjection(kind=f.type, at=f.at)
 
 
 def _read(path: Path) -> str:
@@ -538,7 +504,7 @@ def _index_period(axis: str, enc: EncoderSpec) -> float:
     return enc.pitch * units.MM / enc.gear_ratio
 
 
-def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
+def _convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConfig, ...]:
     out = []
     for i, axis in enumerate(AXES):
         a: AxisSpec = getattr(spec, axis)
@@ -566,9 +532,26 @@ def _convert_axes(spec: AxesSpec, info: ModelInfo) -> tuple[AxisConfig, ...]:
                 drive_ff_filter=a.pulse.ff_filter * units.MS,
                 index_period=_index_period(axis, a.encoder),
                 index_offset=a.encoder.index_offset * units.position_factor(rotary),
+                following_error_limit=a.following_error_limit * units.position_factor(rotary),
+                soft_limits=_soft_limits(axis, a, info.travel[i], label),
             )
         )
     return tuple(out)
+
+
+def _soft_limits(axis: str, spec: AxisSpec, travel: tuple[float, float] | None, label: Path
+                 ) -> tuple[float, float] | None:
+    """The soft limits in SI, checked to lie within the hard travel."""
+    if spec.soft_limits is None:
+        return None
+    f = units.position_factor(is_rotary(axis))
+    lo, hi = spec.soft_limits[0] * f, spec.soft_limits[1] * f
+    if travel is not None and not (travel[0] <= lo and hi <= travel[1]):
+        unit = units.position_unit(is_rotary(axis))
+        raise ScenarioError(label, f"axes.{axis}.soft_limits",
+                            f"{spec.soft_limits[0]:g}..{spec.soft_limits[1]:g} {unit} must lie within the "
+                            f"{axis} travel {travel[0] / f:g}..{travel[1] / f:g} {unit}")
+    return lo, hi
 
 
 def _check_pulse_rates(axes: tuple[AxisConfig, ...], label: Path) -> None:
@@ -615,17 +598,17 @@ def _convert_nurbs(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model,
     hold = (a, b, spec.C * units.DEG)
     held = zip(axes[3:], hold, ("tool_axis.A", "tool_axis.B", "C"))
     for cfg, value, name in held if axis_curve is None else list(held)[2:]:
-        if cfg.travel is not None and not cfg.travel[0] <= value <= cfg.travel[1]:
-            lo, hi = (v * cfg.display_factor for v in cfg.travel)
+        if cfg.allowed is not None and not cfg.allowed[0] <= value <= cfg.allowed[1]:
+            lo, hi = (v * cfg.display_factor for v in cfg.allowed)
             raise ScenarioError(label, f"program.{name}", f"{value * cfg.display_factor:g} deg is outside the "
-                                f"{cfg.name} travel {lo:g}..{hi:g} deg")
+                                f"{cfg.name} {cfg.allowed_name} {lo:g}..{hi:g} deg")
     for cfg, values, key in checks:
-        lo, hi = cfg.travel
+        lo, hi = cfg.allowed
         bad = np.flatnonzero((values < lo) | (values > hi))
         if bad.size:
             f, unit = cfg.display_factor, cfg.display_unit
             raise ScenarioError(label, f"program.{key}",
-                                f"the path leaves the {cfg.name} travel {lo * f:g}..{hi * f:g} {unit} "
+                                f"the path leaves the {cfg.name} {cfg.allowed_name} {lo * f:g}..{hi * f:g} {unit} "
                                 f"(reaches {values[bad[0]] * f:g} {unit})")
     limits = spec.limits
     path_limits = PathLimits(
@@ -704,12 +687,12 @@ def _convert_program(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], in
                 targets.append(None)
                 continue
             si = value * units.position_factor(cfg.rotary)
-            if cfg.travel is not None and not (cfg.travel[0] <= si <= cfg.travel[1]):
-                lo, hi = (v * cfg.display_factor for v in cfg.travel)
+            if cfg.allowed is not None and not (cfg.allowed[0] <= si <= cfg.allowed[1]):
+                lo, hi = (v * cfg.display_factor for v in cfg.allowed)
                 raise ScenarioError(
                     label,
                     f"program.moves[{m_index}].{cfg.name}",
-                    f"target {value:g} {cfg.display_unit} is outside the {cfg.name} travel "
+                    f"target {value:g} {cfg.display_unit} is outside the {cfg.name} {cfg.allowed_name} "
                     f"{lo:g}..{hi:g} {cfg.display_unit}",
                 )
             targets.append(si)

@@ -211,7 +211,7 @@ def check_reach(program: SurfaceProgram, axes: tuple[AxisConfig, ...], head, lab
         axis = path.axes(t, program.lead, program.tilt)
         for lift in (0.0, program.force.standoff):
             try:
-                head.inverse(tips + lift * axis, axis, travel=[a.travel for a in axes[:5]])
+                head.inverse(tips + lift * axis, axis, travel=[a.allowed for a in axes[:5]])
             except UnreachablePose as exc:
                 where = (tips[exc.index] - origin) / units.MM
                 raise ScenarioError(label, "program.path", f"section {k + 1}: the pose at workpiece "

@@ -4,9 +4,14 @@ The clock, on simulated time; real-time mode also paces each period to the wall 
 
     create the whiteboard; start the planner process (a plain subprocess); wait until it attached
     for k = 0, 1, ...:
-        dsp.begin_period(k)                  # whiteboard exchange, records, state, setpoint
+        injector.begin_period(k)             # injected card/machine faults due now (if any)
+        if the card's task hangs (dsp_hang): # no exchange, no servo interrupt: the DACs hold;
+            step the plant tick by tick      # the watchdog disables the drives after its timeout
+            continue
+        dsp.begin_period(k)                  # supervisor, whiteboard exchange, records, state, setpoint
         for each of ticks_per_period servo ticks:
             volts = servo.tick(j, plant.axis_positions(), plant.pad_force())
+                                             # drives disabled by a stop: servo.tick_disabled
             plant.apply_volts(volts)         # DAC -> drives (zero-order hold)
             plant.step(substeps_per_tick)    # MuJoCo, drive loops in C
             frames.rows[t] = servo.frame     # one preallocated row
@@ -33,12 +38,14 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.axes import AXES
-from cnc_twin.config import ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
+from cnc_twin.config import PLANNER_FAULTS, ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
+from cnc_twin.dsp.supervisor import STOP_DISABLE, Supervisor
 from cnc_twin.dsp.task import DspTask
+from cnc_twin.faults import FaultInjector
 from cnc_twin.planner.process import PlannerJob
-from cnc_twin.plant import Plant, load_model
+from cnc_twin.plant import Plant, add_obstacles, load_model_with_obstacles
 from cnc_twin.path_metrics import path_metrics
 from cnc_twin.record import RECORDING_FILE, FrameBuffer, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
@@ -114,6 +121,7 @@ class Twin:
         self.scenario = scenario
         timing = scenario.timing
         self.tiling = self.removal = None
+        obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
         if isinstance(scenario.program, SurfaceProgram):
             from cnc_twin.planner.surface_program import build_surface
             from cnc_twin.polish import RemovalTracker
@@ -121,12 +129,14 @@ class Twin:
 
             surface = build_surface(scenario.program)
             model, self.tiling = build_model(scenario.model_file, surface,
-                                             tile_size=scenario.program.surface_tile_size)
+                                             tile_size=scenario.program.surface_tile_size,
+                                             edit=lambda spec: add_obstacles(spec, obstacles))
             self.plant = Plant(model, timestep=timing.physics_timestep)
             self.removal = RemovalTracker(scenario.program, surface, self.plant.model, self.plant.data,
                                           timing.interpolation_period)
         else:
-            self.plant = Plant(load_model(scenario.model_file), timestep=timing.physics_timestep)
+            self.plant = Plant(load_model_with_obstacles(scenario.model_file, obstacles),
+                               timestep=timing.physics_timestep)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor,
             output=scenario.command_output,
@@ -148,9 +158,16 @@ class Twin:
             layout_words=scenario.whiteboard.words,
             chunk_words=scenario.whiteboard.chunk_words,
             lookahead_periods=_lookahead_periods(scenario),
-            faults=scenario.faults,
+            faults=tuple(f for f in scenario.faults if f.kind in PLANNER_FAULTS),
             lockstep=timing.mode == "lockstep",
         )
+        self.supervisor = Supervisor(scenario.axes, scenario.supervisor, power_on=scenario.home,
+                                     period=timing.interpolation_period, ticks_per_period=timing.ticks_per_period,
+                                     referenced=not isinstance(scenario.program, MotionChipProgram))
+        card_faults = [f for f in scenario.faults if f.kind not in PLANNER_FAULTS]
+        self.injector = FaultInjector(tuple(card_faults), servo=self.servo, plant=self.plant,
+                                      period=timing.interpolation_period, servo_period=timing.servo_period,
+                                      seed=scenario.seed) if card_faults else None
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
         self.plan_us = self.plan_blocks = 0
@@ -185,10 +202,9 @@ class Twin:
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
             self.port, self.process = port, process  # for observers (diagnostics, tests)
-            # the card reads its switch inputs only where a program uses them (motion-chip commands)
-            inputs = self.plant.switch_inputs if isinstance(sc.program, MotionChipProgram) else None
             dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
-                          period=sc.timing.interpolation_period, read_inputs=inputs)
+                          period=sc.timing.interpolation_period, read_inputs=self.plant.switch_inputs,
+                          supervisor=self.supervisor)
             try:
                 planned = port.wait_ready(sc.planner.start_timeout)
             except PlannerLost as exc:
@@ -235,21 +251,41 @@ class Twin:
         removal = self.removal
         removal_every = removal.every if removal is not None else 0
         self.late_periods = 0
+        self.missed_ticks = 0
         k = 0
         t = 0
         wall_start = time.perf_counter()
         drives = self.drives
         if drives is not None:
             tick_pulses, drive = servo.tick_pulses, drives.update
+        injector = self.injector
+        drives_on = True
         while k < max_periods:
             if self.stop_reason is not None:
                 break
             if realtime:
                 self._pace(wall_start + k * period_s, period_s)
-            dsp.begin_period(k)
             if t + ticks_per_period > len(rows):
                 rows = frames.grow()
-            if drives is None:
+            if injector is not None and k >= injector.next_period:
+                injector.begin_period(k)
+            if injector is not None and injector.hang_ticks:
+                t = self._hung_period(dsp, k, t, rows)
+                k += 1
+                continue
+            dsp.begin_period(k)
+            if not dsp.drives_enabled:
+                if drives_on:  # the stop just disabled the amplifiers
+                    plant.disable_drives()
+                    servo.disable()
+                    drives_on = False
+                tick_disabled = servo.tick_disabled
+                for j in tick_range:
+                    apply_volts(tick_disabled(j, axis_positions(), pad_force()))
+                    step(substeps)
+                    rows[t] = frame
+                    t += 1
+            elif drives is None:
                 for j in tick_range:
                     apply_volts(tick(j, axis_positions(), pad_force()))
                     step(substeps)
@@ -284,6 +320,37 @@ class Twin:
         if progress is not None and self.stop_reason is None:
             progress(self.expected_periods, self.expected_periods)
         return wall_time, k
+
+    def _hung_period(self, dsp: DspTask, k: int, t: int, rows: np.ndarray) -> int:
+        """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
+        their last output; the encoder counters run on (recorded, so the trace shows the drift).
+        The watchdog disables the drives once the task has missed ``watchdog`` seconds of ticks."""
+        sc, plant, servo, injector = self.scenario, self.plant, self.servo, self.injector
+        timing = sc.timing
+        n = servo.n_axes
+        frame = servo.frame
+        watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
+        for _ in range(timing.ticks_per_period):
+            if not injector.hang_ticks:  # the task runs again from the next period
+                plant.step(timing.substeps_per_tick)
+            else:
+                injector.hang_ticks -= 1
+                self.missed_ticks += 1
+                plant.step(timing.substeps_per_tick)
+                if watchdog_ticks and self.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
+                    # the watchdog resets the card; the amplifiers lose their enable at once
+                    plant.disable_drives()
+                    dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
+                                    k, stop=STOP_DISABLE)
+                    injector.hang_ticks = 0
+            positions = plant.axis_positions()
+            for i, encoder in enumerate(servo.encoders):
+                frame[n + i] = encoder.sample(positions[i])
+            rows[t] = frame
+            t += 1
+        if not injector.hang_ticks:
+            self.missed_ticks = 0
+        return t
 
     def partial_trace(self) -> Trace:
         """The signals recorded so far (a copy), as a :class:`~cnc_twin.record.Trace`."""
@@ -320,7 +387,14 @@ class Twin:
         metrics["final_state"] = DspState.NAMES[dsp.state]
         metrics["fault"] = None if dsp.fault == FaultCode.NONE else {
             "code": FaultCode.NAMES[dsp.fault], "message": dsp.fault_message, "time_s": dsp.fault_time,
+            "stop": dsp.stop,
         }
+        metrics["faults"] = [
+            {"time_s": time_s, "code": FaultCode.NAMES[code], "axis": AXES[axis] if axis >= 0 else None,
+             "message": message, "stop": stop}
+            for time_s, code, axis, message, stop in dsp.fault_log]
+        if dsp.fault != FaultCode.NONE and dsp.state == DspState.FAULT:
+            metrics["fault"]["at_rest_s"] = dsp.at_rest_time
         metrics["whiteboard"] = {
             "periods": periods,
             "exchanges": len(port.latency_ns),

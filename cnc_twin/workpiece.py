@@ -98,8 +98,10 @@ def _hull_gap(vertices: np.ndarray, top: np.ndarray) -> float:
     return float(max(0.0, np.max(z_top - top[:, 2])))
 
 
-def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, label: Path | str = "<model>") -> tuple[mujoco.MjModel, Tiling]:
-    """The scene with the surface as its workpiece, compiled.
+def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, label: Path | str = "<model>",
+                edit=None) -> tuple[mujoco.MjModel, Tiling]:
+    """The scene with the surface as its workpiece, compiled; ``edit(spec)``, if given, may add
+    more to the spec before it compiles (e.g. :func:`cnc_twin.plant.add_obstacles`).
 
     Raises
     ------
@@ -135,6 +137,8 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, la
     visual.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
     body.add_geom(name="surface_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="surface_visual",
                   contype=0, conaffinity=0, group=2, density=0.0, rgba=[0.72, 0.74, 0.8, 1.0])
+    if edit is not None:
+        edit(spec)
     try:
         model = spec.compile()
     except ValueError as exc:

@@ -54,7 +54,7 @@ BAD = [
     ("negative feed", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 1, "feed": -100}]}},
      "program.moves[0].feed", "greater than 0"),
     ("beyond travel", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 10}, {"X": 900}]}},
-     "program.moves[1].X", "outside the X travel -400..400 mm"),
+     "program.moves[1].X", "outside the X soft limits -385..385 mm"),
     ("rates not divisible", {"name": "b", "timing": {"servo_period": 0.3}, "program": GOOD_PROGRAM},
      "timing.servo_period", "integer multiple"),
     ("physics not divisible", {"name": "b", "timing": {"physics_timestep": 0.1}, "program": GOOD_PROGRAM},

@@ -59,6 +59,8 @@ class ForceController:
         self._calm = 0.0
         self._profile_s: list[float] = []
         self._profile_f: list[float] = []
+        self.frozen = False
+        """depth held as it is (the supervisor's retract after a force fault)"""
 
     @property
     def path_gate(self) -> bool:
@@ -105,6 +107,8 @@ class ForceController:
         state, p, T = self.state, self._p, self.period
         if state == ForceState.OFF:
             return 0.0
+        if self.frozen:
+            return self.depth
         self._t += T
         if state == ForceState.SEEK:
             self.depth = min(self.depth + p.seek_speed * T, p.max_depth)

@@ -114,3 +114,8 @@ class PidFF:
             return -umax if out < -umax else out
         self.integrator = integrator
         return out
+
+    def reset(self) -> None:
+        """Clear the integrator and the previous error (the drive was disabled)."""
+        self.integrator = 0.0
+        self.previous_error = 0.0

@@ -22,6 +22,9 @@ Pulse output (``tick_pulses``): no PID and no DAC; each axis's step generator
 the amplifiers, in position mode, close the loop (:mod:`cnc_twin.drive`). The card still reads
 its encoders, for the following error it reports.
 
+Drives disabled (a supervisor stop, :mod:`cnc_twin.dsp.supervisor`): ``tick_disabled`` only
+reads the encoders; the command follows the actual position (follow-up) and the DAC writes 0 V.
+
 The tick fills ``frame`` (a flat list: command x6, actual x6, DAC code x6, force, then the
 per-period fields of ``PERIOD_FIELDS`` that the period task writes) for the recorder, so nothing
 is allocated per tick besides the returned voltages.
@@ -85,6 +88,8 @@ class ServoTask:
         self.dacs = [Dac12() for _ in axes]
         self.force_adc = Adc(force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
         self._force_tare: float | None = None
+        self.force_fault = 0.0
+        """force added to the load cell's reading by an injected fault [N] (0 normally)"""
         n = self.n_axes
         self._p_prev = [0.0] * n
         self._p_next = [0.0] * n
@@ -160,8 +165,42 @@ class ServoTask:
         self._read_force(pad_force)
         return pulses
 
+    def tick_disabled(self, j: int, positions: Sequence[float], pad_force: float) -> list[float]:
+        """One servo interrupt with the drives disabled: follow-up, 0 V out (shape ``(6,)``)."""
+        frame = self.frame
+        n = self.n_axes
+        for i, encoder in enumerate(self.encoders):
+            actual = encoder.sample(positions[i])
+            frame[i] = float(actual)
+            frame[n + i] = actual
+            frame[2 * n + i] = 0
+        self._read_force(pad_force)
+        return [0.0] * n
+
+    def disable(self) -> None:
+        """Drives off: the DACs write 0 (code 0) and the position loops forget their state."""
+        for dac in self.dacs:
+            dac.write(0.0)
+        for loop in self.loops:
+            loop.reset()
+
+    def replace_encoder(self, axis: int, encoder) -> None:
+        """Put ``encoder`` (anything with ``sample(position) -> counts``) on ``axis``'s channel."""
+        self.encoders[axis] = encoder
+        self._rewire()
+
+    def replace_dac(self, axis: int, dac) -> None:
+        """Put ``dac`` (``write``, ``code``, ``saturations`` as :class:`Dac12`) on ``axis``'s channel."""
+        self.dacs[axis] = dac
+        self._rewire()
+
+    def _rewire(self) -> None:
+        n = self.n_axes
+        self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
+        self._pulse_channels = list(zip(range(n), self.encoders, self.steppers))
+
     def _read_force(self, pad_force: float) -> None:
-        measured = self.force_adc.convert(pad_force)
+        measured = self.force_adc.convert(pad_force + self.force_fault)
         if self._force_tare is None:
             self._force_tare = measured
         self.frame[3 * self.n_axes] = measured - self._force_tare

@@ -20,22 +20,34 @@ fill and free space are real and throttle the planner.
 A lost planner (process exited or heartbeat stopped) makes a controlled stop: the interpolator
 holds (decelerating along the path within every axis's acceleration limit), no further
 exchanges are attempted, and the state becomes FAULT once the axes are at rest.
+
+The supervisor (:mod:`cnc_twin.dsp.supervisor`) checks every period, before the setpoint is
+made; a trip raises its fault with its stop. A later trip with a harsher stop (controlled <
+retract < disable) escalates; other later trips are not acted on again. Every fault raised is
+kept in ``fault_log``; ``fault`` is the first.
 """
 
 from __future__ import annotations
 
+import math
 from array import array
 from time import perf_counter_ns
 
 from cnc_twin.dsp.chip import EVENT_HOME_FOUND
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
+from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.records import RecordError, decode
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 SOLO_LIVENESS_PERIODS = 64
 """while solo, how often the card checks that the planner process is still there [periods]"""
+
+REST_PERIODS = 20
+"""drives disabled: the axes count as at rest once no encoder has moved for this many periods"""
+
+_SEVERITY = {STOP_CONTROLLED: 0, STOP_RETRACT: 1, STOP_DISABLE: 2}
 
 QUEUE_AHEAD = 2
 """records the card keeps decoded behind the running one (the rest wait in the FIFO); on a curve
@@ -51,10 +63,12 @@ class DspTask:
     interpolator : the record queue and coarse interpolator.
     port : the card's side of the whiteboard.
     period : interpolation period [s].
+    read_inputs : callable returning the switch inputs per axis (the card's digital inputs), or None.
+    supervisor : the fault supervisor, or None for none.
     """
 
     def __init__(self, *, servo: ServoTask, interpolator: SegmentInterpolator, port: DspPort, period: float,
-                 read_inputs=None):
+                 read_inputs=None, supervisor: Supervisor | None = None):
         self.servo = servo
         self.interpolator = interpolator
         self.port = port
@@ -76,6 +90,18 @@ class DspTask:
         """event bits per axis raised since the last published status"""
         self.index_latch = [0] * servo.n_axes
         """the last count latched at an index pulse by a home return, per axis"""
+        self.supervisor = supervisor
+        self.drives_enabled = True
+        """False once a stop disabled the amplifiers (the twin then runs the servo in follow-up)"""
+        self.stop: str | None = None
+        """the stop in progress (``disable``, ``retract``, ``controlled``), None before any fault"""
+        self.fault_log: list[tuple[float, int, int, str, str]] = []
+        """``(time [s], code, axis or -1, message, stop)`` of every fault acted on"""
+        self.retract: Retract | None = None
+        self.at_rest_time: float | None = None
+        """when a stop brought the machine to rest and the state became FAULT [s]"""
+        self._still_periods = 0
+        self._last_actual: list[int] | None = None
         self.interpolator_ns = array("q")
         """wall-clock cost of each coarse interpolation period on a curve [ns] (metrics only)"""
 
@@ -99,19 +125,38 @@ class DspTask:
         if acquired:
             self._publish(k)
         interp = self.interpolator
-        n = self.servo.n_axes
-        interp.measured_force = self.servo.frame[3 * n]
+        servo = self.servo
+        n = servo.n_axes
+        frame = servo.frame
+        interp.measured_force = frame[3 * n]
+        inputs = None
         if self.read_inputs is not None:
-            interp.inputs = self.read_inputs()
-            interp.actual = self.servo.frame[n:2 * n]
+            interp.inputs = inputs = self.read_inputs()
+            interp.actual = frame[n:2 * n]
+        supervisor = self.supervisor
+        if supervisor is not None and self.drives_enabled and self.state != DspState.FAULT:
+            trip = supervisor.check(frame, frame[n:2 * n], servo.dac_saturations, inputs, frame[3 * n])
+            if trip is not None:
+                self.raise_fault(trip.code, trip.message, k, stop=trip.stop, axis=trip.axis)
         if interp.path_u >= 0.0 or interp.on_curve:
             started = perf_counter_ns()
             setpoint = interp.next_period()
             self.interpolator_ns.append(perf_counter_ns() - started)
         else:
             setpoint = interp.next_period()
-        self.servo.begin_period(setpoint, interp.tick_commands)
+        if self.retract is not None:
+            reach, direction = self.retract.offset(), self.retract.direction
+            setpoint[0] += reach * direction[0]
+            setpoint[1] += reach * direction[1]
+            setpoint[2] += reach * direction[2]
+        if supervisor is not None and self.drives_enabled:
+            trip = supervisor.clamp(setpoint)
+            if trip is not None:
+                self.raise_fault(trip.code, trip.message, k, stop=trip.stop, axis=trip.axis)
+        servo.begin_period(setpoint, interp.tick_commands)
         self._update_state()
+        if self.state == DspState.FAULT and self.at_rest_time is None:
+            self.at_rest_time = k * self.period
         frame, base = self.servo.frame, self.servo.period_slot
         frame[base] = self.state
         frame[base + 1] = self.fault
@@ -137,14 +182,36 @@ class DspTask:
                 self.index_latch[axis] = value
         frame[base + 14] = bits
 
-    def raise_fault(self, code: int, message: str, k: int) -> None:
-        """Record a fault and start a controlled stop (the first fault wins)."""
-        if self.fault == FaultCode.NONE:
-            self.fault, self.fault_message, self.fault_time = code, message, k * self.period
+    def raise_fault(self, code: int, message: str, k: int, *, stop: str = STOP_CONTROLLED, axis: int = -1) -> None:
+        """Record a fault and start its stop (the first fault is ``fault``; a harsher stop escalates)."""
         if code == FaultCode.PLANNER_LOST:
             self.planner_lost = True
-        self.interpolator.hold = True
-        self.state = DspState.STOPPING
+        if self.stop is not None and _SEVERITY[stop] <= _SEVERITY[self.stop]:
+            return
+        if self.fault == FaultCode.NONE:
+            self.fault, self.fault_message, self.fault_time = code, message, k * self.period
+        self.fault_log.append((k * self.period, code, axis, message, stop))
+        self.stop = stop
+        interp = self.interpolator
+        interp.hold = True
+        if stop == STOP_DISABLE:
+            self.drives_enabled = False
+            self.retract = None
+        elif stop == STOP_RETRACT:
+            self._start_retract()
+        if self.state != DspState.FAULT:
+            self.state = DspState.STOPPING
+
+    def _start_retract(self) -> None:
+        """Freeze the force loop and move the tool up its axis (from the commanded A, B)."""
+        interp, config = self.interpolator, self.supervisor.config
+        interp.force.frozen = True
+        a, b = interp._position_of(interp._hold_counts)[3:5]
+        tool_axis = (math.sin(b), -math.sin(a) * math.cos(b), math.cos(a) * math.cos(b))
+        cpu = interp.counts_per_unit
+        accel = 0.9 * min(axis.max_acceleration for axis in interp.axes[:3])
+        self.retract = Retract(config.retract, config.retract_speed, accel, self.period)
+        self.retract.start(tuple(tool_axis[i] * cpu[i] for i in range(3)))
 
     def _accept_records(self) -> None:
         """Pop records from the FIFO (up to the snapshot) while the interpolator wants more."""
@@ -171,7 +238,14 @@ class DspTask:
     def _update_state(self) -> None:
         interp = self.interpolator
         if self.state == DspState.STOPPING:
-            if not interp.in_motion:
+            if not self.drives_enabled:  # coasting: at rest once no encoder moves any more
+                n = self.servo.n_axes
+                actual = self.servo.frame[n:2 * n]
+                self._still_periods = self._still_periods + 1 if actual == self._last_actual else 0
+                self._last_actual = actual
+                if self._still_periods >= REST_PERIODS:
+                    self.state = DspState.FAULT
+            elif not interp.in_motion and (self.retract is None or self.retract.done):
                 self.state = DspState.FAULT
             return
         if self.state in (DspState.FAULT, DspState.FINISHED):
