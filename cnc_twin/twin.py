@@ -59,6 +59,8 @@ ProgressCallback = Callable[[int, int], None]
 
 FAULT_LINGER = 0.05
 """simulated time recorded after a fault brought the machine to rest [s]"""
+STOP_ALLOWANCE = 5.0
+"""simulated time a stop after the run's time limit may take to reach rest [s]"""
 
 
 @dataclass
@@ -260,7 +262,15 @@ class Twin:
             tick_pulses, drive = servo.tick_pulses, drives.update
         injector = self.injector
         drives_on = True
-        while k < max_periods:
+        timed_out = False
+        while True:
+            if k >= max_periods:
+                if timed_out:  # the stop after the time limit did not come to rest either
+                    break
+                # A controlled stop, run to rest like any fault's (within STOP_ALLOWANCE).
+                dsp.raise_fault(FaultCode.RUN_TIMEOUT, f"program not finished after {max_time:g} s simulated", k)
+                timed_out = True
+                max_periods = k + round(STOP_ALLOWANCE / period_s)
             if self.stop_reason is not None:
                 break
             if realtime:
@@ -313,8 +323,6 @@ class Twin:
                 linger -= 1
                 if linger < 0:
                     break
-        else:
-            dsp.raise_fault(FaultCode.RUN_TIMEOUT, f"program not finished after {max_time:g} s simulated", k)
         wall_time = time.perf_counter() - wall_start
         frames.count = t
         if progress is not None and self.stop_reason is None:
