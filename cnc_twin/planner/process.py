@@ -352,8 +352,10 @@ class FaultSchedule:
             if f.kind == "planner_stall" and sim_time >= f.at and i not in self._fired:
                 self._fired.add(i)
                 time.sleep(f.duration)
-            if f.kind == "planner_delay" and f.at <= sim_time < f.at + f.duration:
-                time.sleep(f.delay)
+            if f.kind == "planner_delay" and sim_time >= f.at:
+                since = sim_time - f.at
+                if (since % f.every if f.every > 0 else since) < f.duration:
+                    time.sleep(f.delay)
 
     @property
     def idle(self) -> bool:
