@@ -133,7 +133,9 @@ def _run(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     if result.status == "fault":
         fault = result.metrics["fault"]
-        print(f"fault {fault['code']} at {fault['time_s']:.3f} s: {fault['message']}", file=sys.stderr)
+        rest = fault.get("at_rest_s")
+        stop = f"{fault['stop']} stop" + (f", at rest at {rest:.3f} s" if rest is not None else ", not yet at rest")
+        print(f"fault {fault['code']} at {fault['time_s']:.3f} s ({stop}): {fault['message']}", file=sys.stderr)
         return EXIT_FAULT
     return EXIT_OK
 
