@@ -158,6 +158,8 @@ class Plant:
         self._ctrl = self.data.ctrl
         self._sensordata = self.data.sensordata
         self._n_drives = len(AXES)
+        self.drives_enabled = True
+        """False once :meth:`disable_drives` was called"""
         # Switches (optional in a model): framepos of the axis's dog in the switch's frame; the
         # switch is on when the dog is past it: coordinate along the axis >= 0 (<= 0 for -limit).
         self._switches = []
@@ -209,7 +211,10 @@ class Plant:
     # --- faults and stops ----------------------------------------------------------------
     def disable_drives(self) -> None:
         """Amplifier enable off: the six drives make no force from now on (gains zeroed), and
-        the holding brakes (:data:`BRAKES`) close."""
+        the holding brakes (:data:`BRAKES`) close. Once is enough; later calls do nothing."""
+        if not self.drives_enabled:
+            return
+        self.drives_enabled = False
         model = self.model
         ids = self.actuator_ids
         model.actuator_gainprm[ids, 0] = 0.0

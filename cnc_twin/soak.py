@@ -56,7 +56,8 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
     from cnc_twin.scenario import scenario_from_dict
     from cnc_twin.twin import Twin
 
-    twin = Twin(scenario_from_dict(soak_scenario(minutes, every=every, delay_ms=delay_ms)))
+    raw = soak_scenario(minutes, every=every, delay_ms=delay_ms)
+    twin = Twin(scenario_from_dict(raw))
     samples: list[tuple[float, int, int]] = []
 
     def observe(t: Twin) -> None:
@@ -70,7 +71,8 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
     warm = len(beyond) // 10  # skip the start (imports, first allocations, page cache warm-up)
     growth = beyond[-1] - beyond[warm] if len(beyond) > warm + 1 else 0
     periods = wb["periods"]
-    total_records = len(soak_scenario(minutes)["program"]["moves"]) + 1  # a Move per move, the end
+    measured_periods = (samples[-1][0] - samples[warm][0]) / twin.scenario.timing.interpolation_period if samples else 0
+    total_records = len(raw["program"]["moves"]) + 1  # a Move per move, the end
     return {
         "status": m["status"],
         "final_state": m["final_state"],
@@ -87,7 +89,7 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
         "rss_start_mb": samples[warm][1] / 1e6 if samples else 0.0,
         "rss_end_mb": samples[-1][1] / 1e6 if samples else 0.0,
         "growth_beyond_trace_mb": growth / 1e6,
-        "growth_beyond_trace_bytes_per_period": growth / max(1, periods - periods * warm // max(1, len(beyond))),
+        "growth_beyond_trace_bytes_per_period": growth / max(1.0, measured_periods),
         "samples": len(samples),
     }
 

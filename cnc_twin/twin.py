@@ -261,7 +261,6 @@ class Twin:
         if drives is not None:
             tick_pulses, drive = servo.tick_pulses, drives.update
         injector = self.injector
-        drives_on = True
         timed_out = False
         while True:
             if k >= max_periods:
@@ -285,10 +284,7 @@ class Twin:
                 continue
             dsp.begin_period(k)
             if not dsp.drives_enabled:
-                if drives_on:  # the stop just disabled the amplifiers
-                    plant.disable_drives()
-                    servo.disable()
-                    drives_on = False
+                self._drives_off()  # at the first such period: the stop just disabled them
                 tick_disabled = servo.tick_disabled
                 for j in tick_range:
                     apply_volts(tick_disabled(j, axis_positions(), pad_force()))
@@ -339,15 +335,13 @@ class Twin:
         frame = servo.frame
         watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
         for _ in range(timing.ticks_per_period):
-            if not injector.hang_ticks:  # the task runs again from the next period
-                plant.step(timing.substeps_per_tick)
-            else:
+            plant.step(timing.substeps_per_tick)
+            if injector.hang_ticks:  # once it is over, the task runs again from the next period
                 injector.hang_ticks -= 1
                 self.missed_ticks += 1
-                plant.step(timing.substeps_per_tick)
                 if watchdog_ticks and self.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
                     # the watchdog resets the card; the amplifiers lose their enable at once
-                    plant.disable_drives()
+                    self._drives_off()
                     dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
                                     k, stop=STOP_DISABLE)
                     injector.hang_ticks = 0
@@ -359,6 +353,12 @@ class Twin:
         if not injector.hang_ticks:
             self.missed_ticks = 0
         return t
+
+    def _drives_off(self) -> None:
+        """The amplifiers disabled (brakes on) and the card's outputs and loops cleared; once."""
+        if self.plant.drives_enabled:
+            self.plant.disable_drives()
+            self.servo.disable()
 
     def partial_trace(self) -> Trace:
         """The signals recorded so far (a copy), as a :class:`~cnc_twin.record.Trace`."""

@@ -143,25 +143,20 @@ class Retract:
     Parameters
     ----------
     distance : [m]; speed : [m/s]; accel : [m/s^2]; period : interpolation period [s].
+    direction : counts per metre of retract for X, Y, Z (the tool axis in counts).
     """
 
-    def __init__(self, distance: float, speed: float, accel: float, period: float):
+    def __init__(self, distance: float, speed: float, accel: float, period: float,
+                 direction: tuple[float, float, float]):
         self.distance = distance
         self.period = period
+        self.direction = direction
         self._profile = Trapezoid.fastest(speed / distance, accel / distance) if distance > 0 else None
         self._t = 0.0
-        self.direction: tuple[float, ...] | None = None
-        """counts per metre of retract, per axis (X, Y, Z components of the tool axis)"""
-        self.active = False
 
     @property
     def done(self) -> bool:
         return self._profile is None or self._t >= self._profile.duration
-
-    def start(self, direction_counts: tuple[float, ...]) -> None:
-        self.direction = direction_counts
-        self.active = True
-        self._t = 0.0
 
     def offset(self) -> float:
         """Advance one period; the retract distance reached [m]."""

@@ -29,7 +29,6 @@ kept in ``fault_log``; ``fault`` is the first.
 
 from __future__ import annotations
 
-import math
 from array import array
 from time import perf_counter_ns
 
@@ -37,6 +36,7 @@ from cnc_twin.dsp.chip import EVENT_HOME_FOUND
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
+from cnc_twin.geometry.kinematics import rotation_ab
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
 from cnc_twin.whiteboard.records import RecordError, decode
 from cnc_twin.whiteboard.status import DspState, FaultCode
@@ -207,11 +207,11 @@ class DspTask:
         interp, config = self.interpolator, self.supervisor.config
         interp.force.frozen = True
         a, b = interp._position_of(interp._hold_counts)[3:5]
-        tool_axis = (math.sin(b), -math.sin(a) * math.cos(b), math.cos(a) * math.cos(b))
+        tool_axis = rotation_ab(a, b)[:, 2]  # the head's z (tool) axis in the machine frame
         cpu = interp.counts_per_unit
         accel = 0.9 * min(axis.max_acceleration for axis in interp.axes[:3])
-        self.retract = Retract(config.retract, config.retract_speed, accel, self.period)
-        self.retract.start(tuple(tool_axis[i] * cpu[i] for i in range(3)))
+        self.retract = Retract(config.retract, config.retract_speed, accel, self.period,
+                               tuple(float(tool_axis[i]) * cpu[i] for i in range(3)))
 
     def _accept_records(self) -> None:
         """Pop records from the FIFO (up to the snapshot) while the interpolator wants more."""
