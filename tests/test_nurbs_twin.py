@@ -13,7 +13,6 @@ import yaml
 from cnc_twin import load_scenario, run_scenario
 from cnc_twin.resources import scenarios_dir
 from cnc_twin.scenario import scenario_from_dict
-from cnc_twin.whiteboard.status import DspState
 
 CURVES = ["nurbs_circle.yaml", "nurbs_freeform.yaml", "nurbs_tilted.yaml"]
 # Contour error bounds [um]. With the tool axis moving, A/B following errors (about 0.04 deg with
