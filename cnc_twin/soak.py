@@ -15,6 +15,10 @@ reports, as JSON:
 - the run's status, simulated and wall time.
 
 Exit code 0 when no record was rejected or lost and the run finished, 1 otherwise.
+
+Run it in a process of its own (as the command does): in a process that has already allocated
+and freed memory, freed pages are reused or returned unpredictably and the memory figures swing
+by some 10 MB.
 """
 
 from __future__ import annotations
