@@ -5,8 +5,15 @@ timestep, for the same number of physics steps the twin takes, drives at 0 V.
 ``twin``: the simulated clock of ``Twin.run()`` (exchanges with the planner process, DSP task,
 plant, recording), the loop the ratio is about; ``twin_startup_s`` is the rest of ``run()``
 (spawning and attaching the planner process, metrics, teardown), a fixed cost per run.
-Each side is measured ``repeat`` times, alternating, and the fastest of each is kept, so both
-see the same machine state; quote the ratio, not the absolute times.
+``twin_no_record``: the same with every tick written to a one-period scratch buffer, so
+``recording_overhead`` is what keeping the trace costs. ``twin_python_servo``: the same with the
+pure-Python reference servo instead of the compiled one (:mod:`cnc_twin.dsp.servo_kernel`).
+Each variant is measured ``repeat`` times, alternating, and the fastest of each is kept, so all
+see the same machine state; quote the ratios, not the absolute times.
+
+``trace_held_over_raw``: memory the run's trace keeps alive over the raw bytes of the recorded
+signals (each at its natural width, :data:`cnc_twin.record.TICK_BYTES` per tick plus the
+per-period signals).
 """
 
 from __future__ import annotations
@@ -33,13 +40,14 @@ def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
     return time.perf_counter() - start
 
 
-def time_twin_run(scenario_file: Path) -> tuple[float, float, int, int]:
-    """One twin run: clock wall time [s], whole run() wall time [s], physics steps, trace bytes."""
-    twin = Twin(load_scenario(scenario_file))
+def time_twin_run(scenario_file: Path, **options) -> tuple[float, float, Any]:
+    """One twin run (``options`` for :class:`Twin`): clock wall time [s], whole run() wall
+    time [s], the result."""
+    twin = Twin(load_scenario(scenario_file), **options)
     start = time.perf_counter()
     result = twin.run()
     total = time.perf_counter() - start
-    return result.metrics["wall_time_s"], total, result.metrics["physics_steps"], result.trace.nbytes()
+    return result.metrics["wall_time_s"], total, result
 
 
 def time_rerun_export(scenario_file: Path) -> tuple[float, float, float]:
@@ -65,13 +73,17 @@ def time_rerun_export(scenario_file: Path) -> tuple[float, float, float]:
 def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
     """Measure twin and bare stepping for ``scenario_file``; returns figures as a flat dict."""
     scenario = load_scenario(scenario_file)
-    twin_times, bare_times, totals = [], [], []
-    steps = trace_bytes = 0
+    twin_times, bare_times, totals, no_record, python_servo = [], [], [], [], []
+    time_twin_run(scenario_file)  # warm-up: the compiled servo loaded from numba's cache (or compiled)
     for _ in range(repeat):
-        wall, total, steps, trace_bytes = time_twin_run(scenario_file)
+        wall, total, result = time_twin_run(scenario_file)
+        steps = result.metrics["physics_steps"]
         twin_times.append(wall)
         totals.append(total - wall)
         bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps))
+        no_record.append(time_twin_run(scenario_file, record=False)[0])
+        python_servo.append(time_twin_run(scenario_file, compiled=False)[0])
+    trace = result.trace
     twin_s, bare_s = min(twin_times), min(bare_times)
     ticks = steps // scenario.timing.substeps_per_tick
     sim_time = ticks * scenario.timing.servo_period
@@ -83,12 +95,15 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "bare_mj_step_s": bare_s,
         "twin_s": twin_s,
         "ratio_twin_over_bare": twin_s / bare_s,
+        "ratio_python_servo_over_bare": min(python_servo) / bare_s,
+        "recording_overhead": twin_s / min(no_record) - 1.0,
         "bare_us_per_step": bare_s / steps * 1e6,
         "twin_us_per_tick": twin_s / ticks * 1e6,
         "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
         "real_time_factor": sim_time / twin_s,
         "twin_startup_s": min(totals),
-        "trace_bytes": trace_bytes,
+        "trace_bytes": trace.nbytes(),
+        "trace_held_over_raw": trace.held_nbytes() / trace.raw_nbytes(),
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         **_rerun_figures(scenario_file),
         "repeat": repeat,

@@ -116,7 +116,7 @@ def _run(args: argparse.Namespace) -> int:
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar, observer=None if live is None else
-                          (lambda t: live.send(t.partial_trace(), t.frames.count)))
+                          (lambda t: live.send(t.partial_trace(), t.recorder.count)))
     if live is not None:
         live.finish(result.trace, result.metrics, result.exchange_latency)
     result.write(run_dir, recording=not args.no_rrd)

@@ -199,6 +199,11 @@ class Plant:
         """
         return -float(self._sensordata[self._force_z_adr])
 
+    @property
+    def force_sensor_adr(self) -> int:
+        """Index in ``data.sensordata`` of the load cell's z (see :meth:`pad_force`)."""
+        return self._force_z_adr
+
     def switch_inputs(self) -> list[int]:
         """Home and limit switch states per axis, shape ``(6,)``: bits ``SWITCH_*`` (0 without switches)."""
         out = [0] * self._n_drives

@@ -1,7 +1,10 @@
 """Recording: signals into preallocated columnar arrays, metrics, and the run directory.
 
-The servo loop copies the servo task's ``frame`` into one preallocated row per tick; nothing
-else happens per tick. Columns, per axis ``X Y Z A B C``:
+The servo loop writes each tick's signals into preallocated typed columns (:class:`Recorder`),
+and the per-period signals once per period; nothing else happens per tick. Each signal is kept
+at its natural width and rate (``SIGNAL_WIDTHS``), so a trace's memory is the raw bytes of what
+was recorded; ``time``, ``period``, ``ferr`` and the per-tick view of the per-period signals are
+computed when asked for. Columns, per axis ``X Y Z A B C``:
 
 ==================  ======  ===========================================================
 column              unit    meaning
@@ -44,6 +47,7 @@ import json
 import math
 import os
 import shutil
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,81 +61,176 @@ from cnc_twin.dsp.servo import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.config import Scenario
 
 _FLOAT_PERIOD_FIELDS = ("feed_override", "path_u", "path_ds", "force_setpoint", "force_depth", "feed_factor")
+_INT8_PERIOD_FIELDS = ("state", "fault", "force_state")
+PERIOD_DTYPE = np.dtype([(name, np.float64 if name in _FLOAT_PERIOD_FIELDS else
+                          np.int8 if name in _INT8_PERIOD_FIELDS else np.int32) for name in PERIOD_FIELDS])
+"""one interpolation period's signals, packed, each at its natural width (75 bytes)"""
+TICK_BYTES = 6 * 8 + 6 * 4 + 6 * 2 + 8
+"""one servo tick's signals: command float64 x6, actual int32 x6, DAC code int16 x6, force float64"""
 TRACE_FILE = "trace.parquet"
 METRICS_FILE = "metrics.json"
 SCENARIO_FILE = "scenario.yaml"
 RECORDING_FILE = "recording.rrd"
 
 
-class FrameBuffer:
-    """Preallocated ``(n_ticks, frame_width)`` float64 rows, filled one per servo tick.
+class Recorder:
+    """Preallocated typed columns, one row per servo tick and one per interpolation period.
 
     Sized for the planned run; :meth:`grow` adds half again when a run takes longer (feed holds,
-    missed exchanges), so a run never stops for lack of room.
+    missed exchanges), so a run never stops for lack of room. Every period has
+    ``ticks_per_period`` ticks, so tick ``t`` belongs to period ``t // ticks_per_period``.
+
+    Attributes
+    ----------
+    command : (capacity, 6) float64 [counts]; actual : (capacity, 6) int32 [counts]
+    dac : (capacity, 6) int16 [code]; pad_force : (capacity,) float64 [N]
+    periods : (capacity / ticks_per_period,) structured array of :data:`PERIOD_DTYPE`
+    count : ticks recorded so far
+
+    ``scratch=True`` keeps one period only, rewritten every period (``row``/``period_row`` map
+    every tick and period onto it): the same work per tick without the memory, to measure what
+    recording costs (``cnc-twin bench``).
     """
 
-    def __init__(self, n_ticks: int, frame_width: int):
-        self.rows = np.zeros((max(1, n_ticks), frame_width), dtype=np.float64)
+    def __init__(self, n_periods: int, ticks_per_period: int, n_axes: int = len(AXES), *, scratch: bool = False):
+        self.ticks_per_period = ticks_per_period
+        self.n_axes = n_axes
         self.count = 0
+        self.scratch = scratch
+        self._allocate(1 if scratch else max(1, n_periods))
 
-    def grow(self) -> np.ndarray:
-        """Enlarge by half (at least one period's worth); returns the new rows array."""
-        extra = np.zeros((max(64, len(self.rows) // 2), self.rows.shape[1]), dtype=np.float64)
-        self.rows = np.concatenate((self.rows, extra))
-        return self.rows
+    def _allocate(self, n_periods: int) -> None:
+        n = n_periods * self.ticks_per_period
+        self.command = np.zeros((n, self.n_axes), dtype=np.float64)
+        self.actual = np.zeros((n, self.n_axes), dtype=np.int32)
+        self.dac = np.zeros((n, self.n_axes), dtype=np.int16)
+        self.pad_force = np.zeros(n, dtype=np.float64)
+        self.periods = np.zeros(n_periods, dtype=PERIOD_DTYPE)
+
+    @property
+    def capacity(self) -> int:
+        """Ticks there is room for."""
+        return len(self.pad_force)
+
+    def row(self, t: int) -> int:
+        """The row that tick ``t`` is written to."""
+        return t % self.ticks_per_period if self.scratch else t
+
+    def grow(self) -> None:
+        """Enlarge by half (at least 16 periods), keeping what was recorded."""
+        if self.scratch:
+            return
+        old = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        self._allocate(len(self.periods) + max(16, len(self.periods) // 2))
+        for new, kept in zip((self.command, self.actual, self.dac, self.pad_force, self.periods), old):
+            new[: len(kept)] = kept
+
+    def record_tick(self, t: int, frame: list) -> None:
+        """Row ``t`` from the servo task's ``frame`` (command x6, actual x6, DAC x6, force, ...)."""
+        n = self.n_axes
+        if self.scratch:
+            t %= self.ticks_per_period
+        self.command[t] = frame[0:n]
+        self.actual[t] = frame[n:2 * n]
+        self.dac[t] = frame[2 * n:3 * n]
+        self.pad_force[t] = frame[3 * n]
+
+    def record_period(self, k: int, frame: list, first: int) -> None:
+        """Period ``k``'s signals from ``frame[first:]`` (the per-period fields)."""
+        self.periods[0 if self.scratch else k] = tuple(frame[first:])
+
+    def nbytes(self) -> int:
+        """Bytes allocated for the columns."""
+        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods))
+
+    def trace(self, *, servo_period: float, counts_per_unit: np.ndarray, copy: bool) -> "Trace":
+        """The ``count`` ticks recorded as a :class:`Trace`: copies (``copy=True``, for a run in
+        progress), else views, or copies when the run used less than :data:`KEEP_FRACTION` of the
+        room (so a trace never holds much more memory than its signals)."""
+        n = min(self.count, self.capacity)  # a scratch recorder holds the last period only
+        periods = -(-n // self.ticks_per_period)
+        copy = copy or n < KEEP_FRACTION * self.capacity
+        take = (lambda a, m: a[:m].copy()) if copy else (lambda a, m: a[:m])
+        return Trace(command=take(self.command, n), actual=take(self.actual, n), dac=take(self.dac, n),
+                     pad_force=take(self.pad_force, n), periods=take(self.periods, periods),
+                     servo_period=servo_period, ticks_per_period=self.ticks_per_period,
+                     counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64))
+
+
+KEEP_FRACTION = 0.9
+"""a finished run's trace keeps the recorder's columns (views) when it filled at least this
+fraction of them; otherwise it copies what was recorded and the recorder's room is freed"""
+
+
+class PeriodSignals(Mapping):
+    """The per-period signals, one value per servo tick on access (``signals["state"]``: (n,));
+    stored once per period. Integer fields come out as int64, the others as float64."""
+
+    def __init__(self, periods: np.ndarray, ticks_per_period: int, n_ticks: int):
+        self._periods = periods
+        self._tpp = ticks_per_period
+        self._n = n_ticks
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        values = self._periods[name]
+        dtype = np.float64 if name in _FLOAT_PERIOD_FIELDS else np.int64
+        return np.repeat(values.astype(dtype), self._tpp)[: self._n]
+
+    def per_period(self, name: str) -> np.ndarray:
+        """``name`` once per period, shape ``(periods,)``, at its stored width (a view)."""
+        return self._periods[name]
+
+    def __iter__(self):
+        return iter(PERIOD_FIELDS)
+
+    def __len__(self) -> int:
+        return len(PERIOD_FIELDS)
 
 
 @dataclass
 class Trace:
     """The recorded signals as arrays. ``n`` = number of servo ticks.
 
-    Attributes
-    ----------
-    time : (n,) [s]; period : (n,) int64
-    command, actual, following_error : (n, 6) [counts]
-    dac : (n, 6) int16 codes
-    pad_force : (n,) [N]
-    counts_per_unit : (6,) counts per m or rad, to convert counts to SI
-    period_signals : per-period columns (state, fault, fifo_fill, ...), each (n,)
+    Stored (see :data:`TICK_BYTES`, :data:`PERIOD_DTYPE`):
+    command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 codes;
+    pad_force : (n,) [N]; periods : per-period signals, structured, one row per period;
+    counts_per_unit : (6,) counts per m or rad, to convert counts to SI.
+
+    Computed on access: ``time`` (n,) [s], ``period`` (n,) int64, ``following_error`` (n, 6)
+    [counts], ``period_signals`` (per tick, see :class:`PeriodSignals`).
     """
 
-    time: np.ndarray
-    period: np.ndarray
     command: np.ndarray
     actual: np.ndarray
-    following_error: np.ndarray
     dac: np.ndarray
     pad_force: np.ndarray
+    periods: np.ndarray
+    servo_period: float
+    ticks_per_period: int
     counts_per_unit: np.ndarray
-    period_signals: dict[str, np.ndarray]
 
-    @classmethod
-    def from_frames(cls, frames: FrameBuffer, *, servo_period: float, ticks_per_period: int,
-                    counts_per_unit: np.ndarray) -> "Trace":
-        rows = frames.rows[: frames.count]
-        n_axes = len(AXES)
-        groups = {name: rows[:, g * n_axes:(g + 1) * n_axes] for g, name in enumerate(FRAME_FIELDS)}
-        ticks = np.arange(frames.count, dtype=np.int64)
-        command = np.ascontiguousarray(groups["command"])
-        actual = np.ascontiguousarray(groups["actual"])
-        return cls(
-            time=ticks * servo_period,
-            period=ticks // ticks_per_period,
-            command=command,
-            actual=actual,
-            following_error=command - actual,
-            dac=groups["dac"].astype(np.int16),
-            pad_force=np.ascontiguousarray(rows[:, len(FRAME_FIELDS) * n_axes]),
-            counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64),
-            period_signals={
-                name: (rows[:, len(FRAME_FIELDS) * n_axes + 1 + i].astype(
-                    np.float64 if name in _FLOAT_PERIOD_FIELDS else np.int64))
-                for i, name in enumerate(PERIOD_FIELDS)
-            },
-        )
+    @property
+    def time(self) -> np.ndarray:
+        """Simulated time at which each tick sampled its inputs [s], shape ``(n,)``."""
+        return np.arange(len(self), dtype=np.int64) * self.servo_period
+
+    @property
+    def period(self) -> np.ndarray:
+        """Interpolation period of each tick, shape ``(n,)`` int64."""
+        return np.arange(len(self), dtype=np.int64) // self.ticks_per_period
+
+    @property
+    def following_error(self) -> np.ndarray:
+        """command - actual [counts], shape ``(n, 6)``."""
+        return self.command - self.actual
+
+    @property
+    def period_signals(self) -> PeriodSignals:
+        """The per-period signals, per tick on access."""
+        return PeriodSignals(self.periods, self.ticks_per_period, len(self))
 
     def __len__(self) -> int:
-        return len(self.time)
+        return len(self.pad_force)
 
     def columns(self) -> dict[str, np.ndarray]:
         """Flat named columns (see the module table)."""
@@ -145,7 +244,18 @@ class Trace:
         return cols
 
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in self.columns().values())
+        """Bytes the stored signals take (views count their part of the recorder's columns)."""
+        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods))
+
+    def raw_nbytes(self) -> int:
+        """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick and one
+        :data:`PERIOD_DTYPE` per period."""
+        return len(self) * TICK_BYTES + len(self.periods) * PERIOD_DTYPE.itemsize
+
+    def held_nbytes(self) -> int:
+        """Bytes of memory the trace keeps alive (whole recorder columns when it holds views)."""
+        arrays = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        return sum((a.base if a.base is not None else a).nbytes for a in arrays)
 
 
 _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",

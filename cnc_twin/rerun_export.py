@@ -25,6 +25,7 @@ interpolation period (decimated further for runs longer than ``MAX_SAMPLES`` per
 
 from __future__ import annotations
 
+import math
 import uuid
 from pathlib import Path
 
@@ -79,8 +80,9 @@ def default_blueprint() -> rrb.Blueprint:
 
 
 def _timelines(trace: Trace, ticks: np.ndarray) -> list:
-    return [rr.TimeColumn("sim_time", duration=trace.time[ticks]),
-            rr.TimeColumn("period", sequence=trace.period[ticks])]
+    # computed for the ticks asked for only (the trace computes time and period for all on access)
+    return [rr.TimeColumn("sim_time", duration=ticks * trace.servo_period),
+            rr.TimeColumn("period", sequence=ticks // trace.ticks_per_period)]
 
 
 def _axis_positions(trace: Trace, scenario: Scenario, ticks: np.ndarray, signal: np.ndarray) -> np.ndarray:
@@ -175,9 +177,10 @@ def log_axes(rec: rr.RecordingStream, trace: Trace, scenario: Scenario, ticks: n
         to_user = cfg.display_factor / cfg.counts_per_unit
         home = scenario.home[i] * cfg.display_factor
         dac = trace.dac[ticks, i]
-        for name, values in (("command", trace.command[ticks, i] * to_user + home),
-                             ("actual", trace.actual[ticks, i] * to_user + home),
-                             ("ferr", trace.following_error[ticks, i]),
+        command, actual = trace.command[ticks, i], trace.actual[ticks, i]
+        for name, values in (("command", command * to_user + home),
+                             ("actual", actual * to_user + home),
+                             ("ferr", command - actual),
                              ("dac", dac.astype(np.float64)),
                              ("saturated", ((dac <= -2048) | (dac >= 2047)).astype(np.float64))):
             rec.send_columns(f"/axes/{cfg.name}/{name}", indexes=times, columns=rr.Scalars.columns(scalars=values))
@@ -185,24 +188,25 @@ def log_axes(rec: rr.RecordingStream, trace: Trace, scenario: Scenario, ticks: n
 
 def log_events(rec: rr.RecordingStream, trace: Trace, metrics: dict) -> None:
     """Controller state changes (and the fault, if any) as text, at the tick they happened."""
-    state = trace.period_signals["state"]
-    changes = np.flatnonzero(np.diff(state, prepend=-1))
-    if len(changes) == 0:
+    per_period = trace.period_signals.per_period("state")
+    first_periods = np.flatnonzero(np.diff(per_period, prepend=-1))
+    if len(first_periods) == 0:
         return
-    texts = [f"state {STATE_NAMES.get(int(state[k]), state[k])}" for k in changes]
-    levels = ["WARN" if state[k] in (DspState.FEED_HOLD, DspState.STOPPING) else
-              "ERROR" if state[k] == DspState.FAULT else "INFO" for k in changes]
+    changes = first_periods * trace.ticks_per_period  # the first tick of each period that changed state
+    state = per_period[first_periods]
+    texts = [f"state {STATE_NAMES.get(int(s), s)}" for s in state]
+    levels = ["WARN" if s in (DspState.FEED_HOLD, DspState.STOPPING) else
+              "ERROR" if s == DspState.FAULT else "INFO" for s in state]
     fault = metrics.get("fault")
     if fault:
-        fault_tick = min(len(trace) - 1, int(np.searchsorted(trace.time, fault["time_s"])))
+        fault_tick = min(len(trace) - 1, math.ceil(fault["time_s"] / trace.servo_period - 1e-9))
         changes = np.append(changes, fault_tick)
         texts.append(f"fault {fault['code']}: {fault['message']}")
         levels.append("ERROR")
         order = np.argsort(changes, kind="stable")
         changes, texts, levels = changes[order], [texts[i] for i in order], [levels[i] for i in order]
     rec.send_columns("/controller/events",
-                     indexes=[rr.TimeColumn("sim_time", duration=trace.time[changes]),
-                              rr.TimeColumn("period", sequence=trace.period[changes])],
+                     indexes=_timelines(trace, changes),
                      columns=rr.TextLog.columns(text=texts, level=levels))
 
 
@@ -268,7 +272,8 @@ class RunExporter:
         rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=trace.pad_force[ticks]))
         for name in ("fifo_fill", "missed_exchanges", "records_rejected"):
             rec.send_columns(f"/whiteboard/{name}", indexes=times,
-                             columns=rr.Scalars.columns(scalars=trace.period_signals[name][ticks].astype(np.float64)))
+                             columns=rr.Scalars.columns(scalars=trace.period_signals.per_period(name)[
+                                 ticks // self.tpp].astype(np.float64)))
         pose_ticks = ticks[(ticks // self.tpp) % self.stride == 0]
         if len(pose_ticks) == 0:
             return
@@ -278,7 +283,7 @@ class RunExporter:
         log_poses(rec, self.model, pos, quat, pose_times)
         vectors = -tool_axes * (trace.pad_force[pose_ticks] * 1e-3)[:, None]  # 1 mm per N, into the work
         rec.send_columns("/force/arrow", indexes=pose_times, columns=rr.Arrows3D.columns(origins=tips, vectors=vectors))
-        t = trace.time[pose_ticks]
+        t = pose_ticks * trace.servo_period
         for name, pts in (("commanded", command_tips), ("actual", tips)):
             prev = self._last[name] if self._last else pts[:1]
             t_prev = self._last["t"] if self._last else t[:1] - self.stride * sc.timing.interpolation_period

@@ -6,7 +6,7 @@ for 50 ms of every ``--every`` seconds (scenario fault ``planner_delay`` with ``
 reports, as JSON:
 
 - memory: the process's resident set sampled a few hundred times during the run, less the
-  trace rows recorded so far (float64, written once per servo tick); its growth from the first
+  trace recorded so far (its raw bytes: the recorder's typed columns); its growth from the first
   sample to the last is what the run held beyond the trace (per-period bookkeeping such as the
   exchange latencies, 16 bytes a period, is included and reported);
 - records: accepted, rejected (torn or corrupted: CRC or framing), retransmitted, and whether
@@ -57,6 +57,7 @@ def _rss_bytes() -> int:
 
 def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=None) -> dict[str, Any]:
     """Run the soak; returns the figures (see the module docstring)."""
+    from cnc_twin.record import PERIOD_DTYPE, TICK_BYTES
     from cnc_twin.scenario import scenario_from_dict
     from cnc_twin.twin import Twin
 
@@ -65,9 +66,10 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
     samples: list[tuple[float, int, int]] = []
 
     def observe(t: Twin) -> None:
-        frames = t.frames
-        samples.append((frames.count * t.scenario.timing.servo_period, _rss_bytes(),
-                        frames.count * frames.rows.shape[1] * frames.rows.itemsize))
+        recorder = t.recorder
+        periods = recorder.count // recorder.ticks_per_period
+        samples.append((recorder.count * t.scenario.timing.servo_period, _rss_bytes(),
+                        recorder.count * TICK_BYTES + periods * PERIOD_DTYPE.itemsize))
 
     result = twin.run(observer=observe, progress=progress)
     m, wb = result.metrics, result.metrics["whiteboard"]

@@ -14,7 +14,9 @@ The clock, on simulated time; real-time mode also paces each period to the wall 
                                              # drives disabled by a stop: servo.tick_disabled
             plant.apply_volts(volts)         # DAC -> drives (zero-order hold)
             plant.step(substeps_per_tick)    # MuJoCo, drive loops in C
-            frames.rows[t] = servo.frame     # one preallocated row
+            recorder.record_tick(t, frame)   # typed preallocated columns
+        (analog output, drives on, no injected card faults: the ticks, the physics and the
+        recording of the whole period run as one compiled call, cnc_twin.dsp.servo_kernel)
         stop when the program finished, a fault stopped the machine, time ran out, or a stop
         was requested (signal)
     finally: tell the planner to exit, reap it (terminate/kill if needed), unlink the whiteboard
@@ -40,6 +42,7 @@ import numpy as np
 from cnc_twin.axes import AXES
 from cnc_twin.config import PLANNER_FAULTS, ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
+from cnc_twin.dsp import servo_kernel
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import STOP_DISABLE, Supervisor
 from cnc_twin.dsp.task import DspTask
@@ -47,7 +50,7 @@ from cnc_twin.faults import FaultInjector
 from cnc_twin.planner.process import PlannerJob
 from cnc_twin.plant import Plant, add_obstacles, load_model_with_obstacles
 from cnc_twin.path_metrics import path_metrics
-from cnc_twin.record import RECORDING_FILE, FrameBuffer, Trace, compute_metrics, write_run_dir
+from cnc_twin.record import RECORDING_FILE, Recorder, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import PipeDoorbells
 from cnc_twin.whiteboard.layout import Layout
@@ -117,9 +120,15 @@ class Twin:
     Parameters
     ----------
     scenario : a validated scenario (see :func:`cnc_twin.scenario.load_scenario`).
+    compiled : run the servo periods in the compiled kernel where it applies (the default);
+        ``False`` runs the pure-Python reference servo throughout. Traces are the same bit for bit.
+    record : keep the trace (the default). ``False`` writes every tick into a one-period scratch
+        buffer instead, only to measure what recording costs: the result's trace is the last
+        period and its metrics are the timing figures alone.
     """
 
-    def __init__(self, scenario: Scenario):
+    def __init__(self, scenario: Scenario, *, compiled: bool = True, record: bool = True):
+        self.record = record
         self.scenario = scenario
         timing = scenario.timing
         self.tiling = self.removal = None
@@ -170,13 +179,16 @@ class Twin:
         self.injector = FaultInjector(tuple(card_faults), servo=self.servo, plant=self.plant,
                                       period=timing.interpolation_period, servo_period=timing.servo_period,
                                       seed=scenario.seed) if card_faults else None
+        self.kernel = None
+        if compiled and self.drives is None and self.injector is None and servo_kernel.available():
+            self.kernel = servo_kernel.CompiledServo(self.servo, self.plant, substeps=timing.substeps_per_tick)
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
         self.plan_us = self.plan_blocks = 0
         self.observer = None
         self.port = self.process = None
         self.expected_periods = 0
-        self.frames: FrameBuffer | None = None
+        self.recorder: Recorder | None = None
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
@@ -187,7 +199,7 @@ class Twin:
         """Run the program on the simulated clock and return the result.
 
         ``observer(twin)`` is called a few hundred times during the run, after whole periods, with
-        ``twin.frames.count`` rows recorded so far (:meth:`partial_trace` reads them), e.g. to
+        ``twin.recorder.count`` ticks recorded so far (:meth:`partial_trace` reads them), e.g. to
         stream the run into a live viewer.
         """
         self.observer = observer
@@ -239,10 +251,13 @@ class Twin:
         self.expected_periods = planned + 1
         ticks_per_period = timing.ticks_per_period
         substeps = timing.substeps_per_tick
-        self.frames = frames = FrameBuffer((planned + 2) * ticks_per_period, len(self.servo.frame))
-        rows = frames.rows
+        self.recorder = recorder = Recorder(planned + 2, ticks_per_period, scratch=not self.record)
+        record_tick, record_period = recorder.record_tick, recorder.record_period
         plant, servo = self.plant, self.servo
         frame = servo.frame
+        first_period_field = servo.period_slot
+        kernel = self.kernel
+        room = math.inf if recorder.scratch else recorder.capacity
         axis_positions, pad_force, apply_volts, step = (
             plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
         )
@@ -274,36 +289,49 @@ class Twin:
                 break
             if realtime:
                 self._pace(wall_start + k * period_s, period_s)
-            if t + ticks_per_period > len(rows):
-                rows = frames.grow()
+            if t + ticks_per_period > room:
+                recorder.grow()
+                room = math.inf if recorder.scratch else recorder.capacity
             if injector is not None and k >= injector.next_period:
                 injector.begin_period(k)
             if injector is not None and injector.hang_ticks:
-                t = self._hung_period(dsp, k, t, rows)
+                if kernel is not None and kernel.owns_state:
+                    kernel.store()
+                record_period(k, frame, first_period_field)
+                t = self._hung_period(dsp, k, t)
                 k += 1
                 continue
             dsp.begin_period(k)
-            if not dsp.drives_enabled:
-                self._drives_off()  # at the first such period: the stop just disabled them
-                tick_disabled = servo.tick_disabled
-                for j in tick_range:
-                    apply_volts(tick_disabled(j, axis_positions(), pad_force()))
-                    step(substeps)
-                    rows[t] = frame
-                    t += 1
-            elif drives is None:
-                for j in tick_range:
-                    apply_volts(tick(j, axis_positions(), pad_force()))
-                    step(substeps)
-                    rows[t] = frame
-                    t += 1
-            else:  # step pulses -> the amplifiers' position loops -> their speed loops
-                for j in tick_range:
-                    positions = axis_positions()
-                    apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
-                    step(substeps)
-                    rows[t] = frame
-                    t += 1
+            record_period(k, frame, first_period_field)
+            if kernel is not None and dsp.drives_enabled:
+                if not kernel.owns_state:
+                    kernel.load()
+                kernel.run_period(recorder, t)
+                t += ticks_per_period
+            else:
+                if kernel is not None and kernel.owns_state:
+                    kernel.store()
+                if not dsp.drives_enabled:
+                    self._drives_off()  # at the first such period: the stop just disabled them
+                    tick_disabled = servo.tick_disabled
+                    for j in tick_range:
+                        apply_volts(tick_disabled(j, axis_positions(), pad_force()))
+                        step(substeps)
+                        record_tick(t, frame)
+                        t += 1
+                elif drives is None:
+                    for j in tick_range:
+                        apply_volts(tick(j, axis_positions(), pad_force()))
+                        step(substeps)
+                        record_tick(t, frame)
+                        t += 1
+                else:  # step pulses -> the amplifiers' position loops -> their speed loops
+                    for j in tick_range:
+                        positions = axis_positions()
+                        apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
+                        step(substeps)
+                        record_tick(t, frame)
+                        t += 1
             k += 1
             if removal_every and k % removal_every == 0:
                 removal.update()
@@ -311,7 +339,7 @@ class Twin:
                 if progress is not None:
                     progress(min(k, self.expected_periods), self.expected_periods)
                 if self.observer is not None:
-                    frames.count = t
+                    recorder.count = t
                     self.observer(self)
             if dsp.done:
                 if dsp.state == DspState.FINISHED:
@@ -320,12 +348,14 @@ class Twin:
                 if linger < 0:
                     break
         wall_time = time.perf_counter() - wall_start
-        frames.count = t
+        recorder.count = t
+        if kernel is not None and kernel.owns_state:
+            kernel.store()  # the metrics read the DACs' saturation counts
         if progress is not None and self.stop_reason is None:
             progress(self.expected_periods, self.expected_periods)
         return wall_time, k
 
-    def _hung_period(self, dsp: DspTask, k: int, t: int, rows: np.ndarray) -> int:
+    def _hung_period(self, dsp: DspTask, k: int, t: int) -> int:
         """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
         their last output; the encoder counters run on (recorded, so the trace shows the drift).
         The watchdog disables the drives once the task has missed ``watchdog`` seconds of ticks."""
@@ -348,7 +378,7 @@ class Twin:
             positions = plant.axis_positions()
             for i, encoder in enumerate(servo.encoders):
                 frame[n + i] = encoder.sample(positions[i])
-            rows[t] = frame
+            self.recorder.record_tick(t, frame)
             t += 1
         if not injector.hang_ticks:
             self.missed_ticks = 0
@@ -360,12 +390,12 @@ class Twin:
             self.plant.disable_drives()
             self.servo.disable()
 
-    def partial_trace(self) -> Trace:
-        """The signals recorded so far (a copy), as a :class:`~cnc_twin.record.Trace`."""
+    def partial_trace(self, *, copy: bool = True) -> Trace:
+        """The signals recorded so far, as a :class:`~cnc_twin.record.Trace` (a copy, unless
+        ``copy=False`` once the run is over)."""
         sc = self.scenario
-        return Trace.from_frames(self.frames, servo_period=sc.timing.servo_period,
-                                 ticks_per_period=sc.timing.ticks_per_period,
-                                 counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
+        return self.recorder.trace(servo_period=sc.timing.servo_period, copy=copy,
+                                   counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
 
     def _pace(self, deadline: float, period_s: float) -> None:
         """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
@@ -380,8 +410,11 @@ class Twin:
 
     def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
         sc = self.scenario
-        assert self.frames is not None
-        trace = self.partial_trace()  # by now, the whole run
+        assert self.recorder is not None
+        trace = self.partial_trace(copy=False)  # by now, the whole run
+        if not self.record:
+            return RunResult(scenario=sc, trace=trace, metrics={"status": "complete", "wall_time_s": wall_time,
+                                                                "periods": periods}, model=self.plant.model)
         metrics = compute_metrics(
             trace, sc, wall_time=wall_time, dac_saturations=self.servo.dac_saturations,
             warnings=self.plant.warnings(),

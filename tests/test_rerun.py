@@ -102,8 +102,8 @@ def test_streaming_during_the_run_records_what_a_post_run_export_does(tmp_path):
     stretches = []
 
     def observe(t):
-        stretches.append(t.frames.count)
-        live.send(t.partial_trace(), t.frames.count)
+        stretches.append(t.recorder.count)
+        live.send(t.partial_trace(), t.recorder.count)
 
     result = twin.run(observer=observe)
     live.finish(result.trace, result.metrics, result.exchange_latency)

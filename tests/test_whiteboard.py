@@ -152,20 +152,23 @@ def test_benchmark_paths_move_and_verify_every_record():
     assert move["records"] == 301
 
 
-def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(monkeypatch):
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled-servo", "python-servo"])
+def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(compiled):
     from cnc_twin.twin import Twin
 
-    twin = Twin(JOG)
+    twin = Twin(JOG, compiled=compiled)
     calls = {"n": 0}
-    real_step = twin.plant.step
+    # the servo loop's innermost call: the compiled period, or the reference path's physics step
+    owner, name = (twin.kernel, "run_period") if compiled else (twin.plant, "step")
+    real = getattr(owner, name)
 
-    def failing_step(n):
+    def failing(*args):
         calls["n"] += 1
-        if calls["n"] == 2000:
+        if calls["n"] == 500:
             raise RuntimeError("simulated failure inside the servo loop")
-        real_step(n)
+        real(*args)
 
-    twin.plant.step = failing_step
+    setattr(owner, name, failing)
     with pytest.raises(RuntimeError, match="simulated failure"):
         twin.run()
     # the autouse fixture checks /dev/shm and child processes after this test too
@@ -198,7 +201,7 @@ def test_card_goes_solo_once_the_program_is_streamed_and_still_notices_a_dead_pl
     def kill_when_solo(t):
         if t.port.solo and not killed:
             os.kill(t.process.pid, signal.SIGKILL)
-            killed.append(t.frames.count)
+            killed.append(t.recorder.count)
 
     faulted = twin.run(observer=kill_when_solo)
     assert killed and faulted.status == "fault"

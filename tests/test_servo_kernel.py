@@ -1,0 +1,89 @@
+"""The compiled servo period against the pure-Python reference servo: the same trace, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnc_twin.dsp import servo_kernel
+from cnc_twin.resources import scenarios_dir
+from cnc_twin.scenario import load_scenario
+from cnc_twin.twin import Twin
+
+TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path"}
+"""wall-clock figures, different between any two runs (the rest of metrics must agree)"""
+
+
+def _run_both(name: str, overrides: dict | None = None):
+    scenario = load_scenario(scenarios_dir() / f"{name}.yaml", overrides=overrides)
+    compiled = Twin(scenario)
+    assert compiled.kernel is not None, "the compiled servo should apply to this scenario"
+    reference = Twin(scenario, compiled=False)
+    assert reference.kernel is None
+    return compiled, compiled.run(), reference.run()
+
+
+def _assert_same_trace(a, b) -> None:
+    cols_a, cols_b = a.trace.columns(), b.trace.columns()
+    assert cols_a.keys() == cols_b.keys()
+    for key in cols_a:
+        assert cols_a[key].dtype == cols_b[key].dtype, key
+        assert np.array_equal(cols_a[key], cols_b[key]), key
+    for key in a.metrics.keys() - TIMING_KEYS:
+        assert a.metrics[key] == b.metrics[key], key
+
+
+def test_kernel_is_available_here():
+    assert servo_kernel.available()
+
+
+def test_nurbs_circle_is_bit_identical():
+    twin, compiled, reference = _run_both("nurbs_circle")
+    _assert_same_trace(compiled, reference)
+    assert compiled.metrics["path"]["contour_error_um"] == reference.metrics["path"]["contour_error_um"]
+    assert not twin.kernel.owns_state  # handed back at the end, for the metrics
+    assert compiled.metrics["final_state"] == "FINISHED"
+
+
+def test_saturation_and_a_stop_with_the_drives_disabled_are_bit_identical():
+    """X with 30 times the feed-forward it needs: the PID clamps its output, the DAC saturates, the integrator stops
+    integrating; the supervisor's DAC-saturation check then disables the drives, so the run goes
+    on in the reference path (follow-up) after handing the state over mid-run."""
+    overrides = {"servo.X.kvff": 30.0, "supervisor.dac_saturation_time": 4.0}
+    twin, compiled, reference = _run_both("jog_axes", overrides)
+    _assert_same_trace(compiled, reference)
+    dac_x = compiled.trace.dac[:, 0]
+    assert (np.abs(dac_x) >= 2047).any(), "the case should saturate the DAC"
+    assert compiled.metrics["dac_saturation_ticks"]["X"] > 0
+    assert compiled.metrics["fault"]["code"] == "DAC_SATURATION"
+    assert compiled.metrics["fault"]["stop"] == "disable"
+    disabled = np.flatnonzero(compiled.trace.period_signals["state"] == 3)  # STOPPING
+    assert len(disabled) and disabled[-1] < len(compiled.trace) - 1
+
+
+def test_following_error_stop_hands_the_state_back_mid_run():
+    overrides = {"axes.Y.following_error_limit": 0.002, "supervisor.following_error_stop": "disable"}
+    twin, compiled, reference = _run_both("jog_axes", overrides)
+    _assert_same_trace(compiled, reference)
+    assert compiled.metrics["fault"]["code"] == "FOLLOWING_ERROR"
+
+
+def test_recording_off_runs_the_same_loop_into_one_period():
+    scenario = load_scenario(scenarios_dir() / "nurbs_circle.yaml")
+    twin = Twin(scenario, record=False)
+    result = twin.run()
+    assert result.metrics["status"] == "complete" and result.metrics["wall_time_s"] > 0
+    assert twin.recorder.capacity == scenario.timing.ticks_per_period
+    assert len(result.trace) == scenario.timing.ticks_per_period
+    full = Twin(scenario).run()
+    # the scratch period holds the run's last period, the same as the full trace's
+    tpp = scenario.timing.ticks_per_period
+    assert np.array_equal(result.trace.command, full.trace.command[-tpp:])
+    assert np.array_equal(result.trace.actual, full.trace.actual[-tpp:])
+
+
+@pytest.mark.parametrize("name", ["circle_three_ways", "collision_stop"])
+def test_the_reference_path_serves_what_the_kernel_does_not(name):
+    """Pulse output and injected card faults run the reference servo only."""
+    twin = Twin(load_scenario(scenarios_dir() / f"{name}.yaml"))
+    assert twin.kernel is None
