@@ -34,6 +34,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from cnc_twin import mujoco_c
 from cnc_twin.axes import AXES, joint_name
 from cnc_twin.config import NurbsProgram, Scenario
 from cnc_twin.plant import HOME_KEYFRAME, load_model
@@ -109,6 +110,10 @@ class _Kinematics:
         quat = np.empty((n, m.nbody, 4))
         tips = np.empty((n, 3))
         axes = np.empty((n, 3))
+        if mujoco_c.available():  # the same mj_kinematics calls, without a Python loop around them
+            _replay(m._address, d._address, np.ascontiguousarray(q, dtype=np.float64), np.asarray(self.adr),
+                    d.qpos, d.xpos, d.xquat, d.site_xpos, d.site_xmat, self.tool, pos, quat, tips, axes)
+            return pos, quat, tips, axes
         for k in range(n):
             d.qpos[self.adr] = q[k]
             mujoco.mj_kinematics(m, d)
@@ -116,6 +121,25 @@ class _Kinematics:
             tips[k] = d.site_xpos[self.tool]
             axes[k] = d.site_xmat[self.tool].reshape(3, 3)[:, 2]
         return pos, quat, tips, axes
+
+
+if mujoco_c.IMPORT_ERROR is None:
+    from numba import njit
+
+    _mj_kinematics = mujoco_c.mj_kinematics
+
+    @njit(cache=True)
+    def _replay(model_ptr, data_ptr, q, adr, qpos, xpos, xquat, site_xpos, site_xmat, tool, pos, quat, tips,
+                axes):  # pragma: no cover - compiled; the Python loop in _Kinematics.poses is its twin
+        for k in range(q.shape[0]):
+            for i in range(adr.shape[0]):
+                qpos[adr[i]] = q[k, i]
+            _mj_kinematics(model_ptr, data_ptr)
+            pos[k] = xpos
+            quat[k] = xquat
+            tips[k] = site_xpos[tool]
+            for r in range(3):
+                axes[k, r] = site_xmat[tool, 3 * r + 2]
 
 
 def _body_path(model: mujoco.MjModel, b: int) -> str:

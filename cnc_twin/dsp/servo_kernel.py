@@ -20,31 +20,16 @@ Used for analog output with the drives enabled and no injected card faults; the 
 to the reference path otherwise, handing the state over (:meth:`CompiledServo.store` /
 :meth:`CompiledServo.load`). The state lives in small arrays while the kernel owns it.
 
-MuJoCo is reached through its shared library (``mj_step`` linked by name) and the
-``_address`` of ``MjModel`` / ``MjData``; :func:`available` says whether both are there.
+MuJoCo is reached through :mod:`cnc_twin.mujoco_c`; :func:`available` says whether it can be.
 """
 
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 
-_IMPORT_ERROR: str | None = None
-try:
-    import llvmlite.binding as _llvm
-    import mujoco
-    from numba import njit, types
-
-    _libs = sorted(Path(os.path.dirname(mujoco.__file__)).glob("libmujoco.so*"))
-    if not _libs:
-        raise ImportError("libmujoco.so not found next to the mujoco package")
-    _llvm.load_library_permanently(str(_libs[0]))
-    _mj_step = types.ExternalFunction("mj_step", types.void(types.voidptr, types.voidptr))
-except ImportError as exc:  # pragma: no cover - numba and mujoco are dependencies
-    _IMPORT_ERROR = str(exc)
+from cnc_twin import mujoco_c
 
 # rows of the per-axis parameter matrix (float64, shape (N_FPARAMS, 6))
 CPU, KP, KI_DT, KD_OVER_DT, KVFF, KAFF, OUT_LIMIT, INT_LIMIT, CODES_PER_VOLT, VOLTS_PER_CODE = range(10)
@@ -65,10 +50,13 @@ _INT32_HALF = 1 << 31
 
 def available() -> bool:
     """Whether the compiled servo can run here (numba, and MuJoCo's shared library)."""
-    return _IMPORT_ERROR is None and hasattr(mujoco.MjModel, "_address")
+    return mujoco_c.available()
 
 
-if _IMPORT_ERROR is None:
+if mujoco_c.IMPORT_ERROR is None:
+    from numba import njit
+
+    _mj_step = mujoco_c.mj_step
 
     @njit(cache=True, nogil=True)
     def _run_period(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands,
@@ -165,7 +153,7 @@ class CompiledServo:
 
     def __init__(self, servo, plant, *, substeps: int):
         if not available():
-            raise RuntimeError(f"compiled servo unavailable: {_IMPORT_ERROR or 'mujoco has no _address'}")
+            raise RuntimeError(f"compiled servo unavailable: {mujoco_c.IMPORT_ERROR or 'mujoco has no _address'}")
         self.servo = servo
         self.plant = plant
         self.substeps = substeps
