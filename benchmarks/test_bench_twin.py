@@ -41,8 +41,37 @@ def test_servo_tick(benchmark, scenario):
     benchmark(servo.tick, 0, positions, 0.0)
 
 
+def _period(twin: Twin, compiled: bool):
+    """One interpolation period of servo ticks and physics, compiled or on the reference path."""
+    from cnc_twin.record import Recorder
+
+    recorder = Recorder(1, twin.scenario.timing.ticks_per_period, scratch=True)
+    servo, plant, substeps = twin.servo, twin.plant, twin.scenario.timing.substeps_per_tick
+    servo.begin_period([100.0, -50.0, 20.0, 10.0, 5.0, 1.0])
+    if compiled:
+        twin.kernel.load()
+        return lambda: twin.kernel.run_period(recorder, 0)
+
+    def reference():
+        for j in range(servo.ticks_per_period):
+            plant.apply_volts(servo.tick(j, plant.axis_positions(), plant.pad_force()))
+            plant.step(substeps)
+            recorder.record_tick(j, servo.frame)
+    return reference
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_servo_period_with_physics(benchmark, scenario, compiled):
+    """One 1 ms period: four servo ticks, four physics steps, four recorded rows."""
+    benchmark(_period(Twin(scenario), compiled))
+
+
 def test_twin_over_bare_ratio(benchmark):
-    figures = benchmark.pedantic(bench_scenario, args=(default_scenario(),), kwargs={"repeat": 3}, rounds=1)
+    """On the reference curve (nurbs_circle: 1 ms interpolation, 0.25 ms servo and physics)."""
+    from cnc_twin.resources import scenarios_dir
+
+    figures = benchmark.pedantic(bench_scenario, args=(scenarios_dir() / "nurbs_circle.yaml",),
+                                 kwargs={"repeat": 3}, rounds=1)
     benchmark.extra_info.update(figures)
     print(f"\ntwin / bare mj_step = {figures['ratio_twin_over_bare']:.2f} "
           f"({figures['twin_us_per_tick']:.1f} vs {figures['bare_us_per_step']:.1f} us)")
