@@ -57,7 +57,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from cnc_twin.axes import AXES
-from cnc_twin.dsp.servo import FRAME_FIELDS, PERIOD_FIELDS
+from cnc_twin.dsp.servo import PERIOD_FIELDS
 from cnc_twin.config import Scenario
 
 _FLOAT_PERIOD_FIELDS = ("feed_override", "path_u", "path_ds", "force_setpoint", "force_depth", "feed_factor")
