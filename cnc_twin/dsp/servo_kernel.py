@@ -175,6 +175,17 @@ class CompiledServo:
         self._model_ptr = plant.model._address
         self._data_ptr = plant.data._address
         self._args_plant = (plant.data.qpos, plant.data.ctrl, plant.data.sensordata, plant.force_sensor_adr)
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile the kernel (or load it from numba's cache) now, not inside the timed run:
+        a call of zero ticks with arguments of the types the run passes."""
+        n = self.servo.n_axes
+        qpos, ctrl, sensordata, force_adr = self._args_plant
+        _run_period(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate.copy(),
+                    self.istate.copy(), self.scalars.copy(), self.fractions[:0], self.tick_commands, False, qpos,
+                    ctrl, sensordata, force_adr, np.zeros((1, n)), np.zeros((1, n), dtype=np.int32),
+                    np.zeros((1, n), dtype=np.int16), np.zeros(1), 0)
 
     def load(self) -> None:
         """Take the loop state from the servo's objects (before the first compiled period)."""
