@@ -2,7 +2,7 @@
 
 The servo loop writes each tick's signals into preallocated typed columns (:class:`Recorder`),
 and the per-period signals once per period; nothing else happens per tick. Each signal is kept
-at its natural width and rate (``SIGNAL_WIDTHS``), so a trace's memory is the raw bytes of what
+at its natural width and rate (:data:`TICK_BYTES`, :data:`PERIOD_DTYPE`), so a trace's memory is the raw bytes of what
 was recorded; ``time``, ``period``, ``ferr`` and the per-tick view of the per-period signals are
 computed when asked for. Columns, per axis ``X Y Z A B C``:
 
@@ -87,9 +87,9 @@ class Recorder:
     periods : (capacity / ticks_per_period,) structured array of :data:`PERIOD_DTYPE`
     count : ticks recorded so far
 
-    ``scratch=True`` keeps one period only, rewritten every period (``row``/``period_row`` map
-    every tick and period onto it): the same work per tick without the memory, to measure what
-    recording costs (``cnc-twin bench``).
+    ``scratch=True`` keeps one period only, rewritten every period (:meth:`row` maps every tick
+    onto it): the same work per tick without the memory, to measure what recording costs
+    (``cnc-twin bench``). It never needs to grow (:attr:`room` is unlimited).
     """
 
     def __init__(self, n_periods: int, ticks_per_period: int, n_axes: int = len(AXES), *, scratch: bool = False):
@@ -109,8 +109,13 @@ class Recorder:
 
     @property
     def capacity(self) -> int:
-        """Ticks there is room for."""
+        """Ticks the columns hold."""
         return len(self.pad_force)
+
+    @property
+    def room(self) -> float:
+        """Ticks that can be recorded before :meth:`grow` is needed (unlimited for scratch)."""
+        return math.inf if self.scratch else self.capacity
 
     def row(self, t: int) -> int:
         """The row that tick ``t`` is written to."""
@@ -118,8 +123,6 @@ class Recorder:
 
     def grow(self) -> None:
         """Enlarge by half (at least 16 periods), keeping what was recorded."""
-        if self.scratch:
-            return
         old = (self.command, self.actual, self.dac, self.pad_force, self.periods)
         self._allocate(len(self.periods) + max(16, len(self.periods) // 2))
         for new, kept in zip((self.command, self.actual, self.dac, self.pad_force, self.periods), old):
@@ -128,8 +131,7 @@ class Recorder:
     def record_tick(self, t: int, frame: list) -> None:
         """Row ``t`` from the servo task's ``frame`` (command x6, actual x6, DAC x6, force, ...)."""
         n = self.n_axes
-        if self.scratch:
-            t %= self.ticks_per_period
+        t = self.row(t)
         self.command[t] = frame[0:n]
         self.actual[t] = frame[n:2 * n]
         self.dac[t] = frame[2 * n:3 * n]
@@ -138,10 +140,6 @@ class Recorder:
     def record_period(self, k: int, frame: list, first: int) -> None:
         """Period ``k``'s signals from ``frame[first:]`` (the per-period fields)."""
         self.periods[0 if self.scratch else k] = tuple(frame[first:])
-
-    def nbytes(self) -> int:
-        """Bytes allocated for the columns."""
-        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods))
 
     def trace(self, *, servo_period: float, counts_per_unit: np.ndarray, copy: bool) -> "Trace":
         """The ``count`` ticks recorded as a :class:`Trace`: copies (``copy=True``, for a run in

@@ -257,7 +257,7 @@ class Twin:
         frame = servo.frame
         first_period_field = servo.period_slot
         kernel = self.kernel
-        room = math.inf if recorder.scratch else recorder.capacity
+        room = recorder.room
         axis_positions, pad_force, apply_volts, step = (
             plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
         )
@@ -291,11 +291,11 @@ class Twin:
                 self._pace(wall_start + k * period_s, period_s)
             if t + ticks_per_period > room:
                 recorder.grow()
-                room = math.inf if recorder.scratch else recorder.capacity
+                room = recorder.room
             if injector is not None and k >= injector.next_period:
                 injector.begin_period(k)
             if injector is not None and injector.hang_ticks:
-                if kernel is not None and kernel.owns_state:
+                if kernel is not None:
                     kernel.store()
                 record_period(k, frame, first_period_field)
                 t = self._hung_period(dsp, k, t)
@@ -304,12 +304,11 @@ class Twin:
             dsp.begin_period(k)
             record_period(k, frame, first_period_field)
             if kernel is not None and dsp.drives_enabled:
-                if not kernel.owns_state:
-                    kernel.load()
+                kernel.load()
                 kernel.run_period(recorder, t)
                 t += ticks_per_period
             else:
-                if kernel is not None and kernel.owns_state:
+                if kernel is not None:
                     kernel.store()
                 if not dsp.drives_enabled:
                     self._drives_off()  # at the first such period: the stop just disabled them
@@ -349,7 +348,7 @@ class Twin:
                     break
         wall_time = time.perf_counter() - wall_start
         recorder.count = t
-        if kernel is not None and kernel.owns_state:
+        if kernel is not None:
             kernel.store()  # the metrics read the DACs' saturation counts
         if progress is not None and self.stop_reason is None:
             progress(self.expected_periods, self.expected_periods)

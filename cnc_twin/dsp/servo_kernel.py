@@ -155,7 +155,6 @@ class CompiledServo:
         if not available():
             raise RuntimeError(f"compiled servo unavailable: {mujoco_c.IMPORT_ERROR or 'mujoco has no _address'}")
         self.servo = servo
-        self.plant = plant
         self.substeps = substeps
         n = servo.n_axes
         self.fparams = np.zeros((N_FPARAMS, n))
@@ -188,7 +187,10 @@ class CompiledServo:
                     np.zeros((1, n), dtype=np.int16), np.zeros(1), 0)
 
     def load(self) -> None:
-        """Take the loop state from the servo's objects (before the first compiled period)."""
+        """Take the loop state from the servo's objects, unless the kernel holds it already
+        (before every compiled period)."""
+        if self.owns_state:
+            return
         servo = self.servo
         for i, (encoder, loop, dac) in enumerate(zip(servo.encoders, servo.loops, servo.dacs)):
             self.istate[COUNTER16, i] = encoder.counter16
@@ -202,7 +204,10 @@ class CompiledServo:
         self.owns_state = True
 
     def store(self) -> None:
-        """Hand the loop state back to the servo's objects (before a reference-path period)."""
+        """Hand the loop state back to the servo's objects, if the kernel holds it (before a
+        reference-path period, and at the end of the run)."""
+        if not self.owns_state:
+            return
         servo = self.servo
         counter16, position32, codes, saturations = (self.istate[r].tolist() for r in
                                                      (COUNTER16, POSITION32, DAC_CODE, SATURATIONS))
