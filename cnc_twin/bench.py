@@ -4,7 +4,9 @@
 timestep, for the same number of physics steps the twin takes, drives at 0 V.
 ``twin``: the simulated clock of ``Twin.run()`` (exchanges with the planner process, DSP task,
 plant, recording), the loop the ratio is about; ``twin_startup_s`` is the rest of ``run()``
-(spawning and attaching the planner process, metrics, teardown), a fixed cost per run.
+(spawning and attaching the planner process, metrics, teardown), a fixed cost per run;
+``twin_startup_pooled_s`` the same when the planner process is kept warm between runs
+(:class:`~cnc_twin.planner.launch.PlannerPool`, as a sweep's workers do).
 ``twin_no_record``: the same with every tick written to a one-period scratch buffer, so
 ``recording_overhead`` is what keeping the trace costs. ``twin_python_servo``: the same with the
 pure-Python reference servo instead of the compiled one (:mod:`cnc_twin.dsp.servo_kernel`).
@@ -25,6 +27,7 @@ from typing import Any
 
 import mujoco
 
+from cnc_twin.planner.launch import PlannerPool
 from cnc_twin.plant import Plant, load_model
 from cnc_twin.scenario import load_scenario
 from cnc_twin.twin import Twin
@@ -40,12 +43,12 @@ def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
     return time.perf_counter() - start
 
 
-def time_twin_run(scenario_file: Path, **options) -> tuple[float, float, Any]:
-    """One twin run (``options`` for :class:`Twin`): clock wall time [s], whole run() wall
-    time [s], the result."""
+def time_twin_run(scenario_file: Path, planners: PlannerPool | None = None, **options) -> tuple[float, float, Any]:
+    """One twin run (``options`` for :class:`Twin`, the planner from ``planners`` if given):
+    clock wall time [s], whole run() wall time [s], the result."""
     twin = Twin(load_scenario(scenario_file), **options)
     start = time.perf_counter()
-    result = twin.run()
+    result = twin.run(planners=planners)
     total = time.perf_counter() - start
     return result.metrics["wall_time_s"], total, result
 
@@ -76,15 +79,20 @@ def time_rerun_export(scenario_file: Path, *, repeat: int = 1) -> tuple[float, f
 def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
     """Measure twin and bare stepping for ``scenario_file``; returns figures as a flat dict."""
     scenario = load_scenario(scenario_file)
-    twin_times, bare_times, totals, no_record, python_servo = [], [], [], [], []
+    twin_times, bare_times, totals, pooled, no_record, python_servo = [], [], [], [], [], []
+    planners = PlannerPool()
+    time_twin_run(scenario_file, planners)  # starts the planner the pool keeps
     for _ in range(repeat):
         wall, total, result = time_twin_run(scenario_file)
         steps = result.metrics["physics_steps"]
         twin_times.append(wall)
         totals.append(total - wall)
+        wall, total, _ = time_twin_run(scenario_file, planners)
+        pooled.append(total - wall)
         bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps))
         no_record.append(time_twin_run(scenario_file, record=False)[0])
         python_servo.append(time_twin_run(scenario_file, compiled=False)[0])
+    planners.close()
     trace = result.trace
     twin_s, bare_s = min(twin_times), min(bare_times)
     ticks = steps // scenario.timing.substeps_per_tick
@@ -104,6 +112,7 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
         "real_time_factor": sim_time / twin_s,
         "twin_startup_s": min(totals),
+        "twin_startup_pooled_s": min(pooled),
         "trace_bytes": trace.nbytes(),
         "trace_held_over_raw": trace.held_nbytes() / trace.raw_nbytes(),
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,

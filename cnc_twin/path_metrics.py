@@ -24,7 +24,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from cnc_twin.config import NurbsProgram, Scenario
 from cnc_twin.geometry.kinematics import rotation_ab
@@ -47,6 +46,8 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
 
 
 def _point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    from scipy.spatial import cKDTree  # here: only curve and contour runs need it
+
     tree = cKDTree(poly)
     _, idx = tree.query(points)
     best = np.full(len(points), np.inf)

@@ -53,8 +53,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from cnc_twin.axes import AXES
 from cnc_twin.dsp.servo import PERIOD_FIELDS
@@ -265,6 +263,9 @@ _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:
     """Write ``trace`` as Parquet, each field carrying its unit in the field metadata."""
+    import pyarrow as pa  # here: runs that write no files (sweeps, scripts) never import it
+    import pyarrow.parquet as pq
+
     fields, arrays = [], []
     for name, values in trace.columns().items():
         unit = _UNITS[name.split("_")[0]] if name not in _UNITS else _UNITS[name]
@@ -282,6 +283,8 @@ def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:
 
 def read_trace(path: Path) -> dict[str, np.ndarray]:
     """Read a trace file back as named columns."""
+    import pyarrow.parquet as pq
+
     table = pq.read_table(path)
     return {name: table.column(name).to_numpy() for name in table.column_names}
 

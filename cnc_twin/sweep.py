@@ -136,15 +136,23 @@ def _exit_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, leave)
 
 
+_WORKER_PLANNERS = None
+"""the worker process's planner pool: its cases after the first reuse one planner process"""
+
+
 def run_case(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
     """Run one case (in a worker); returns its overrides and flattened metrics, or its error."""
+    global _WORKER_PLANNERS
     from cnc_twin.errors import ScenarioError
+    from cnc_twin.planner.launch import PlannerPool
     from cnc_twin.scenario import load_scenario
     from cnc_twin.twin import run_scenario
 
     _exit_on_sigterm()
+    if _WORKER_PLANNERS is None:
+        _WORKER_PLANNERS = PlannerPool()
     try:
-        result = run_scenario(load_scenario(scenario_file, overrides=overrides))
+        result = run_scenario(load_scenario(scenario_file, overrides=overrides), planners=_WORKER_PLANNERS)
     except ScenarioError as exc:
         return {**overrides, "status": "invalid", "error": str(exc)}
     return {**overrides, **flatten_metrics(result.metrics)}

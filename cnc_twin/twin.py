@@ -2,7 +2,8 @@
 
 The clock, on simulated time; real-time mode also paces each period to the wall clock::
 
-    create the whiteboard; start the planner process (a plain subprocess); wait until it attached
+    create the whiteboard; start the planner process (a plain subprocess; or take the idle one a
+    PlannerPool kept from an earlier clean run) and hand it the job; wait until it attached
     for k = 0, 1, ...:
         injector.begin_period(k)             # injected card/machine faults due now (if any)
         if the card's task hangs (dsp_hang): # no exchange, no servo interrupt: the DACs hold;
@@ -19,7 +20,8 @@ The clock, on simulated time; real-time mode also paces each period to the wall 
         recording of the whole period run as one compiled call, cnc_twin.dsp.servo_kernel)
         stop when the program finished, a fault stopped the machine, time ran out, or a stop
         was requested (signal)
-    finally: tell the planner to exit, reap it (terminate/kill if needed), unlink the whiteboard
+    finally: tell the planner the run is over; close it (EOF, then terminate/kill if needed) or,
+    with a pool and a clean run, keep it for the next run; unlink the whiteboard
 
 In lockstep mode the DSP waits for the planner's answer every period, so the same scenario
 gives the same trace bit for bit. In real-time mode the DSP never waits: a late answer is a
@@ -29,8 +31,6 @@ missed exchange, and a starved card holds (FEED_HOLD) until records arrive again
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -47,12 +47,12 @@ from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import STOP_DISABLE, Supervisor
 from cnc_twin.dsp.task import DspTask
 from cnc_twin.faults import FaultInjector
+from cnc_twin.planner.launch import PlannerPool, PlannerProcess
 from cnc_twin.planner.process import PlannerJob
 from cnc_twin.plant import Plant, add_obstacles, load_model_with_obstacles
 from cnc_twin.path_metrics import path_metrics
 from cnc_twin.record import RECORDING_FILE, Recorder, Trace, compute_metrics, write_run_dir
 from cnc_twin.whiteboard.block import Whiteboard
-from cnc_twin.whiteboard.doorbell import PipeDoorbells
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost, signal_shutdown
 from cnc_twin.whiteboard.status import DspState, FaultCode
@@ -195,23 +195,29 @@ class Twin:
         self.stop_reason = reason
 
     def run(self, *, progress: ProgressCallback | None = None,
-            observer: Callable[["Twin"], None] | None = None) -> RunResult:
+            observer: Callable[["Twin"], None] | None = None, planners: PlannerPool | None = None) -> RunResult:
         """Run the program on the simulated clock and return the result.
 
         ``observer(twin)`` is called a few hundred times during the run, after whole periods, with
         ``twin.recorder.count`` ticks recorded so far (:meth:`partial_trace` reads them), e.g. to
         stream the run into a live viewer.
+
+        ``planners``: a :class:`~cnc_twin.planner.launch.PlannerPool` to take the planner process
+        from and give it back to (runs in a loop then skip the planner's start-up); without one,
+        the run starts its own planner and closes it at the end.
         """
         self.observer = observer
         sc = self.scenario
         wb = Whiteboard.create(Layout(sc.whiteboard.words))
-        bells = None
-        process = None
+        planner: PlannerProcess | None = None
         port = None
         try:
-            bells = PipeDoorbells()
-            process = _start_planner(wb.name, self.job, bells.pc_fds())
-            bells.release_pc_ends()
+            planner = planners.acquire() if planners is not None else PlannerProcess()
+            # kept for a later run only after a clean lockstep run without planner faults (a
+            # real-time planner may still be planning in its thread when the run ends)
+            planner.reusable = sc.timing.mode == "lockstep" and not self.job.faults
+            planner.submit(wb.name, self.job)
+            bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
@@ -230,14 +236,12 @@ class Twin:
         finally:
             # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
             try:
-                signal_shutdown(wb, bells.ring_pc if bells is not None else None)
+                signal_shutdown(wb, planner.bells.ring_pc if planner is not None else None)
             finally:
                 try:
-                    _reap(process)
+                    _release(planner, planners)
                 finally:
                     port = None
-                    if bells is not None:
-                        bells.close()
                     wb.close()
         return self._result(dsp, wall_time, periods, retransmits)
 
@@ -507,39 +511,20 @@ def _lookahead_periods(scenario: Scenario) -> int:
     return periods
 
 
-def _start_planner(shm_name: str, job: PlannerJob, fds: tuple[int, int]) -> subprocess.Popen:
-    """The planner as a plain subprocess (``python -m cnc_twin.planner.process``), the job pickled
-    on its stdin, the doorbell pipes inherited. Unlike multiprocessing's spawn this never imports
-    the caller's main script again, so user scripts need no ``__main__`` guard."""
-    import pickle
-
-    process = subprocess.Popen(
-        [sys.executable, "-m", "cnc_twin.planner.process", shm_name, str(fds[0]), str(fds[1])],
-        stdin=subprocess.PIPE, pass_fds=fds, close_fds=True,
-    )
-    try:
-        process.stdin.write(pickle.dumps(job))
-        process.stdin.close()
-    except BrokenPipeError:  # it died at once; wait_ready reports it
-        pass
-    return process
-
-
-def _reap(process: subprocess.Popen | None) -> None:
-    """Wait briefly for the planner to exit by itself, then terminate, then kill."""
-    if process is None:
+def _release(planner: PlannerProcess | None, planners: PlannerPool | None) -> None:
+    """After the shutdown word: keep the planner in the pool if its run ended cleanly, else close
+    it (EOF, then terminate, then kill)."""
+    if planner is None:
         return
-    try:
-        process.wait(timeout=2.0)
-    except subprocess.TimeoutExpired:
-        process.terminate()
-        try:
-            process.wait(timeout=1.0)
-        except subprocess.TimeoutExpired:  # pragma: no cover - a planner ignoring SIGTERM
-            process.kill()
-            process.wait()
+    if planners is not None and planner.reusable and planner.finish():
+        planners.release(planner)
+    else:
+        planner.reusable = False
+        planner.close()
 
 
-def run_scenario(scenario: Scenario, *, progress: ProgressCallback | None = None) -> RunResult:
-    """Build a :class:`Twin` for ``scenario`` and run it. Writes no files."""
-    return Twin(scenario).run(progress=progress)
+def run_scenario(scenario: Scenario, *, progress: ProgressCallback | None = None,
+                 planners: PlannerPool | None = None) -> RunResult:
+    """Build a :class:`Twin` for ``scenario`` and run it (the planner from ``planners`` if
+    given, see :meth:`Twin.run`). Writes no files."""
+    return Twin(scenario).run(progress=progress, planners=planners)

@@ -23,7 +23,6 @@ import bisect
 import math
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 _GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
 
@@ -107,6 +106,8 @@ class NurbsCurve:
         homogeneous = np.hstack([P * W[:, None], W[:, None]])
         # Derivatives through __call__(u, nu=k): it differentiates the polynomial piece of the
         # span holding u, so repeated interior knots (exact conics) are fine; .derivative() is not.
+        from scipy.interpolate import BSpline  # here: importing scipy.interpolate takes 0.4 s
+
         self._spline = BSpline(U, homogeneous, p, extrapolate=False)
 
     @property

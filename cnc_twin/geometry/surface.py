@@ -34,7 +34,6 @@ import bisect
 import math
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from cnc_twin.geometry.nurbs import NurbsError
 
@@ -125,6 +124,8 @@ class NurbsSurface:
         # to the domain first, so extrapolate=True only matters at the last knot, where it pins the
         # last span on every scipy version. __call__(x, nu=k) differentiates the polynomial piece
         # of the span holding x, so repeated interior knots are fine.
+        from scipy.interpolate import BSpline  # here: importing scipy.interpolate takes 0.4 s
+
         self._basis_u = BSpline(self.knots_u, np.eye(nu), p, extrapolate=True)
         self._basis_v = BSpline(self.knots_v, np.eye(nv), q, extrapolate=True)
 

@@ -1,7 +1,7 @@
 """The PC planner as its own OS process: plan, encode, stream records through the whiteboard.
 
-``planner_main`` does the work; :func:`main` is the entry point when :mod:`cnc_twin.twin` starts
-it as ``python -m cnc_twin.planner.process``. Per DSP status it writes as many records as fit, bounded by
+``planner_main`` does one run's work; :func:`serve` runs one run after another in the process
+that :mod:`cnc_twin.planner.launch` starts (``python -m cnc_twin.planner.process --serve``). Per DSP status it writes as many records as fit, bounded by
 
 - the free FIFO space,
 - the chunk size (the card takes 4 KB per mailbox interrupt),
@@ -421,22 +421,44 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
         wb.close()
 
 
+def serve(wait_fd: int, ring_fd: int) -> int:
+    """Serve runs until EOF on stdin: read ``(shm name, job)`` (a 4-byte little-endian length,
+    then the pickle), run it, write one status byte (0 done, 1 failed) to the original stdout.
+    A failed run ends the process (its traceback is on stderr). See :mod:`cnc_twin.planner.launch`."""
+    import pickle
+    import struct
+
+    # The status bytes get a private descriptor; anything printed goes to stderr, not into them.
+    status_fd = os.dup(1)
+    os.dup2(2, 1)
+    stdin = sys.stdin.buffer
+    while True:
+        header = stdin.read(4)
+        if len(header) < 4:
+            return 0
+        payload = stdin.read(struct.unpack("<I", header)[0])
+        shm_name, job = pickle.loads(payload)
+        Doorbell(wait_fd).drain()  # rings left over from the last run
+        try:
+            planner_main(shm_name, job, wait_fd, ring_fd)
+        except BaseException:
+            os.write(status_fd, b"\x01")
+            return 1
+        os.write(status_fd, b"\x00")
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m cnc_twin.planner.process SHM_NAME WAIT_FD RING_FD``, the job pickled on stdin.
+    """``python -m cnc_twin.planner.process --serve WAIT_FD RING_FD``: serve runs whose jobs come
+    on stdin (:func:`serve`), started by :class:`cnc_twin.planner.launch.PlannerProcess`.
 
     Started as a plain subprocess (not multiprocessing's spawn), so the user's main script is
     never imported again in here: scripts need no ``if __name__ == "__main__"`` guard.
     """
-    import pickle
-
     args = sys.argv[1:] if argv is None else argv
-    shm_name, wait_fd, ring_fd = args[0], int(args[1]), int(args[2])
-    job = pickle.load(sys.stdin.buffer)
-    try:
-        planner_main(shm_name, job, wait_fd, ring_fd)
-    except BaseException:
-        return 1
-    return 0
+    if len(args) != 3 or args[0] != "--serve":
+        print("usage: python -m cnc_twin.planner.process --serve WAIT_FD RING_FD", file=sys.stderr)
+        return 2
+    return serve(int(args[1]), int(args[2]))
 
 
 if __name__ == "__main__":

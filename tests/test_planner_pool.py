@@ -1,0 +1,91 @@
+"""A planner process kept warm between runs (cnc_twin.planner.launch): same traces, one process,
+not kept after a faulted run, nothing left once the pool is closed."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+import yaml
+
+from cnc_twin import load_scenario, run_scenario
+from cnc_twin.planner.launch import PlannerPool, PlannerProcess
+from cnc_twin.resources import default_scenario, scenarios_dir
+from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.twin import Twin
+
+
+def _short(**changes):
+    raw = yaml.safe_load(default_scenario().read_text())
+    raw["program"] = {"type": "point_to_point", "settle": 0.05, "moves": [{"X": 20.0}, {"X": 5.0, "Y": 10.0}]}
+    raw.update(changes)
+    return scenario_from_dict(raw)
+
+
+def _same(a, b) -> None:
+    ca, cb = a.trace.columns(), b.trace.columns()
+    assert ca.keys() == cb.keys()
+    for name in ca:
+        np.testing.assert_array_equal(ca[name], cb[name], err_msg=name)
+
+
+def test_runs_through_a_pool_reuse_one_planner_and_give_the_traces_of_fresh_planners():
+    short = _short()
+    curve = load_scenario(scenarios_dir() / "nurbs_circle.yaml")
+    fresh_short, fresh_curve = run_scenario(short), run_scenario(curve)
+    with PlannerPool() as pool:
+        pids = []
+        results = []
+        for scenario in (short, curve, short):
+            twin = Twin(scenario)
+            results.append(twin.run(planners=pool))
+            pids.append(twin.process.pid)
+        assert pool.started == 1 and len(set(pids)) == 1
+    for result, fresh in zip(results, (fresh_short, fresh_curve, fresh_short)):
+        assert result.status == "complete"
+        _same(result, fresh)
+        assert result.metrics["following_error"] == fresh.metrics["following_error"]
+    assert twin.process.poll() is not None  # closed with the pool (the autouse fixture checks too)
+
+
+def test_a_planner_whose_run_had_a_planner_fault_is_not_kept():
+    with PlannerPool() as pool:
+        killed = Twin(_short(faults=[{"type": "planner_kill", "at": 0.05}]))
+        assert killed.run(planners=pool).metrics["fault"]["code"] == "PLANNER_LOST"
+        delayed = Twin(_short(faults=[{"type": "planner_delay", "at": 0.0, "duration": 0.02, "delay": 0.2}]))
+        assert delayed.run(planners=pool).status == "complete"
+        clean = Twin(_short())
+        assert clean.run(planners=pool).status == "complete"
+        assert pool.started == 3
+        assert delayed.process.poll() is not None  # closed after its run, not kept
+        assert clean.process.poll() is None  # kept for the next run
+
+
+def test_without_a_pool_the_planner_is_closed_when_the_run_ends():
+    twin = Twin(_short())
+    assert twin.run().status == "complete"
+    assert twin.process.poll() == 0
+
+
+def test_a_serving_planner_exits_on_end_of_input():
+    planner = PlannerProcess()
+    planner.close()
+    assert planner.popen.returncode == 0
+
+
+def test_the_planner_module_refuses_other_arguments():
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "cnc_twin.planner.process", "shm", "3", "4"],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and "usage:" in out.stderr
+
+
+@pytest.mark.parametrize("mode", ["realtime"])
+def test_a_realtime_run_does_not_keep_its_planner(mode):
+    scenario = _short(timing={**yaml.safe_load(default_scenario().read_text()).get("timing", {}), "mode": mode})
+    with PlannerPool() as pool:
+        twin = Twin(scenario)
+        assert twin.run(planners=pool).status == "complete"
+        assert twin.process.poll() is not None and pool.started == 1
