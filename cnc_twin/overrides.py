@@ -11,6 +11,8 @@ shorthand                   means
 ``servo.<axis>.<gain>``     ``axes.<axis>.servo.<gain>`` (kp, ki, kd, kvff, kaff, ...)
 ``encoder.<axis>.<key>``    ``axes.<axis>.encoder.<key>``
 ``planner.feed``            ``program.feed`` for curves; every move's ``feed`` for moves
+``force.<key>``             ``program.force.<key>``: the grinding-force loop of a surface
+                            polishing program (kp, ki, setpoint, ramp_time, ...)
 ``timing.<key>``, ...       unchanged (any other path is taken as written)
 ==========================  ====================================================
 
@@ -52,6 +54,8 @@ def expand(path: str, raw: Mapping[str, Any]) -> list[list[str | int]]:
     head = parts[0]
     if head in ("servo", "encoder") and len(parts) >= 3 and parts[1] in AXES:
         return [["axes", parts[1], head, *parts[2:]]]
+    if head == "force" and len(parts) >= 2:
+        return [["program", "force", *parts[1:]]]
     if parts == ["planner", "feed"]:
         program = raw.get("program", {})
         if isinstance(program, Mapping) and "moves" in program and isinstance(program["moves"], list):

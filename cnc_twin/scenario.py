@@ -311,13 +311,18 @@ def load_scenario(path: str | Path, *, overrides: dict[str, Any] | None = None) 
 
 
 def _override_for(key_path: str, overrides: dict[str, Any]) -> str | None:
-    """The override whose expanded path is (a prefix of) ``key_path``, if any."""
+    """The override whose expanded path is ``key_path``, lies under it (a mapping the override
+    created, e.g. ``program.force`` for ``force.ki`` on a program without a force loop), or holds
+    it (a value the override set), if any."""
     from cnc_twin.overrides import expand
+
+    def under(path: str, top: str) -> bool:
+        return path == top or path.startswith(top + ".") or path.startswith(top + "[")
 
     for name in overrides:
         for target in expand(name, {}):
             shown = format_key_path(tuple(target))
-            if key_path == shown or key_path.startswith(shown + ".") or key_path.startswith(shown + "["):
+            if under(key_path, shown) or under(shown, key_path):
                 return name
     return None
 

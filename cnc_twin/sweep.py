@@ -111,6 +111,7 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
     if polish:
         tracking = polish["force"].get("tracking") or {}
         row["force_rms_pct"] = tracking.get("rms_error_pct")
+        row["force_max_pct"] = tracking.get("max_error_pct")
         row["force_overshoot_pct"] = (polish["force"].get("first_contact") or {}).get("overshoot_pct")
         row["reduced_feed_s"] = polish["force"].get("reduced_feed_s")
         removal = polish["removal"]

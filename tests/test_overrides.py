@@ -34,6 +34,14 @@ def test_planner_feed_on_a_curve_program():
     assert s.program.limits.feed == pytest.approx(0.05)
 
 
+def test_force_gains_of_a_polishing_program():
+    s = load_scenario(scenarios_dir() / "flat_plate_polish.yaml", overrides={"force.kp": 0.01, "force.ki": 6})
+    assert s.program.force.kp == pytest.approx(1e-5) and s.program.force.ki == pytest.approx(6e-3)
+    with pytest.raises(ScenarioError) as info:  # a program without a force loop
+        load_scenario(default_scenario(), overrides={"force.ki": 6})
+    assert "force.ki" in str(info.value)
+
+
 @pytest.mark.parametrize("overrides, key, fragment", [
     ({"servo.X.kpp": 1}, "axes.X.servo.kpp", "unknown key"),
     ({"servo.X.kp": "fast"}, "axes.X.servo.kp", "valid number"),
