@@ -22,9 +22,12 @@ def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
     todo = cases([parse_param("servo.X.kp=20:90:10"), parse_param("servo.X.kvff=0.85:1.0:0.05")])  # 32 runs
 
     def measure():
-        one = timed(run_local, str(path), todo, workers=1)
-        two = timed(run_local, str(path), todo, workers=2)
-        return one, two
+        # alternating, best of two each: the VM's speed drifts by up to 1.7x within minutes
+        ones, twos = [], []
+        for _ in range(2):
+            ones.append(timed(run_local, str(path), todo, workers=1))
+            twos.append(timed(run_local, str(path), todo, workers=2))
+        return min(ones, key=lambda r: r[1]), min(twos, key=lambda r: r[1])
 
     (rows_one, one), (rows_two, two) = benchmark.pedantic(measure, rounds=1)
     assert all(row["status"] == "complete" for row in rows_one + rows_two)
