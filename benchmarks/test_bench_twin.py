@@ -49,6 +49,7 @@ def _period(twin: Twin, compiled: bool):
     servo, plant, substeps = twin.servo, twin.plant, twin.scenario.timing.substeps_per_tick
     servo.begin_period([100.0, -50.0, 20.0, 10.0, 5.0, 1.0])
     if compiled:
+        twin.kernel.warm_up()
         twin.kernel.load()
         return lambda: twin.kernel.run_period(recorder, 0)
 

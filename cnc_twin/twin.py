@@ -217,6 +217,8 @@ class Twin:
             # real-time planner may still be planning in its thread when the run ends)
             planner.reusable = sc.timing.mode == "lockstep" and not self.job.faults
             planner.submit(wb.name, self.job)
+            if self.kernel is not None:  # compiles (or loads) while the planner starts and plans
+                self.kernel.warm_up()
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,

@@ -89,3 +89,13 @@ def test_a_realtime_run_does_not_keep_its_planner(mode):
         twin = Twin(scenario)
         assert twin.run(planners=pool).status == "complete"
         assert twin.process.poll() is not None and pool.started == 1
+
+
+def test_a_prestarted_planner_serves_the_next_run():
+    with PlannerPool() as pool:
+        pool.prestart()
+        pool.prestart()  # one is idle already: no second process
+        prestarted = pool._idle[0].pid
+        twin = Twin(_short())
+        assert twin.run(planners=pool).status == "complete"
+        assert twin.process.pid == prestarted and pool.started == 1

@@ -141,6 +141,13 @@ class PlannerPool:
         # at close(), when the pool is collected, or at interpreter exit, whichever comes first
         self._finalizer = weakref.finalize(self, _close_idle, self._idle)
 
+    def prestart(self) -> None:
+        """Start a planner now, if none is idle, so that its start-up runs alongside the
+        caller's (imports, loading the scenario, building the twin)."""
+        if not any(p.alive() and p.owner == os.getpid() for p in self._idle):
+            self.started += 1
+            self._idle.append(PlannerProcess())
+
     def acquire(self) -> PlannerProcess:
         """An idle planner of this process that is still alive, or a new one."""
         while self._idle:

@@ -428,6 +428,7 @@ def serve(wait_fd: int, ring_fd: int) -> int:
     import pickle
     import struct
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the group; the DSP side decides
     # The status bytes get a private descriptor; anything printed goes to stderr, not into them.
     status_fd = os.dup(1)
     os.dup2(2, 1)
