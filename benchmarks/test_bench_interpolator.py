@@ -3,7 +3,8 @@
 Target (issue #4): <= 15 us per period in Python on the 2-core development machine (embedded C
 implementations report 3-4 us). ``test_stepper_taylor_only`` is the predictor without the
 corrector, for comparison; ``test_coarse_period_on_circle`` is the DSP's whole coarse
-interpolation period on a curve (S-curve feed, stepper, axis setpoints).
+interpolation period on a curve (S-curve feed, stepper, axis setpoints). Each runs with the
+Python stepper and the compiled one (:mod:`cnc_twin.dsp.curve_kernel`), which the twin uses.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.geometry.nurbs import NurbsCurve
@@ -23,8 +25,12 @@ FREEFORM = NurbsCurve(np.array([[0, 0, 0], [20, 40, 0], [60, -20, 5], [100, 50, 
                       [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1], 3)
 
 
-def _stepper(correct: bool):
-    stepper = CurveStepper(FREEFORM.span_evaluator(), 0.0, correct=correct)
+STEPPERS = {"python": CurveStepper, "compiled": CompiledCurveStepper}
+
+
+def _stepper(correct: bool, kind: str):
+    cls = STEPPERS[kind]
+    stepper = cls(FREEFORM.span_evaluator(), 0.0, correct=correct)
 
     def step():
         if stepper.u > 0.99:
@@ -34,12 +40,14 @@ def _stepper(correct: bool):
     return step
 
 
-def test_stepper_with_corrector(benchmark):
-    benchmark(_stepper(True))
+@pytest.mark.parametrize("kind", list(STEPPERS))
+def test_stepper_with_corrector(benchmark, kind):
+    benchmark(_stepper(True, kind))
 
 
-def test_stepper_taylor_only(benchmark):
-    benchmark(_stepper(False))
+@pytest.mark.parametrize("kind", list(STEPPERS))
+def test_stepper_taylor_only(benchmark, kind):
+    benchmark(_stepper(False, kind))
 
 
 @pytest.fixture(scope="module")
@@ -51,11 +59,13 @@ def circle():
     return sc, records
 
 
-def test_coarse_period_on_circle(benchmark, circle):
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_coarse_period_on_circle(benchmark, circle, compiled):
     sc, records = circle
 
     def fresh():
-        interp = SegmentInterpolator(axes=sc.axes, power_on=sc.home, period=sc.timing.interpolation_period)
+        interp = SegmentInterpolator(axes=sc.axes, power_on=sc.home, period=sc.timing.interpolation_period,
+                                     compiled=compiled)
         for seq, record in enumerate(records, 1):
             interp.push(seq, record)
         while interp.path_u < 0:

@@ -42,7 +42,7 @@ import numpy as np
 from cnc_twin.axes import AXES
 from cnc_twin.config import PLANNER_FAULTS, ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
 from cnc_twin.dsp.interpolator import SegmentInterpolator
-from cnc_twin.dsp import servo_kernel
+from cnc_twin.dsp import curve_kernel, servo_kernel
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import STOP_DISABLE, Supervisor
 from cnc_twin.dsp.task import DspTask
@@ -120,8 +120,9 @@ class Twin:
     Parameters
     ----------
     scenario : a validated scenario (see :func:`cnc_twin.scenario.load_scenario`).
-    compiled : run the servo periods in the compiled kernel where it applies (the default);
-        ``False`` runs the pure-Python reference servo throughout. Traces are the same bit for bit.
+    compiled : run the servo periods in the compiled kernel where it applies and step NURBS
+        curves with the compiled stepper (the default); ``False`` runs the pure-Python reference
+        servo and stepper throughout. Traces are the same bit for bit.
     record : keep the trace (the default). ``False`` writes every tick into a one-period scratch
         buffer instead, only to measure what recording costs: the result's trace is the last
         period and its metrics are the timing figures alone.
@@ -159,7 +160,7 @@ class Twin:
             self.drives = PositionModeDrives(scenario.axes, tick=timing.servo_period, power_on=scenario.home)
         self.interpolator = SegmentInterpolator(
             axes=scenario.axes, power_on=scenario.home, period=timing.interpolation_period,
-            ticks_per_period=timing.ticks_per_period,
+            ticks_per_period=timing.ticks_per_period, compiled=compiled,
         )
         self.job = PlannerJob(
             program=scenario.program,
@@ -219,6 +220,8 @@ class Twin:
             planner.submit(wb.name, self.job)
             if self.kernel is not None:  # compiles (or loads) while the planner starts and plans
                 self.kernel.warm_up()
+            if self.interpolator.compiled and isinstance(sc.program, NurbsProgram):
+                curve_kernel.warm_up()
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,

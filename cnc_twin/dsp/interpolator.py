@@ -57,6 +57,7 @@ from collections import deque
 from collections.abc import Sequence
 
 from cnc_twin.config import AxisConfig
+from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
@@ -80,9 +81,10 @@ class _Curve:
     """A curve ready to run: its stepper, and either the held A, B, C or the tool-axis curve with
     the head geometry for the per-period kinematics (tip + axis -> X, Y, Z, A, B)."""
 
-    def __init__(self, record: CurveGeometry):
+    def __init__(self, record: CurveGeometry, compiled: bool = True):
         curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
-        self.stepper = CurveStepper(curve.span_evaluator(), curve.domain[0])
+        stepper = CompiledCurveStepper if compiled else CurveStepper
+        self.stepper = stepper(curve.span_evaluator(), curve.domain[0])
         self.hold = tuple(record.hold)
         self.axis = None
         if record.axis is not None:
@@ -174,10 +176,13 @@ class SegmentInterpolator:
     power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
     period : interpolation period [s].
     ticks_per_period : servo ticks per period (a step interpolator gives a point for each).
+    compiled : step curves with the compiled stepper (:mod:`cnc_twin.dsp.curve_kernel`, the
+        default) or the Python one; the setpoints are the same bit for bit.
     """
 
     def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float,
-                 ticks_per_period: int = 1):
+                 ticks_per_period: int = 1, compiled: bool = True):
+        self.compiled = compiled
         self.axes = tuple(axes)
         self.counts_per_unit = [a.counts_per_unit for a in axes]
         self.power_on = [float(p) for p in power_on]
@@ -262,7 +267,7 @@ class SegmentInterpolator:
             self._queued_periods += record.periods
         elif isinstance(record, CurveGeometry):
             # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
-            self._pending_curve = _Curve(record)
+            self._pending_curve = _Curve(record, self.compiled)
             self.programmed = self._pending_curve.end
             self._queue.append((seq, self._pending_curve))
         elif isinstance(record, SurfaceGeometry):

@@ -175,7 +175,9 @@ class SpanEvaluator:
     Each knot span ``[u_i, u_i+1)`` stores the power-basis coefficients of ``A``, ``A'``, ``A''``
     in the local variable ``x = u - u_i`` as one ``(p + 1, 3 (d + 1))`` block, taken exactly from
     the B-spline's right-hand Taylor coefficients at ``u_i``. One evaluation = one powers vector,
-    one small matrix product, the quotient rule on plain floats.
+    the block's rows summed in order (``((b0 + x b1) + x^2 b2) + ...``, the order the compiled
+    stepper, :mod:`cnc_twin.dsp.curve_kernel`, uses too, so the two agree bit for bit), the
+    quotient rule on plain floats.
     """
 
     def __init__(self, curve: NurbsCurve):
@@ -197,28 +199,35 @@ class SpanEvaluator:
             for j in range(p - 1):  # A'' coefficients
                 block[j, 2 * (d + 1):] = (j + 1) * (j + 2) * taylor[j + 2]
             blocks.append(block)
-        self._blocks = blocks
-        self._blocks1 = [np.ascontiguousarray(b[:, : 2 * (d + 1)]) for b in blocks]  # A, A' only
+        self.blocks = np.array(blocks)
+        """the spans' coefficient blocks, shape ``(spans, p + 1, 3 (d + 1))``"""
+        self.starts = np.array(starts)
+        """the spans' first parameters (distinct knots but the last), shape ``(spans,)``"""
+        self._rows = [b.tolist() for b in blocks]
+        self._rows1 = [[row[: 2 * (d + 1)] for row in b] for b in self._rows]  # A, A' only
 
     def next_break(self, u: float) -> float:
         """The first span boundary (distinct knot) after ``u``; the domain's end if none."""
         i = bisect.bisect_right(self._starts, u)
         return self._starts[i] if i < len(self._starts) else self.domain[1]
 
-    def _homogeneous(self, u: float, blocks: list[np.ndarray]) -> list[float]:
+    def _homogeneous(self, u: float, blocks: list[list[list[float]]]) -> list[float]:
         """The block product at ``u`` (clamped to the domain): A (and derivatives) as floats."""
         lo, hi = self.domain
         u = lo if u < lo else hi if u > hi else u
         i = bisect.bisect_right(self._starts, u) - 1
         x = u - self._starts[i]
-        powers = [1.0]
-        for _ in range(self.degree):
-            powers.append(powers[-1] * x)
-        return (np.array(powers) @ blocks[i]).tolist()
+        rows = blocks[i]
+        h = rows[0]
+        power = 1.0
+        for row in rows[1:]:
+            power = power * x
+            h = [a + power * b for a, b in zip(h, row)]
+        return list(h)
 
     def speed(self, u: float) -> float:
         """``|C'(u)|`` (first derivative only: half the work of :meth:`evaluate`)."""
-        h = self._homogeneous(u, self._blocks1)
+        h = self._homogeneous(u, self._rows1)
         d = self.dim
         w, w1 = h[d], h[2 * d + 1]
         inv = 1.0 / w
@@ -230,7 +239,7 @@ class SpanEvaluator:
 
     def evaluate(self, u: float) -> tuple[list[float], list[float], list[float]]:
         """``(C, C', C'')`` at scalar ``u`` as plain float lists of length d."""
-        h = self._homogeneous(u, self._blocks)
+        h = self._homogeneous(u, self._rows)
         d = self.dim
         n = d + 1
         w, w1, w2 = h[d], h[n + d], h[2 * n + d]

@@ -1,0 +1,48 @@
+"""The compiled curve stepper agrees with the Python stepper bit for bit, and the twin uses it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
+from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.geometry.nurbs import NurbsCurve
+
+FREEFORM = NurbsCurve(np.array([[0, 0, 0], [20, 40, 0], [60, -20, 5], [100, 50, 0], [140, 0, -5], [160, 30, 0],
+                                [200, 0, 0]]) * 1e-3, [1, 0.8, 1.2, 1, 0.7, 1.1, 1],
+                      [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1], 3)
+r = math.sqrt(0.5)
+CIRCLE = NurbsCurve(np.array([[1, 0, 0], [1, 1, 0], [0, 1, 0], [-1, 1, 0], [-1, 0, 0], [-1, -1, 0], [0, -1, 0],
+                              [1, -1, 0], [1, 0, 0]]) * 0.03, [1, r, 1, r, 1, r, 1, r, 1],
+                    [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1], 2)
+PLANAR = NurbsCurve([[0, 0], [0.01, 0.02], [0.03, -0.01], [0.05, 0.0]], None, [0, 0, 0, 0.4, 1, 1, 1], 2)
+
+
+def _walk_both(curve, steps, correct):
+    ev = curve.span_evaluator()
+    python, compiled = CurveStepper(ev, curve.domain[0], correct=correct), \
+        CompiledCurveStepper(ev, curve.domain[0], correct=correct)
+    assert python.u == compiled.u and python.point == compiled.point
+    for ds in steps:
+        a, b = python.step(ds), compiled.step(ds)
+        assert (python.u, a) == (compiled.u, b), ds
+    return python.u
+
+
+@pytest.mark.parametrize("curve", [FREEFORM, CIRCLE, PLANAR], ids=["freeform", "circle", "planar"])
+@pytest.mark.parametrize("correct", [True, False], ids=["corrector", "taylor"])
+def test_compiled_stepper_matches_the_python_stepper_to_the_end_of_the_curve(curve, correct):
+    length = curve.arc_length()
+    steps = [length / 700.0 * (1.0 + 0.5 * math.sin(0.1 * k)) for k in range(1000)]  # runs past the end
+    assert _walk_both(curve, [0.0, *steps, -1.0, 1e-6], correct) == curve.domain[1]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(min_value=1e-7, max_value=3e-3), min_size=1, max_size=60))
+def test_any_arc_lengths_give_the_same_parameters_and_points(steps):
+    _walk_both(FREEFORM, steps, True)
+    _walk_both(CIRCLE, steps, True)
