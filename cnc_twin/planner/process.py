@@ -390,6 +390,10 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
         streamer = Streamer(chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
         feeder = Feeder(job, streamer)
         faults = FaultSchedule(job.faults)
+        # The first chunks are planned before the card is told the planner is ready, as a PC fills
+        # the card's buffer before cycle start: the run's clock does not wait for them. Lockstep
+        # plans the same chunks as at the first status (the backlog rule sees the same counts).
+        feeder.top_up()
         port.announce(program_periods=feeder.program.estimated_periods)
         while True:
             status = port.wait_status()
