@@ -123,13 +123,16 @@ class Twin:
     compiled : run the servo periods in the compiled kernel where it applies and step NURBS
         curves with the compiled stepper (the default); ``False`` runs the pure-Python reference
         servo and stepper throughout. Traces are the same bit for bit.
+    batch : with ``compiled``, run the steady middle of curve blocks many periods per compiled
+        call (:mod:`cnc_twin.dsp.period_kernel`; the default). The trace is the same either way.
     record : keep the trace (the default). ``False`` writes every tick into a one-period scratch
         buffer instead, only to measure what recording costs: the result's trace is the last
         period and its metrics are the timing figures alone.
     """
 
-    def __init__(self, scenario: Scenario, *, compiled: bool = True, record: bool = True):
+    def __init__(self, scenario: Scenario, *, compiled: bool = True, record: bool = True, batch: bool = True):
         self.record = record
+        self.batch = batch
         self.scenario = scenario
         timing = scenario.timing
         self.tiling = self.removal = None
@@ -190,6 +193,8 @@ class Twin:
         self.port = self.process = None
         self.expected_periods = 0
         self.recorder: Recorder | None = None
+        self.curve_batch = None
+        """the run's :class:`~cnc_twin.dsp.period_kernel.CurveBatch`, if it had one"""
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
@@ -280,6 +285,15 @@ class Twin:
         self.missed_ticks = 0
         k = 0
         t = 0
+        # the steady middle of curve blocks, moves and dwells, many periods per compiled call
+        # (lockstep only: real time paces every period; not for surfaces: the removal map updates
+        # between periods)
+        self.curve_batch = batch = None
+        if kernel is not None and self.batch and not realtime and removal is None:
+            from cnc_twin.dsp.period_kernel import CurveBatch
+
+            self.curve_batch = batch = CurveBatch(dsp, kernel, recorder)
+            batch.warm_up()
         wall_start = time.perf_counter()
         drives = self.drives
         if drives is not None:
@@ -310,6 +324,15 @@ class Twin:
                 t = self._hung_period(dsp, k, t)
                 k += 1
                 continue
+            if batch is not None:
+                ran = batch.run(k, t, min(max_periods - k, (room - t) // ticks_per_period,
+                                          report_every - k % report_every))
+                if ran:
+                    k += ran
+                    t += ran * ticks_per_period
+                    if k % report_every == 0:
+                        self._report(progress, recorder, k, t)
+                    continue
             dsp.begin_period(k)
             record_period(k, frame, first_period_field)
             if kernel is not None and dsp.drives_enabled:
@@ -344,11 +367,7 @@ class Twin:
             if removal_every and k % removal_every == 0:
                 removal.update()
             if k % report_every == 0:
-                if progress is not None:
-                    progress(min(k, self.expected_periods), self.expected_periods)
-                if self.observer is not None:
-                    recorder.count = t
-                    self.observer(self)
+                self._report(progress, recorder, k, t)
             if dsp.done:
                 if dsp.state == DspState.FINISHED:
                     break
@@ -362,6 +381,14 @@ class Twin:
         if progress is not None and self.stop_reason is None:
             progress(self.expected_periods, self.expected_periods)
         return wall_time, k
+
+    def _report(self, progress: ProgressCallback | None, recorder: Recorder, k: int, t: int) -> None:
+        """Progress and the observer, a few hundred times per run (``k`` periods, ``t`` ticks done)."""
+        if progress is not None:
+            progress(min(k, self.expected_periods), self.expected_periods)
+        if self.observer is not None:
+            recorder.count = t
+            self.observer(self)
 
     def _hung_period(self, dsp: DspTask, k: int, t: int) -> int:
         """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
