@@ -152,23 +152,26 @@ def test_benchmark_paths_move_and_verify_every_record():
     assert move["records"] == 301
 
 
-@pytest.mark.parametrize("compiled", [True, False], ids=["compiled-servo", "python-servo"])
-def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(compiled):
+@pytest.mark.parametrize("path", ["batched", "compiled-servo", "python-servo"])
+def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, monkeypatch):
+    from cnc_twin.dsp.period_kernel import CurveBatch
     from cnc_twin.twin import Twin
 
-    twin = Twin(JOG, compiled=compiled)
+    twin = Twin(JOG, compiled=path != "python-servo", batch=path == "batched")
     calls = {"n": 0}
-    # the servo loop's innermost call: the compiled period, or the reference path's physics step
-    owner, name = (twin.kernel, "run_period") if compiled else (twin.plant, "step")
+    # the servo loop's innermost call: a batch of periods, the compiled period, or the reference
+    # path's physics step
+    owner, name, at = {"batched": (CurveBatch, "run", 30), "compiled-servo": (twin.kernel, "run_period", 500),
+                       "python-servo": (twin.plant, "step", 500)}[path]
     real = getattr(owner, name)
 
     def failing(*args):
         calls["n"] += 1
-        if calls["n"] == 500:
+        if calls["n"] == at:
             raise RuntimeError("simulated failure inside the servo loop")
-        real(*args)
+        return real(*args)
 
-    setattr(owner, name, failing)
+    monkeypatch.setattr(owner, name, failing)
     with pytest.raises(RuntimeError, match="simulated failure"):
         twin.run()
     # the autouse fixture checks /dev/shm and child processes after this test too

@@ -29,21 +29,26 @@ U, SPEED = 0, 1
 
 
 @njit(cache=True)
+def bisect_right(values, x):
+    """``bisect.bisect_right`` on a sorted float64 array."""
+    lo, hi = 0, values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if x < values[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@njit(cache=True)
 def _homogeneous(starts, blocks, lo, hi, u, ncols, out):
     """``out[:ncols]`` = the span block's rows at ``u`` (clamped to ``[lo, hi]``), summed in order."""
     if u < lo:
         u = lo
     elif u > hi:
         u = hi
-    # bisect_right(starts, u) - 1
-    a, b = 0, starts.shape[0]
-    while a < b:
-        mid = (a + b) // 2
-        if u < starts[mid]:
-            b = mid
-        else:
-            a = mid + 1
-    i = a - 1
+    i = bisect_right(starts, u) - 1
     x = u - starts[i]
     block = blocks[i]
     for c in range(ncols):
@@ -85,15 +90,9 @@ def _evaluate(starts, blocks, lo, hi, d, u, h, c, c1, c2):
 
 @njit(cache=True)
 def _next_break(starts, hi, u):
-    """The first span start after ``u``; the domain's end if none (bisect_right)."""
-    a, b = 0, starts.shape[0]
-    while a < b:
-        mid = (a + b) // 2
-        if u < starts[mid]:
-            b = mid
-        else:
-            a = mid + 1
-    return starts[a] if a < starts.shape[0] else hi
+    """The first span start after ``u``; the domain's end if none."""
+    i = bisect_right(starts, u)
+    return starts[i] if i < starts.shape[0] else hi
 
 
 @njit(cache=True)

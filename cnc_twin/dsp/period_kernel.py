@@ -70,14 +70,7 @@ def _scurve_state(phases, times, duration, length, v0, v1, t, out):
     if t <= 0.0:
         out[0], out[1], out[2] = 0.0, v0, 0.0
         return
-    lo, hi = 0, times.shape[0]
-    while lo < hi:  # bisect_right(times, t)
-        mid = (lo + hi) // 2
-        if t < times[mid]:
-            hi = mid
-        else:
-            lo = mid + 1
-    p = lo - 1
+    p = curve_kernel.bisect_right(times, t) - 1
     t0, s0, pv0, a0, jk = phases[p, 0], phases[p, 1], phases[p, 2], phases[p, 3], phases[p, 4]
     dt = t - t0
     out[0] = s0 + dt * (pv0 + dt * (0.5 * a0 + dt * jk / 6.0))
