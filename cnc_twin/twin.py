@@ -299,6 +299,7 @@ class Twin:
         if drives is not None:
             tick_pulses, drive = servo.tick_pulses, drives.update
         injector = self.injector
+        reporting = progress is not None or self.observer is not None  # batches stop at report periods
         timed_out = False
         while True:
             if k >= max_periods:
@@ -326,7 +327,7 @@ class Twin:
                 continue
             if batch is not None:
                 ran = batch.run(k, t, min(max_periods - k, (room - t) // ticks_per_period,
-                                          report_every - k % report_every))
+                                          report_every - k % report_every if reporting else max_periods))
                 if ran:
                     k += ran
                     t += ran * ticks_per_period

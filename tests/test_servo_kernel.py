@@ -137,3 +137,35 @@ def test_batches_into_a_scratch_recorder_keep_the_last_period():
     a, b = Twin(scenario, record=False).run(), Twin(scenario, record=False, batch=False).run()
     assert np.array_equal(a.trace.command, b.trace.command)
     assert np.array_equal(a.trace.periods, b.trace.periods)
+
+
+def test_a_planner_lost_during_batches_is_noticed_at_the_same_liveness_check(monkeypatch):
+    """The card checks the planner every 64 periods while solo; batches make that check first."""
+    import cnc_twin.twin as twin_module
+
+    class DyingPort(twin_module.DspPort):
+        checks = 0
+
+        def __init__(self, *args, planner_alive, **kwargs):
+            super().__init__(*args, planner_alive=self._alive, **kwargs)
+            self._really_alive = planner_alive
+
+        def _alive(self):  # the 12th check while solo finds the planner gone
+            if self.solo:
+                DyingPort.checks += 1
+                if DyingPort.checks >= 12:
+                    return False
+            return self._really_alive()
+
+    monkeypatch.setattr(twin_module, "DspPort", DyingPort)
+    scenario = load_scenario(scenarios_dir() / "nurbs_circle.yaml")
+    results = []
+    for batch in (True, False):
+        DyingPort.checks = 0
+        twin = Twin(scenario, batch=batch)
+        results.append(twin.run())
+        assert (twin.curve_batch is not None) == batch
+    batched, unbatched = results
+    assert batched.metrics["fault"]["code"] == "PLANNER_LOST"
+    assert round(batched.metrics["fault"]["time_s"] * 1000) % 64 == 0
+    _assert_same_trace(batched, unbatched)

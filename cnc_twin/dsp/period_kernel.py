@@ -24,7 +24,8 @@ against ``compiled=False``).
 
 Not batched: a tool-axis curve (the kinematics per period), surfaces and the force loop, the
 spindle, feed holds and override changes, exchanges with the planner, injected faults, pulse
-output, real-time mode, and every 64th period (the card's planner liveness check).
+output, real-time mode. A batch starts at most once per 64 periods' liveness check of the
+planner, which it makes first, as the card's task does.
 """
 
 from __future__ import annotations
@@ -279,7 +280,11 @@ class CurveBatch:
         """What period ``k`` would run, if it can be batched; else None."""
         dsp, interp = self.dsp, self.interp
         if (dsp.state != DspState.RUNNING or dsp.stop is not None or not dsp.drives_enabled or dsp.planner_lost
-                or dsp.retract is not None or not dsp.port.solo or k % SOLO_LIVENESS_PERIODS == 0):
+                or dsp.retract is not None or not dsp.port.solo):
+            return None
+        # the card's liveness check of this period, as DspTask.begin_period makes it: a lost
+        # planner leaves the period to the Python task, which raises the fault
+        if k % SOLO_LIVENESS_PERIODS == 0 and not dsp.port.planner_alive():
             return None
         current = interp._current
         if current is None or interp.hold or interp._starved_hold or interp.spindle_on or interp._spin != 0.0 \
@@ -302,7 +307,7 @@ class CurveBatch:
     def run(self, k: int, t: int, n_max: int) -> int:
         """Run up to ``n_max`` periods from period ``k``, recorder tick ``t``; how many ran (0 when
         period ``k`` cannot be batched: the caller runs it on the Python task)."""
-        n_max = min(n_max, MAX_BATCH, SOLO_LIVENESS_PERIODS - k % SOLO_LIVENESS_PERIODS)
+        n_max = min(n_max, MAX_BATCH, SOLO_LIVENESS_PERIODS - k % SOLO_LIVENESS_PERIODS)  # one check per batch
         mode = self._mode(k) if n_max > 0 else None
         if mode is None:
             return 0
