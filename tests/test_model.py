@@ -110,3 +110,25 @@ def test_head_kinematics_match_mujoco_forward_kinematics():
         tip, pivot = data.site("tool_site").xpos.copy(), data.body("a_yoke").xpos.copy()
         assert np.allclose(head.axes_from_pose(tip[None], (pivot - tip)[None])[0], q, atol=1e-12)
         assert np.allclose(head.tip_from_axes(q[:3], q[3], q[4]), tip, atol=1e-12)
+
+
+def test_compiled_models_are_reused_as_copies_and_recompiled_when_a_file_in_the_folder_changes(tmp_path):
+    import os
+    import shutil
+
+    for name in ("scene.xml", "polisher.xml"):
+        shutil.copy(models_dir() / name, tmp_path / name)
+    scene = tmp_path / "scene.xml"
+    first = load_model(scene)
+    plant = Plant(first, timestep=0.00025)
+    plant.disable_drives()  # a run changes its model: the next load must not see that
+    again = load_model(scene)
+    assert again is not first and again.actuator_gainprm[0, 0] != 0.0
+    assert np.array_equal(again.actuator_gainprm, load_model(scene).actuator_gainprm)
+    included = tmp_path / "polisher.xml"  # an include changes: compiled again
+    text = included.read_text()
+    assert 'armature="' in text
+    included.write_text(text.replace('armature="', 'armature="1', 1))
+    stat = included.stat()
+    os.utime(included, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000))
+    assert not np.array_equal(load_model(scene).dof_armature, again.dof_armature)
