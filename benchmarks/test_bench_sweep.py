@@ -2,10 +2,11 @@
 
 ``python -m pytest benchmarks/test_bench_sweep.py --benchmark-only -s``
 
-A sweep's wall time is a fixed start-up per worker (imports, numba's target, the first planner
-process: about 1.7 s here) plus its runs, which the workers share (each worker keeps its planner
-process between runs). The speed-up therefore grows with the sweep's size; 32 runs of 5.4 s
-simulated each, an 8 x 4 grid, is a small real sweep.
+A sweep's wall time is a fixed start-up per worker (imports, numba's compiled-code target, the
+first planner process: 1.2 - 1.7 s here) plus its runs, which the workers share (each worker
+keeps its planner process between runs; a run of this 5.4 s scenario takes about 0.17 s). The
+speed-up therefore grows with the sweep's size: 128 runs, an 8 x 4 x 4 grid of gains, is a
+medium sweep (about 35 s per round here); at 32 runs the start-up bounds it to about 1.5.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump({"name": "scaling", "program": {"type": "point_to_point", "settle": 3.0,
                                                                    "moves": [{"X": 100}, {"X": 0}]}}))
-    todo = cases([parse_param("servo.X.kp=20:90:10"), parse_param("servo.X.kvff=0.85:1.0:0.05")])  # 32 runs
+    todo = cases([parse_param("servo.X.kp=20:90:10"), parse_param("servo.X.kvff=0.85:1.0:0.05"),
+                  parse_param("servo.X.kd=0:3:1")])  # 128 runs
 
     def measure():
         # alternating, best of two each: the VM's speed drifts by up to 1.7x within minutes
