@@ -193,8 +193,8 @@ class Twin:
         self.port = self.process = None
         self.expected_periods = 0
         self.recorder: Recorder | None = None
-        self.curve_batch = None
-        """the run's :class:`~cnc_twin.dsp.period_kernel.CurveBatch`, if it had one"""
+        self.period_batch = None
+        """the run's :class:`~cnc_twin.dsp.period_kernel.PeriodBatch`, if it had one"""
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
@@ -288,11 +288,11 @@ class Twin:
         # the steady middle of curve blocks, moves and dwells, many periods per compiled call
         # (lockstep only: real time paces every period; not for surfaces: the removal map updates
         # between periods)
-        self.curve_batch = batch = None
+        self.period_batch = batch = None
         if kernel is not None and self.batch and not realtime and removal is None:
-            from cnc_twin.dsp.period_kernel import CurveBatch
+            from cnc_twin.dsp.period_kernel import PeriodBatch
 
-            self.curve_batch = batch = CurveBatch(dsp, kernel, recorder)
+            self.period_batch = batch = PeriodBatch(dsp, kernel, recorder)
             batch.warm_up()
         wall_start = time.perf_counter()
         drives = self.drives

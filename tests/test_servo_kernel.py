@@ -52,7 +52,7 @@ def test_saturation_and_a_stop_with_the_drives_disabled_are_bit_identical():
     overrides = {"servo.X.kvff": 30.0, "supervisor.dac_saturation_time": 4.0}
     twin, compiled, reference = _run_both("jog_axes", overrides)
     _assert_same_trace(compiled, reference)
-    assert twin.curve_batch.periods > 0  # batches ran, and ended where the saturation run grew
+    assert twin.period_batch.periods > 0  # batches ran, and ended where the saturation run grew
     dac_x = compiled.trace.dac[:, 0]
     assert (np.abs(dac_x) >= 2047).any(), "the case should saturate the DAC"
     assert compiled.metrics["dac_saturation_ticks"]["X"] > 0
@@ -67,7 +67,7 @@ def test_following_error_stop_hands_the_state_back_mid_run():
     twin, compiled, reference = _run_both("jog_axes", overrides)
     _assert_same_trace(compiled, reference)
     assert compiled.metrics["fault"]["code"] == "FOLLOWING_ERROR"
-    assert twin.curve_batch.periods > 0
+    assert twin.period_batch.periods > 0
 
 
 def test_recording_off_runs_the_same_loop_into_one_period():
@@ -110,7 +110,7 @@ def test_compiled_kinematics_replay_matches_the_python_loop(monkeypatch):
 def _batched_and_unbatched(scenario):
     batched, unbatched = Twin(scenario), Twin(scenario, batch=False)
     a, b = batched.run(), unbatched.run()
-    assert unbatched.curve_batch is None
+    assert unbatched.period_batch is None
     _assert_same_trace(a, b)
     return batched, a
 
@@ -119,7 +119,7 @@ def _batched_and_unbatched(scenario):
 def test_batched_periods_give_the_same_trace_and_carry_most_of_the_run(name):
     batched, result = _batched_and_unbatched(load_scenario(scenarios_dir() / f"{name}.yaml"))
     periods = len(result.trace.period_signals.per_period("state"))
-    assert batched.curve_batch.periods > 0.9 * periods
+    assert batched.period_batch.periods > 0.9 * periods
 
 
 def test_a_soft_limit_clamp_ends_the_batch_before_the_clamped_period():
@@ -129,7 +129,7 @@ def test_a_soft_limit_clamp_ends_the_batch_before_the_clamped_period():
     x = dataclasses.replace(sc.axes[0], soft_limits=(-0.05, 0.05))  # the first move goes to 200 mm
     scenario = dataclasses.replace(sc, axes=(x, *sc.axes[1:]))
     batched, result = _batched_and_unbatched(scenario)
-    assert result.metrics["fault"]["code"] == "SOFT_LIMIT" and batched.curve_batch.periods > 0
+    assert result.metrics["fault"]["code"] == "SOFT_LIMIT" and batched.period_batch.periods > 0
 
 
 def test_batches_into_a_scratch_recorder_keep_the_last_period():
@@ -164,7 +164,7 @@ def test_a_planner_lost_during_batches_is_noticed_at_the_same_liveness_check(mon
         DyingPort.checks = 0
         twin = Twin(scenario, batch=batch)
         results.append(twin.run())
-        assert (twin.curve_batch is not None) == batch
+        assert (twin.period_batch is not None) == batch
     batched, unbatched = results
     assert batched.metrics["fault"]["code"] == "PLANNER_LOST"
     assert round(batched.metrics["fault"]["time_s"] * 1000) % 64 == 0

@@ -154,14 +154,14 @@ def test_benchmark_paths_move_and_verify_every_record():
 
 @pytest.mark.parametrize("path", ["batched", "compiled-servo", "python-servo"])
 def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, monkeypatch):
-    from cnc_twin.dsp.period_kernel import CurveBatch
+    from cnc_twin.dsp.period_kernel import PeriodBatch
     from cnc_twin.twin import Twin
 
     twin = Twin(JOG, compiled=path != "python-servo", batch=path == "batched")
     calls = {"n": 0}
     # the servo loop's innermost call: a batch of periods, the compiled period, or the reference
     # path's physics step
-    owner, name, at = {"batched": (CurveBatch, "run", 30), "compiled-servo": (twin.kernel, "run_period", 500),
+    owner, name, at = {"batched": (PeriodBatch, "run", 30), "compiled-servo": (twin.kernel, "run_period", 500),
                        "python-servo": (twin.plant, "step", 500)}[path]
     real = getattr(owner, name)
 

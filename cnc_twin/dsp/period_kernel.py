@@ -1,9 +1,10 @@
-"""Whole interpolation periods of a running curve block, compiled: many periods per call.
+"""Whole interpolation periods, compiled: many periods per call.
 
-In the steady middle of a NURBS curve block nothing the card does per period needs Python: the
-supervisor's checks pass, the S-curve feed advances at a constant time scale, the stepper walks
-the curve, the setpoint stays inside the soft limits, the state stays RUNNING, no record is
-exchanged (the planner has sent everything: ``solo``). :class:`CurveBatch` then runs up to
+In the steady middle of a NURBS curve block, a point-to-point move or a dwell nothing the card
+does per period needs Python: the supervisor's checks pass, the feed advances at a constant time
+scale (the block's S-curve, the move's trapezoid), the stepper walks the curve, the setpoint
+stays inside the soft limits, the state stays RUNNING, no record is exchanged (the planner has
+sent everything: ``solo``). :class:`PeriodBatch` then runs up to
 :data:`MAX_BATCH` periods in one call of :func:`run_periods`, which does per period
 exactly what :meth:`DspTask.begin_period` (with :meth:`SegmentInterpolator.next_period`,
 :meth:`Supervisor.check` / :meth:`~Supervisor.clamp` and :meth:`ServoTask.begin_period`), the
@@ -14,6 +15,7 @@ order with the same IEEE operations::
     feed:    tau += lambda T; (s, v, a) = S-curve(tau)                        (block end -> stop)
              starved-hold latch (queued path within the stopping distance)   (latch -> stop)
     curve:   u, point = stepper(ds); setpoint = (pose - power_on) * cpu
+             (a move: start + s(tau) * displacement; a dwell: the held setpoint  (end -> stop))
     clamp:   soft limits                                                      (outside -> stop)
     servo:   feed-forward; ticks x (QEP, PID+FF, DAC, ADC, mj_step); rows recorded
 
@@ -35,18 +37,18 @@ from numba import njit
 
 from cnc_twin.dsp import curve_kernel, servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
+from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.interpolator import _Curve
 from cnc_twin.dsp.scurve import SCurve
-from cnc_twin.planner.segments import MoveSegment
-from cnc_twin.whiteboard.records import Dwell
-from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.servo_kernel import ACCELERATION, DAC_CODE, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
+from cnc_twin.planner.segments import MoveSegment
 from cnc_twin.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
+from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
 MAX_BATCH = SOLO_LIVENESS_PERIODS
-"""periods per call at most (a batch never includes a liveness-check period)"""
+"""periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""
 
 # the feed block (float64): clock, path, constant scale, and the (s, v, a) kept for the next period
 TAU, S_DONE, LAM, PERIOD, QUEUED_PATH, A_STOP, OPEN_END, HAS_STATE, S_NOW, V_NOW, A_NOW, LENGTH, DURATION, V0, \
@@ -215,9 +217,9 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
     return n_max
 
 
-class CurveBatch:
+class PeriodBatch:
     """Runs the steady middle of curve blocks, moves and dwells many periods per call (see the
-    module docstring).
+    module docstring). ``periods`` counts the periods it ran.
 
     Parameters
     ----------
