@@ -115,11 +115,15 @@ def _batched_and_unbatched(scenario):
     return batched, a
 
 
-@pytest.mark.parametrize("name", ["nurbs_circle", "jog_axes"])
+@pytest.mark.parametrize("name", ["nurbs_circle", "jog_axes", "nurbs_tilted"])
 def test_batched_periods_give_the_same_trace_and_carry_most_of_the_run(name):
-    batched, result = _batched_and_unbatched(load_scenario(scenarios_dir() / f"{name}.yaml"))
+    """nurbs_tilted: a tool-axis curve, the head's inverse kinematics (asin, atan2, sin, cos) in
+    the batch, against the Python reference too."""
+    scenario = load_scenario(scenarios_dir() / f"{name}.yaml")
+    batched, result = _batched_and_unbatched(scenario)
     periods = len(result.trace.period_signals.per_period("state"))
     assert batched.period_batch.periods > 0.9 * periods
+    _assert_same_trace(result, Twin(scenario, compiled=False).run())
 
 
 def test_a_soft_limit_clamp_ends_the_batch_before_the_clamped_period():

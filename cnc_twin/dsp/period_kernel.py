@@ -24,13 +24,15 @@ batch ends before it and the card's Python task runs that period as always. So t
 one the Python task gives, bit for bit (``tests/test_servo_kernel.py`` compares whole runs
 against ``compiled=False``).
 
-Not batched: a tool-axis curve (the kinematics per period), surfaces and the force loop, the
-spindle, feed holds and override changes, exchanges with the planner, injected faults, pulse
+A curve with a tool-axis curve runs the head's inverse kinematics per period in the batch too.
+Not batched: surfaces and the force loop, the spindle, feed holds and override changes, exchanges with the planner, injected faults, pulse
 output, real-time mode. A batch starts at most once per 64 periods' liveness check of the
 planner, which it makes first, as the card's task does.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -82,21 +84,48 @@ def _scurve_state(phases, times, duration, length, v0, v1, t, out):
 
 
 @njit(cache=True)
-def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, move, check, cs,
-                switches, path_u, path_ds):  # pragma: no cover - compiled; its Python twin is DspTask
+def _pose_to_axes(tip, n, pivot, offset, out):
+    """X, Y, Z, A, B into ``out[:5]``, as :func:`cnc_twin.geometry.kinematics.pose_to_axes`."""
+    nx, ny, nz = n[0], n[1], n[2]
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+    b = math.asin(max(-1.0, min(1.0, nx * inv)))
+    a = math.atan2(-ny * inv, nz * inv)
+    ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+    ox, oy, oz = offset[0], offset[1], offset[2]
+    x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
+    rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
+    out[0] = tip[0] - pivot[0] - rx
+    out[1] = tip[1] - pivot[1] - ry
+    out[2] = tip[2] - pivot[2] - rz
+    out[3] = a
+    out[4] = b
+
+
+@njit(cache=True)
+def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args, move,
+                check, cs, switches, path_u, path_ds):  # pragma: no cover - compiled; its Python twin is DspTask
     """Run up to ``n_max`` periods; returns how many were committed (0 .. n_max).
 
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
     ``servo_kernel._run_period`` but the first row; ``feed`` / ``check`` / ``cs``: the blocks
-    above (updated to the last committed period); ``sstate`` the stepper's state; ``move``: shape
-    ``(2, 6)``, a move's start and displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit, sensordata address, sign) rows; ``path_u`` /
-    ``path_ds``: per committed period.
+    above (updated to the last committed period); ``sstate`` the stepper's state; ``axis_args``:
+    the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: the tool axis is held) and the
+    head geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
+    displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit,
+    sensordata address, sign) rows; ``path_u`` / ``path_ds``: per committed period.
     """
     (model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
     starts, blocks, lo, hi, d, correct = curve_args
+    a_starts, a_blocks, a_lo, a_hi, a_d, head = axis_args
+    tilting = a_starts.shape[0] > 0
+    direction = np.empty(3)
+    a_h = np.empty(3 * (a_d + 1))
+    a_c1 = np.empty(a_d)
+    a_c2 = np.empty(a_d)
     n = fstate.shape[1]
     tpp = fractions.shape[0]
+    pose = np.empty(n)
     state = np.empty(3)
     trial = np.empty(sstate.shape[0])
     setpoint = np.empty(n)
@@ -147,11 +176,12 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
             if ds > 0.0:
                 curve_kernel.step(starts, blocks, lo, hi, d, correct, ds, trial, sscratch)
             for i in range(n):
-                if i < 3:
-                    pose = trial[2 + 2 * d + i]
-                else:
-                    pose = check[HOLD, i - 3]
-                setpoint[i] = (pose - check[POWER_ON, i]) * check[CPU, i]
+                pose[i] = trial[2 + 2 * d + i] if i < 3 else check[HOLD, i - 3]
+            if tilting:  # _Curve.pose: the tool axis at u, then the head's inverse kinematics
+                curve_kernel._evaluate(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1, a_c2)
+                _pose_to_axes(trial[2 + 2 * d:2 + 3 * d], direction, head[0], head[1], pose)
+            for i in range(n):
+                setpoint[i] = (pose[i] - check[POWER_ON, i]) * check[CPU, i]
         elif mode == MOVE:  # SegmentInterpolator._advance_move and Trapezoid.evaluate
             tau = feed[TAU] + feed[LAM] * T
             if tau >= feed[DURATION] - 1e-9 * T:
@@ -263,6 +293,7 @@ class PeriodBatch:
         self._no_curve = (np.zeros(1), np.zeros((1, 2, 12)), 0.0, 1.0, 3, True)
         self._no_stepper = (np.zeros(11), np.zeros(21))
         self._no_phases = (np.zeros((7, 5)), np.zeros(7))
+        self._no_axis = (np.zeros(0), np.zeros((0, 2, 12)), 0.0, 1.0, 3, np.zeros((2, 3)))
         self.periods = 0
         """periods run in batches so far"""
 
@@ -276,7 +307,7 @@ class PeriodBatch:
                       ctrl, sensordata, force_adr, rec.command[:0], rec.actual[:0], rec.dac[:0],
                       rec.pad_force[:0], 0, 0)
         run_periods(0, CURVE, servo_args, self.feed.copy(), *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
-                    self.move.copy(), self.check.copy(), self.cs.copy(), self.switches, self.path_u, self.path_ds)
+                    self._no_axis, self.move.copy(), self.check.copy(), self.cs.copy(), self.switches, self.path_u, self.path_ds)
 
     def _mode(self, k: int) -> int | None:
         """What period ``k`` would run, if it can be batched; else None."""
@@ -300,7 +331,7 @@ class PeriodBatch:
         if isinstance(segment, Dwell):
             return DWELL
         curve = getattr(segment, "curve", None)
-        if (isinstance(curve, _Curve) and curve.axis is None and isinstance(curve.stepper, CompiledCurveStepper)
+        if (isinstance(curve, _Curve) and isinstance(curve.stepper, CompiledCurveStepper)
                 and isinstance(segment.profile, SCurve)
                 and interp.override == interp.override_target * interp.force.feed_factor):
             return CURVE
@@ -319,7 +350,7 @@ class PeriodBatch:
         feed, check, cs, move = self.feed, self.check, self.cs, self.move
         feed[TAU], feed[LAM] = interp._tau, interp.override
         phases, times, v1 = self._no_phases[0], self._no_phases[1], 0.0
-        curve_args, (sstate, sscratch) = self._no_curve, self._no_stepper
+        curve_args, (sstate, sscratch), axis_args = self._no_curve, self._no_stepper, self._no_axis
         if mode == CURVE:
             prof = segment.profile
             if self._segment is not segment:
@@ -327,6 +358,12 @@ class PeriodBatch:
                 self._phases = np.array(prof._starts, dtype=np.float64)
                 self._times = np.array(prof._times, dtype=np.float64)
                 check[HOLD, :3] = segment.curve.hold
+                tool_axis = segment.curve.axis
+                self._axis_args = self._no_axis if tool_axis is None else (
+                    tool_axis.starts, np.ascontiguousarray(tool_axis.blocks), float(tool_axis.domain[0]),
+                    float(tool_axis.domain[1]), tool_axis.dim,
+                    np.array([segment.curve.pivot, segment.curve.offset], dtype=np.float64))
+            axis_args = self._axis_args
             stepper = segment.curve.stepper
             phases, times, v1 = self._phases, self._times, prof.v1
             curve_args, sstate, sscratch = (*stepper._args, stepper.correct), stepper._state, stepper._scratch
@@ -364,8 +401,8 @@ class PeriodBatch:
         servo_args = (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, fstate, kernel.istate,
                       kernel.scalars, kernel.fractions, kernel.tick_commands, qpos, ctrl, sensordata, force_adr,
                       rec.command, rec.actual, rec.dac, rec.pad_force, rec.row(t), 0 if rec.scratch else tpp)
-        done = run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, move,
-                           check, cs, self.switches, self.path_u, self.path_ds)
+        done = run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args,
+                           move, check, cs, self.switches, self.path_u, self.path_ds)
         if done:
             self._commit(mode, segment, k, t, done)
             self.periods += done
