@@ -12,9 +12,10 @@ a clean run is kept for the next: a run then waits a few milliseconds for its pl
 of the interpreter start and the imports (0.2 s for point-to-point, 0.6 s once scipy's splines
 are needed for curves), and the CPU those cost is not spent again.
 
-A planner is reused only when its run ended cleanly: it reported the run over within
-``DONE_TIMEOUT``, with status 0, and no planner fault was injected into it. Anything else and it
-is closed (EOF, then SIGTERM, then SIGKILL).
+A planner is reused only when its run ended cleanly: a lockstep run (a real-time planner may
+still be planning in its thread) without injected planner faults, reported over within
+``DONE_TIMEOUT`` with status 0. Anything else and it is closed (EOF, then SIGTERM, then
+SIGKILL).
 """
 
 from __future__ import annotations
