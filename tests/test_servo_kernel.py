@@ -124,6 +124,8 @@ def test_batched_periods_give_the_same_trace_and_carry_most_of_the_run(name):
     periods = len(result.trace.period_signals.per_period("state"))
     assert batched.period_batch.periods > 0.9 * periods
     _assert_same_trace(result, Twin(scenario, compiled=False).run())
+    if "path" in result.metrics:  # the batches time their interpolation, as the Python task does
+        assert result.metrics["path"]["interpolator_us_per_period"]["median"] > 0.0
 
 
 def test_a_soft_limit_clamp_ends_the_batch_before_the_clamped_period():

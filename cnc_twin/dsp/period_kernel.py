@@ -37,6 +37,7 @@ import math
 import numpy as np
 from numba import njit
 
+from cnc_twin import c_clock
 from cnc_twin.dsp import curve_kernel, servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
@@ -103,7 +104,7 @@ def _pose_to_axes(tip, n, pivot, offset, out):
 
 @njit(cache=True)
 def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args, move,
-                check, cs, switches, path_u, path_ds):  # pragma: no cover - compiled; its Python twin is DspTask
+                check, cs, switches, path_u, path_ds, timed, interp_ns, timespec):  # pragma: no cover - compiled
     """Run up to ``n_max`` periods; returns how many were committed (0 .. n_max).
 
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
@@ -112,7 +113,9 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
     the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: the tool axis is held) and the
     head geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
     displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit,
-    sensordata address, sign) rows; ``path_u`` / ``path_ds``: per committed period.
+    sensordata address, sign) rows; ``path_u`` / ``path_ds``: per committed period; with ``timed``,
+    ``interp_ns`` gets each period's interpolation time [ns] (feed, curve, kinematics, setpoint:
+    what ``DspTask`` times around ``next_period``).
     """
     (model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
@@ -154,6 +157,7 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
                         return k
             if cs[MAX_FORCE] > 0.0 and cs[PREV_FORCE] > cs[MAX_FORCE]:
                 return k
+        started = c_clock.monotonic_ns(timespec) if timed else 0
         if mode == CURVE:
             # --- the feed along the block (SegmentInterpolator._advance_block) ---
             if feed[HAS_STATE] != 0.0:
@@ -203,6 +207,8 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
                 return k  # the dwell ends in this period
             for i in range(n):
                 setpoint[i] = move[0, i]
+        if timed:
+            interp_ns[k] = c_clock.monotonic_ns(timespec) - started
         # --- soft limits (a clamp: Python runs this period) ---
         if cs[SUPERVISED] != 0.0:
             for i in range(n):
@@ -269,6 +275,8 @@ class PeriodBatch:
         self.move = np.zeros((2, n))
         self.path_u = np.zeros(MAX_BATCH)
         self.path_ds = np.zeros(MAX_BATCH)
+        self.interp_ns = np.zeros(MAX_BATCH, dtype=np.int64)
+        self._timespec = c_clock.timespec()
         interp = self.interp
         self.check[POWER_ON] = interp.power_on
         self.check[CPU] = interp.counts_per_unit
@@ -307,7 +315,8 @@ class PeriodBatch:
                       ctrl, sensordata, force_adr, rec.command[:0], rec.actual[:0], rec.dac[:0],
                       rec.pad_force[:0], 0, 0)
         run_periods(0, CURVE, servo_args, self.feed.copy(), *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
-                    self._no_axis, self.move.copy(), self.check.copy(), self.cs.copy(), self.switches, self.path_u, self.path_ds)
+                    self._no_axis, self.move.copy(), self.check.copy(), self.cs.copy(), self.switches, self.path_u, self.path_ds,
+                    False, self.interp_ns, self._timespec)
 
     def _mode(self, k: int) -> int | None:
         """What period ``k`` would run, if it can be batched; else None."""
@@ -401,10 +410,15 @@ class PeriodBatch:
         servo_args = (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, fstate, kernel.istate,
                       kernel.scalars, kernel.fractions, kernel.tick_commands, qpos, ctrl, sensordata, force_adr,
                       rec.command, rec.actual, rec.dac, rec.pad_force, rec.row(t), 0 if rec.scratch else tpp)
+        # DspTask times the interpolation on a curve and on the way to one (its first block queued)
+        timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
         done = run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args,
-                           move, check, cs, self.switches, self.path_u, self.path_ds)
+                           move, check, cs, self.switches, self.path_u, self.path_ds, timed, self.interp_ns,
+                           self._timespec)
         if done:
             self._commit(mode, segment, k, t, done)
+            if timed:
+                dsp.interpolator_ns.extend(self.interp_ns[:done].tolist())
             self.periods += done
         return done
 
