@@ -17,7 +17,9 @@ The clock, on simulated time; real-time mode also paces each period to the wall 
             plant.step(substeps_per_tick)    # MuJoCo, drive loops in C
             recorder.record_tick(t, frame)   # typed preallocated columns
         (analog output, drives on, no injected card faults: the ticks, the physics and the
-        recording of the whole period run as one compiled call, cnc_twin.dsp.servo_kernel)
+        recording of the whole period run as one compiled call, cnc_twin.dsp.servo_kernel;
+        lockstep and solo, in the steady middle of a curve block, move or dwell: up to 64 whole
+        periods, the card's task included, run as one compiled call, cnc_twin.dsp.period_kernel)
         stop when the program finished, a fault stopped the machine, time ran out, or a stop
         was requested (signal)
     finally: tell the planner the run is over; close it (EOF, then terminate/kill if needed) or,
@@ -123,8 +125,9 @@ class Twin:
     compiled : run the servo periods in the compiled kernel where it applies and step NURBS
         curves with the compiled stepper (the default); ``False`` runs the pure-Python reference
         servo and stepper throughout. Traces are the same bit for bit.
-    batch : with ``compiled``, run the steady middle of curve blocks many periods per compiled
-        call (:mod:`cnc_twin.dsp.period_kernel`; the default). The trace is the same either way.
+    batch : with ``compiled``, run the steady middle of curve blocks, moves and dwells many
+        periods per compiled call (:mod:`cnc_twin.dsp.period_kernel`; the default). The trace is
+        the same either way.
     record : keep the trace (the default). ``False`` writes every tick into a one-period scratch
         buffer instead, only to measure what recording costs: the result's trace is the last
         period and its metrics are the timing figures alone.
