@@ -99,3 +99,17 @@ def test_a_prestarted_planner_serves_the_next_run():
         twin = Twin(_short())
         assert twin.run(planners=pool).status == "complete"
         assert twin.process.pid == prestarted and pool.started == 1
+
+
+def test_an_idle_planner_that_died_is_replaced():
+    import os
+    import signal
+
+    with PlannerPool() as pool:
+        first = Twin(_short())
+        assert first.run(planners=pool).status == "complete"
+        os.kill(first.process.pid, signal.SIGKILL)
+        first.process.wait(timeout=10)
+        second = Twin(_short())
+        assert second.run(planners=pool).status == "complete"
+        assert second.process.pid != first.process.pid and pool.started == 2
