@@ -122,6 +122,12 @@ def _run_with(args: argparse.Namespace, planners) -> int:
         live = RunExporter(scenario, model=twin.plant.model)
         live.start(spawn=True)
     with _stop_on_signals(twin):
+        if not args.quiet and twin.kernel is not None:
+            from cnc_twin.dsp.period_kernel import kernels_cached
+
+            if not kernels_cached():
+                print("compiling the twin's kernels for this machine (once after installing, about 10 s) ...",
+                      file=sys.stderr, flush=True)
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar, planners=planners, observer=None if live is None else

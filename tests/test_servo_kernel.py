@@ -175,3 +175,14 @@ def test_a_planner_lost_during_batches_is_noticed_at_the_same_liveness_check(mon
     assert batched.metrics["fault"]["code"] == "PLANNER_LOST"
     assert round(batched.metrics["fault"]["time_s"] * 1000) % 64 == 0
     _assert_same_trace(batched, unbatched)
+
+
+def test_the_cli_says_when_it_compiles_the_kernels(monkeypatch, capsys, tmp_path):
+    from cnc_twin import cli
+    from cnc_twin.dsp import period_kernel
+
+    Twin(load_scenario(scenarios_dir() / "jog_axes.yaml")).run()
+    assert period_kernel.kernels_cached()  # numba cached the kernels it compiled or loaded
+    monkeypatch.setattr(period_kernel, "kernels_cached", lambda: False)  # as on a fresh install
+    assert cli.main(["run", "--no-rrd", "--out", str(tmp_path / "run")]) == 0
+    assert "compiling the twin's kernels" in capsys.readouterr().err

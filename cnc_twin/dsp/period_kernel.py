@@ -469,3 +469,16 @@ class PeriodBatch:
         if not rec.scratch:
             periods["path_u"] = self.path_u[:done]
             periods["path_ds"] = self.path_ds[:done]
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the batch and servo kernels already (False on the first
+    run after installing, which compiles them: about 8 s). Reads numba's cache index paths; True
+    when they cannot be found out (nothing to warn about then)."""
+    try:
+        from pathlib import Path
+
+        return all(Path(kernel._cache._cache_file._index_path).exists()
+                   for kernel in (run_periods, servo_kernel._run_period))
+    except AttributeError:  # another numba's internals
+        return True
