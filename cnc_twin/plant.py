@@ -12,6 +12,7 @@ command in volts, so the drive's own velocity loop runs in C at the physics rate
 from __future__ import annotations
 
 import copy
+import os
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,7 +57,8 @@ def _folder_state(path: Path) -> tuple:
     """What a compiled model depends on: the file and everything next to it (includes, meshes),
     by name, size and modification time."""
     try:
-        entries = sorted((p.name, p.stat().st_mtime_ns, p.stat().st_size) for p in path.parent.iterdir() if p.is_file())
+        entries = sorted((entry.name, entry.stat().st_mtime_ns, entry.stat().st_size)
+                         for entry in os.scandir(path.parent) if entry.is_file())
     except OSError:
         return (str(path), None)
     return (str(path.resolve()), tuple(entries))

@@ -25,8 +25,8 @@ one the Python task gives, bit for bit (``tests/test_servo_kernel.py`` compares 
 against ``compiled=False``).
 
 A curve with a tool-axis curve runs the head's inverse kinematics per period in the batch too.
-Not batched: surfaces and the force loop, the spindle, feed holds and override changes, exchanges with the planner, injected faults, pulse
-output, real-time mode. A batch starts at most once per 64 periods' liveness check of the
+Not batched: surfaces and the force loop, the spindle, feed holds and override changes,
+exchanges with the planner, injected faults, pulse output, real-time mode. A batch starts at most once per 64 periods' liveness check of the
 planner, which it makes first, as the card's task does.
 """
 
@@ -43,7 +43,7 @@ from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.interpolator import _Curve
 from cnc_twin.dsp.scurve import SCurve
-from cnc_twin.dsp.servo_kernel import ACCELERATION, DAC_CODE, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
+from cnc_twin.dsp.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
 from cnc_twin.planner.segments import MoveSegment
 from cnc_twin.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
@@ -308,15 +308,19 @@ class PeriodBatch:
     def warm_up(self) -> None:
         """Compile the batch kernel (or load it from numba's cache) now, not in the timed run: a
         call of no periods with arguments of the run's types."""
-        kernel, rec = self.kernel, self.recorder
-        qpos, ctrl, sensordata, force_adr = kernel._args_plant
-        servo_args = (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, kernel.fstate.copy(),
-                      kernel.istate.copy(), kernel.scalars.copy(), kernel.fractions, kernel.tick_commands, qpos,
-                      ctrl, sensordata, force_adr, rec.command[:0], rec.actual[:0], rec.dac[:0],
-                      rec.pad_force[:0], 0, 0)
-        run_periods(0, CURVE, servo_args, self.feed.copy(), *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
-                    self._no_axis, self.move.copy(), self.check.copy(), self.cs.copy(), self.switches, self.path_u, self.path_ds,
-                    False, self.interp_ns, self._timespec)
+        rec = self.recorder
+        servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0]), 0, 0)
+        # no periods: nothing is read or written, only the argument types count
+        run_periods(0, CURVE, servo_args, self.feed, *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
+                    self._no_axis, self.move, self.check, self.cs, self.switches, self.path_u, self.path_ds, False,
+                    self.interp_ns, self._timespec)
+
+    def _servo_args(self, columns: tuple, row0: int, row_step: int) -> tuple:
+        """``servo_args`` of :func:`run_periods`: the compiled servo's arrays, the recorder's
+        ``columns`` (command, actual, dac, pad_force) and the first row and rows per period."""
+        kernel = self.kernel
+        return (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, kernel.fstate, kernel.istate,
+                kernel.scalars, kernel.fractions, kernel.tick_commands, *kernel._args_plant, *columns, row0, row_step)
 
     def _mode(self, k: int) -> int | None:
         """What period ``k`` would run, if it can be batched; else None."""
@@ -401,15 +405,9 @@ class PeriodBatch:
         sup = dsp.supervisor
         if sup is not None:
             check[SAT_SEEN], check[SAT_RUN] = sup._sat_seen, sup._sat_run
-        fstate = kernel.fstate
-        fstate[P_PREV], fstate[P_NEXT] = servo._p_prev, servo._p_next
-        fstate[VELOCITY], fstate[ACCELERATION] = servo._velocity, servo._acceleration
-        kernel.scalars[servo_kernel.FORCE_FAULT] = servo.force_fault
-        qpos, ctrl, sensordata, force_adr = kernel._args_plant
-        tpp = len(kernel.fractions)
-        servo_args = (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, fstate, kernel.istate,
-                      kernel.scalars, kernel.fractions, kernel.tick_commands, qpos, ctrl, sensordata, force_adr,
-                      rec.command, rec.actual, rec.dac, rec.pad_force, rec.row(t), 0 if rec.scratch else tpp)
+        kernel.take_setpoint()
+        servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
+                                      0 if rec.scratch else len(kernel.fractions))
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
         timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
         done = run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args,
@@ -426,7 +424,6 @@ class PeriodBatch:
         """Leave every object as the Python task would after period ``k + done - 1``."""
         dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
         feed, check = self.feed, self.check
-        n = servo.n_axes
         if mode == CURVE:
             stepper = segment.curve.stepper
             stepper.u = float(stepper._state[0])
@@ -449,23 +446,12 @@ class PeriodBatch:
         if sup is not None and sup._sat_limit:
             sup._sat_seen[:] = [int(x) for x in check[SAT_SEEN]]
             sup._sat_run[:] = [int(x) for x in check[SAT_RUN]]
-        for dac, count in zip(servo.dacs, kernel.istate[SATURATIONS].tolist()):
-            dac.saturations = count
         # the servo frame as the last period left it: the last tick, then the per-period fields
-        last = rec.row(t + done * len(kernel.fractions) - 1)
-        frame = servo.frame
-        frame[0:n] = rec.command[last].tolist()
-        frame[n:3 * n] = kernel.istate[POSITION32].tolist() + kernel.istate[DAC_CODE].tolist()
-        frame[3 * n] = float(rec.pad_force[last])
-        base = servo.period_slot  # the per-period fields, as DspTask.begin_period writes them
-        force = interp.force
-        frame[base:base + 15] = [dsp.state, dsp.fault, dsp.port.fifo.fill(), interp.override,
-                                 dsp.port.missed_exchanges, dsp.records_rejected, interp.last_seq_executed,
-                                 interp.path_u, interp.path_ds, force.state, force.target, force.depth,
-                                 force.feed_factor, interp.mark, 0]
+        kernel.leave_frame(rec, rec.row(t + done * len(kernel.fractions) - 1), saturated=True)
+        dsp.write_period_fields(0)  # a batched period raises no events
         # the period records: the fields that stay constant, then the path
         periods = rec.periods[0:1] if rec.scratch else rec.periods[k:k + done]
-        periods[:] = tuple(frame[base:])
+        periods[:] = tuple(servo.frame[servo.period_slot:])
         if not rec.scratch:
             periods["path_u"] = self.path_u[:done]
             periods["path_ds"] = self.path_ds[:done]

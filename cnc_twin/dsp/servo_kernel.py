@@ -223,27 +223,37 @@ class CompiledServo:
         """One interpolation period from recorder row ``t``: the servo ticks, the physics, the
         rows. Afterwards the servo's ``frame`` holds the last tick's signals, as the reference
         path leaves it. The servo's setpoint must be latched (``ServoTask.begin_period``)."""
-        servo = self.servo
-        fstate = self.fstate
+        self.take_setpoint()
+        ticks = self.servo._tick_commands
+        if ticks is not None:
+            self.tick_commands[:] = ticks
+        qpos, ctrl, sensordata, force_adr = self._args_plant
+        saturated = _run_period(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate,
+                                self.istate, self.scalars, self.fractions, self.tick_commands, ticks is not None, qpos,
+                                ctrl, sensordata, force_adr, recorder.command, recorder.actual, recorder.dac,
+                                recorder.pad_force, recorder.row(t))
+        self.leave_frame(recorder, recorder.row(t) + len(self.fractions) - 1, saturated=bool(saturated))
+
+    def take_setpoint(self) -> None:
+        """The setpoint and feed-forward terms the servo latched (``ServoTask.begin_period``),
+        and its injected force fault, into the kernel's arrays."""
+        servo, fstate = self.servo, self.fstate
         fstate[P_PREV] = servo._p_prev
         fstate[P_NEXT] = servo._p_next
         fstate[VELOCITY] = servo._velocity
         fstate[ACCELERATION] = servo._acceleration
-        ticks = servo._tick_commands
-        if ticks is not None:
-            self.tick_commands[:] = ticks
         self.scalars[FORCE_FAULT] = servo.force_fault
-        qpos, ctrl, sensordata, force_adr = self._args_plant
-        saturated = _run_period(self._model_ptr, self._data_ptr, self.substeps, self.fparams, fstate, self.istate,
-                                self.scalars, self.fractions, self.tick_commands, ticks is not None, qpos, ctrl,
-                                sensordata, force_adr, recorder.command, recorder.actual, recorder.dac,
-                                recorder.pad_force, recorder.row(t))
-        last = recorder.row(t) + len(self.fractions) - 1
+
+    def leave_frame(self, recorder, last: int, *, saturated: bool) -> None:
+        """The servo's ``frame`` from recorder row ``last`` (the last tick run), as the reference
+        path leaves it; with ``saturated``, the DACs' saturation counts too (the supervisor reads
+        them)."""
+        servo = self.servo
         n = servo.n_axes
         frame = servo.frame
         frame[0:n] = recorder.command[last].tolist()
         frame[n:3 * n] = self.istate[POSITION32].tolist() + self.istate[DAC_CODE].tolist()
         frame[3 * n] = float(recorder.pad_force[last])
-        if saturated:  # the supervisor reads the DACs' saturation counts
+        if saturated:
             for dac, count in zip(servo.dacs, self.istate[SATURATIONS].tolist()):
                 dac.saturations = count

@@ -34,7 +34,7 @@ from time import perf_counter_ns
 
 from cnc_twin.dsp.chip import EVENT_HOME_FOUND
 from cnc_twin.dsp.interpolator import SegmentInterpolator
-from cnc_twin.dsp.servo import ServoTask
+from cnc_twin.dsp.servo import PERIOD_FIELDS, ServoTask
 from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
 from cnc_twin.geometry.kinematics import rotation_ab
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
@@ -157,22 +157,6 @@ class DspTask:
         self._update_state()
         if self.state == DspState.FAULT and self.at_rest_time is None:
             self.at_rest_time = k * self.period
-        frame, base = self.servo.frame, self.servo.period_slot
-        frame[base] = self.state
-        frame[base + 1] = self.fault
-        frame[base + 2] = self.port.fifo.fill()
-        frame[base + 3] = interp.override
-        frame[base + 4] = self.port.missed_exchanges
-        frame[base + 5] = self.records_rejected
-        frame[base + 6] = interp.last_seq_executed
-        frame[base + 7] = interp.path_u
-        frame[base + 8] = interp.path_ds
-        force = interp.force
-        frame[base + 9] = force.state
-        frame[base + 10] = force.target
-        frame[base + 11] = force.depth
-        frame[base + 12] = force.feed_factor
-        frame[base + 13] = interp.mark
         bits = 0
         for axis, code, value in interp.events:
             self.event_log.append((k * self.period, axis, code, value))
@@ -180,7 +164,18 @@ class DspTask:
             bits |= code << (4 * axis)
             if code == EVENT_HOME_FOUND:
                 self.index_latch[axis] = value
-        frame[base + 14] = bits
+        self.write_period_fields(bits)
+
+    def write_period_fields(self, event_bits: int) -> None:
+        """The period's signals into the servo's ``frame`` after the force, in the order of
+        :data:`~cnc_twin.dsp.servo.PERIOD_FIELDS` (the recorder's period record reads them)."""
+        interp, port = self.interpolator, self.port
+        force = interp.force
+        base = self.servo.period_slot
+        self.servo.frame[base:base + len(PERIOD_FIELDS)] = [
+            self.state, self.fault, port.fifo.fill(), interp.override, port.missed_exchanges, self.records_rejected,
+            interp.last_seq_executed, interp.path_u, interp.path_ds, force.state, force.target, force.depth,
+            force.feed_factor, interp.mark, event_bits]
 
     def raise_fault(self, code: int, message: str, k: int, *, stop: str = STOP_CONTROLLED, axis: int = -1) -> None:
         """Record a fault and start its stop (the first fault is ``fault``; a harsher stop escalates)."""
