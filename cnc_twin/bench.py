@@ -121,10 +121,42 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
     }
 
 
+def time_streamed_recording(scenario_file: Path, *, repeat: int = 1) -> dict[str, float]:
+    """A run recorded while it runs by a :class:`~cnc_twin.rerun_stream.RecordingProcess`, as
+    ``cnc-twin run`` records: the run's clock, the wait after it until the recording is closed
+    (the tail), and, alternating, the same run's clock without the recording process. Both runs
+    report progress as the CLI's (so their batches stop at the same periods). Best of ``repeat``."""
+    import tempfile
+
+    from cnc_twin.rerun_stream import RecordingProcess
+
+    scenario = load_scenario(scenario_file)
+    clocks, tails, alone = [], [], []
+    with tempfile.TemporaryDirectory() as folder:
+        for i in range(max(1, repeat)):
+            with RecordingProcess() as recorder:
+                recorder.wait_ready()  # in the CLI its imports overlap the twin's start-up
+                recorder.open(scenario, rrd=Path(folder) / f"streamed{i}.rrd")
+                result = Twin(scenario).run(observer=recorder.observe, progress=_no_progress)
+                started = time.perf_counter()
+                recorder.finish(result)
+                tails.append(time.perf_counter() - started)
+                clocks.append(result.metrics["wall_time_s"])
+            alone.append(Twin(scenario).run(progress=_no_progress).metrics["wall_time_s"])
+    return {"rerun_streamed_tail_s": min(tails), "rerun_streamed_tail_over_run": min(tails) / min(clocks),
+            "rerun_streamed_run_slowdown": min(clocks) / min(alone) - 1.0}
+
+
+def _no_progress(done: int, total: int) -> None:
+    """A progress callback that shows nothing (the CLI's bar when stderr is not a terminal)."""
+
+
 def _rerun_figures(scenario_file: Path, repeat: int, twin_s: float) -> dict[str, float]:
-    """The export's best of ``repeat`` over the run loop's best (``twin_s``, measured above)."""
+    """The in-process export's best of ``repeat`` over the run loop's best (``twin_s``, measured
+    above), and the streamed recording's figures."""
     export, import_s = time_rerun_export(scenario_file, repeat=repeat)
-    return {"rerun_export_s": export, "rerun_export_over_run": export / twin_s, "rerun_import_s": import_s}
+    return {"rerun_export_s": export, "rerun_export_over_run": export / twin_s, "rerun_import_s": import_s,
+            **time_streamed_recording(scenario_file, repeat=repeat)}
 
 
 def format_bench(figures: dict[str, Any]) -> str:

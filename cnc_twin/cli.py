@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import shutil
 import signal
 import sys
 import time
@@ -98,16 +100,30 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     from cnc_twin.planner.launch import PlannerPool
 
-    # The planner process starts first: its start-up (0.2 - 0.6 s) overlaps the imports below.
+    # The planner process and the recording process start first: their start-up (0.2 - 0.6 s,
+    # about 1 s) overlaps the imports below.
     with PlannerPool() as planners:
         planners.prestart()
-        return _run_with(args, planners)
+        recorder = None
+        if not args.no_rrd or args.rrd is not None or args.rerun:
+            from cnc_twin.rerun_stream import RecordingProcess
+
+            recorder = RecordingProcess()
+        try:
+            return _run_with(args, planners, recorder)
+        finally:
+            if recorder is not None:
+                recorder.close()
 
 
-def _run_with(args: argparse.Namespace, planners) -> int:
+def _run_with(args: argparse.Namespace, planners, recorder) -> int:
+    """One run; ``recorder`` (a :class:`~cnc_twin.rerun_stream.RecordingProcess`, or None when
+    no recording is wanted) records it while it runs."""
     from cnc_twin.scenario import load_scenario
     from cnc_twin.twin import Twin
 
+    if args.rrd is not None and not args.rrd.parent.is_dir():
+        raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
     scenario = load_scenario(args.scenario or default_scenario())
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
@@ -115,12 +131,24 @@ def _run_with(args: argparse.Namespace, planners) -> int:
     twin = Twin(scenario)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
                       stream=None if not args.quiet else _NullStream())
-    live = None
-    if args.rerun:  # a viewer opens now and the run streams into it as it is recorded
-        from cnc_twin.rerun_export import RunExporter
+    # The recording goes to the run directory (staged beside it, moved in when the run is
+    # written), or only to --rrd with --no-rrd; --rerun also shows it live in a viewer.
+    staged = None
+    if recorder is not None:
+        if args.no_rrd:
+            target = args.rrd
+        else:
+            run_dir.parent.mkdir(parents=True, exist_ok=True)
+            target = staged = run_dir.parent / f".{run_dir.name}.recording-{os.getpid()}.rrd"
+        recorder.open(scenario, rrd=target, spawn=args.rerun)
+    try:
+        return _run_and_write(args, scenario, twin, bar, run_dir, recorder, staged, planners)
+    finally:
+        if staged is not None and staged.exists():  # not moved in: the run stopped with an error
+            staged.unlink()
 
-        live = RunExporter(scenario, model=twin.plant.model)
-        live.start(spawn=True)
+
+def _run_and_write(args, scenario, twin, bar, run_dir: Path, recorder, staged: Path | None, planners) -> int:
     with _stop_on_signals(twin):
         if not args.quiet and twin.kernel is not None:
             from cnc_twin.dsp.period_kernel import kernels_cached
@@ -130,13 +158,23 @@ def _run_with(args: argparse.Namespace, planners) -> int:
                       file=sys.stderr, flush=True)
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
-        result = twin.run(progress=bar, planners=planners, observer=None if live is None else
-                          (lambda t: live.send(t.partial_trace(), t.recorder.count)))
-    if live is not None:
-        live.finish(result.trace, result.metrics, result.exchange_latency)
-    result.write(run_dir, recording=not args.no_rrd)
-    if args.rrd is not None:
-        result.export_rerun(rrd=args.rrd)
+        result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
+    recording: bool | Path = not args.no_rrd
+    if recorder is not None:
+        from cnc_twin.rerun_stream import RecordingError
+
+        try:
+            recorder.finish(result)
+            recording = staged or False
+        except RecordingError as exc:  # the run is whole: export it here instead
+            print(f"warning: {exc}; exporting the recording after the run instead", file=sys.stderr)
+            if args.no_rrd:
+                result.export_rerun(rrd=args.rrd)
+    result.write(run_dir, recording=recording)
+    if args.rrd is not None and not args.no_rrd:
+        from cnc_twin.record import RECORDING_FILE
+
+        shutil.copyfile(run_dir / RECORDING_FILE, args.rrd)
     if not args.quiet:
         print(summary_table(result.metrics))
     print(f"run directory: {run_dir}")

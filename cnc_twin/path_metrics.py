@@ -69,6 +69,16 @@ def tip_curve(prog: NurbsProgram) -> NurbsCurve:
     return NurbsCurve(points, prog.weights, prog.knots, prog.degree)
 
 
+def planned_path(scenario: Scenario, n: int = 4000) -> np.ndarray | None:
+    """The programmed tool-tip curve of a curve program at ``n`` parameter values evenly spread
+    over its domain, (n, 3) [m]; None for other programs."""
+    prog = scenario.program
+    if not isinstance(prog, NurbsProgram):
+        return None
+    curve = tip_curve(prog)
+    return curve.point(np.linspace(*curve.domain, n))
+
+
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
                  plan_us: int = 0, plan_blocks: int = 0) -> dict[str, Any]:
     """The contour metrics of a curve run (see the module docstring); lengths in um."""

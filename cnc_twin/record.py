@@ -228,6 +228,11 @@ class Trace:
     def __len__(self) -> int:
         return len(self.pad_force)
 
+    @property
+    def whole_periods(self) -> int:
+        """Periods recorded whole (every tick of them)."""
+        return len(self) // self.ticks_per_period
+
     def columns(self) -> dict[str, np.ndarray]:
         """Flat named columns (see the module table)."""
         cols: dict[str, np.ndarray] = {"time": self.time, "period": self.period}
@@ -252,6 +257,53 @@ class Trace:
         """Bytes of memory the trace keeps alive (whole recorder columns when it holds views)."""
         arrays = (self.command, self.actual, self.dac, self.pad_force, self.periods)
         return sum((a.base if a.base is not None else a).nbytes for a in arrays)
+
+
+@dataclass
+class PeriodSamples:
+    """The recorded signals at the last tick of periods ``first .. first + n - 1``: all that an
+    export reads of a run (``n`` whole periods).
+
+    command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 [code];
+    pad_force : (n,) float64 [N]; periods : (n,) :data:`PERIOD_DTYPE`.
+    """
+
+    first: int
+    command: np.ndarray
+    actual: np.ndarray
+    dac: np.ndarray
+    pad_force: np.ndarray
+    periods: np.ndarray
+
+    @classmethod
+    def take(cls, source, first: int, stop: int) -> "PeriodSamples":
+        """Periods ``first .. stop - 1`` from a :class:`Trace` or a :class:`Recorder` (same
+        column names), copied."""
+        tpp = source.ticks_per_period
+        ticks = np.arange(first, stop) * tpp + (tpp - 1)
+        return cls(first=first, command=source.command[ticks], actual=source.actual[ticks],
+                   dac=source.dac[ticks], pad_force=source.pad_force[ticks],
+                   periods=source.periods[first:stop].copy())
+
+    @classmethod
+    def empty(cls, first: int) -> "PeriodSamples":
+        return cls(first=first, command=np.empty((0, len(AXES))), actual=np.empty((0, len(AXES)), np.int32),
+                   dac=np.empty((0, len(AXES)), np.int16), pad_force=np.empty(0),
+                   periods=np.empty(0, PERIOD_DTYPE))
+
+    @classmethod
+    def join(cls, parts: list["PeriodSamples"]) -> "PeriodSamples":
+        """Consecutive stretches as one."""
+        if len(parts) == 1:
+            return parts[0]
+        for a, b in zip(parts, parts[1:]):
+            if b.first != a.first + len(a):
+                raise ValueError(f"stretches not consecutive: periods {a.first}+{len(a)} then {b.first}")
+        return cls(first=parts[0].first, **{name: np.concatenate([getattr(p, name) for p in parts])
+                                            for name in ("command", "actual", "dac", "pad_force", "periods")})
+
+    def __len__(self) -> int:
+        return len(self.pad_force)
 
 
 _UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",

@@ -8,19 +8,23 @@ Entity tree (timelines ``sim_time`` [s] and ``period``)::
     /paths/actual              tool-tip path the machine made (static)
     /paths/planned             the ideal NURBS curve (curve programs, static)
     /force/arrow               pad force along the tool axis at the tip (Arrows3D over time)
-    /axes/<X..C>/command, /actual      [mm | deg]
-    /axes/<X..C>/ferr                  [counts]
-    /axes/<X..C>/dac                   [code]
-    /axes/<X..C>/saturated             1 while the DAC is pinned at -2048 or 2047
-    /feed/commanded, /feed/actual      tool-tip path speed [mm/min]
-    /force/measured                    load cell, tared [N]
-    /controller/events                 state changes and faults (TextLog)
-    /whiteboard/fifo_fill [words], /whiteboard/missed_exchanges, /whiteboard/records_rejected
+    /axes/<X..C>/position      series command, actual [mm | deg]
+    /axes/ferr                 series X..C, following error [counts]
+    /axes/dac                  series X..C, DAC code [code]
+    /axes/saturated            series X..C, 1 while the DAC is pinned at -2048 or 2047
+    /feed                      series commanded, actual: tool-tip path speed [mm/min]
+    /force/measured            load cell, tared [N]
+    /controller/events         state changes and faults (TextLog)
+    /whiteboard/counters       series fifo_fill [words], missed_exchanges, records_rejected
     /whiteboard/exchange_latency_us    DSP post -> planner answer, wall clock (recording only)
 
-Everything time-varying goes in bulk through ``send_columns`` (one call per entity), after the
-run, so recording costs the servo loop nothing. Body poses and series are sampled once per
-interpolation period (decimated further for runs longer than ``MAX_SAMPLES`` periods).
+Series that share a plot share an entity (``Scalars`` with one value per series and row, named
+by a static ``SeriesLines``): rerun's cost is mostly per ``send_columns`` call, so 12 calls per
+stretch instead of 39 halve the export. Everything time-varying goes in bulk through
+``send_columns`` (one call per entity and stretch). Series are sampled at the last tick of each interpolation period
+(:class:`~cnc_twin.record.PeriodSamples`: all an export reads of a run), body poses every ``POSE_INTERVAL``.
+:func:`export_run` sends a finished run in one stretch; :mod:`cnc_twin.rerun_stream` streams a
+run in progress to a recording process, stretch by stretch, with the same result.
 """
 
 from __future__ import annotations
@@ -34,13 +38,14 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from cnc_twin import mujoco_c
 from cnc_twin.axes import AXES, joint_name
-from cnc_twin.config import NurbsProgram, Scenario
+from cnc_twin.config import Scenario
 from cnc_twin.plant import HOME_KEYFRAME, load_model
-from cnc_twin.record import Trace
+from cnc_twin.record import PeriodSamples, Trace
 from cnc_twin.whiteboard.status import DspState
 
+PLANNED = object()
+"""default of ``RunExporter.start(planned=)``: compute the planned path from the scenario"""
 POSE_INTERVAL = 0.004
 """3D poses, paths and the force arrow: one sample per 4 ms at most (the eye needs no more)"""
 STATE_NAMES = DspState.NAMES
@@ -49,10 +54,10 @@ STATE_NAMES = DspState.NAMES
 def default_blueprint() -> rrb.Blueprint:
     """3D machine view and event log on the left; time series grouped by concern on the right."""
     position = [rrb.TimeSeriesView(name=f"{a} command / actual", origin=f"/axes/{a}",
-                                   contents=[f"/axes/{a}/command", f"/axes/{a}/actual"]) for a in AXES]
-    ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=[f"/axes/{a}/ferr" for a in AXES])
+                                   contents=[f"/axes/{a}/position"]) for a in AXES]
+    ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=["/axes/ferr"])
     dac = rrb.TimeSeriesView(name="DAC [code] and saturation", origin="/axes",
-                             contents=[f"/axes/{a}/{s}" for a in AXES for s in ("dac", "saturated")])
+                             contents=["/axes/dac", "/axes/saturated"])
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(
@@ -67,8 +72,7 @@ def default_blueprint() -> rrb.Blueprint:
                     rrb.TimeSeriesView(name="feed [mm/min]", origin="/feed"),
                     rrb.TimeSeriesView(name="pad force [N]", origin="/force", contents=["/force/measured"]),
                     rrb.TimeSeriesView(name="whiteboard", origin="/whiteboard",
-                                       contents=["/whiteboard/fifo_fill", "/whiteboard/missed_exchanges",
-                                                 "/whiteboard/records_rejected"]),
+                                       contents=["/whiteboard/counters"]),
                     rrb.TimeSeriesView(name="exchange latency [us]", origin="/whiteboard",
                                        contents=["/whiteboard/exchange_latency_us"]),
                 ),
@@ -80,21 +84,30 @@ def default_blueprint() -> rrb.Blueprint:
     )
 
 
-def _timelines(trace: Trace, ticks: np.ndarray) -> list:
-    # computed for the ticks asked for only (the trace computes time and period for all on access)
-    return [rr.TimeColumn("sim_time", duration=ticks * trace.servo_period),
-            rr.TimeColumn("period", sequence=ticks // trace.ticks_per_period)]
+def _timelines(ticks: np.ndarray, servo_period: float, ticks_per_period: int) -> list:
+    return [rr.TimeColumn("sim_time", duration=ticks * servo_period),
+            rr.TimeColumn("period", sequence=ticks // ticks_per_period)]
 
 
-def _axis_positions(trace: Trace, scenario: Scenario, ticks: np.ndarray, signal: np.ndarray) -> np.ndarray:
-    """Axis positions [m | rad] at ``ticks`` from a counts signal (command or actual)."""
-    return signal[ticks] / trace.counts_per_unit + np.asarray(scenario.home)
+def _axis_positions(scenario: Scenario, counts: np.ndarray) -> np.ndarray:
+    """Axis positions [m | rad] from counts (command or actual), shape (n, 6)."""
+    counts_per_unit = np.array([a.counts_per_unit for a in scenario.axes])
+    return counts / counts_per_unit + np.asarray(scenario.home)
 
 
 class _Kinematics:
-    """Replays axis positions through the model: body poses and the tool tip."""
+    """Replays axis positions through the model: body poses and the tool tip.
 
-    def __init__(self, model: mujoco.MjModel):
+    ``compiled``: one numba call per batch (:mod:`cnc_twin.pose_replay`) where it works, else a
+    Python loop around the same ``mj_kinematics`` calls (the same numbers, bit for bit).
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, compiled: bool = True):
+        if compiled:
+            from cnc_twin import mujoco_c  # imports numba: only where compiled replay is wanted
+
+            compiled = mujoco_c.available()
+        self.compiled = compiled
         self.model = model
         self.data = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, self.data, model.key(HOME_KEYFRAME).id)
@@ -110,8 +123,10 @@ class _Kinematics:
         quat = np.empty((n, m.nbody, 4))
         tips = np.empty((n, 3))
         axes = np.empty((n, 3))
-        if mujoco_c.available():  # the same mj_kinematics calls, without a Python loop around them
-            _replay(m._address, d._address, np.ascontiguousarray(q, dtype=np.float64), np.asarray(self.adr),
+        if self.compiled:  # the same mj_kinematics calls, without a Python loop
+            from cnc_twin.pose_replay import replay
+
+            replay(m._address, d._address, np.ascontiguousarray(q, dtype=np.float64), np.asarray(self.adr),
                     d.qpos, d.xpos, d.xquat, d.site_xpos, d.site_xmat, self.tool, pos, quat, tips, axes)
             return pos, quat, tips, axes
         for k in range(n):
@@ -121,25 +136,6 @@ class _Kinematics:
             tips[k] = d.site_xpos[self.tool]
             axes[k] = d.site_xmat[self.tool].reshape(3, 3)[:, 2]
         return pos, quat, tips, axes
-
-
-if mujoco_c.IMPORT_ERROR is None:
-    from numba import njit
-
-    _mj_kinematics = mujoco_c.mj_kinematics
-
-    @njit(cache=True)
-    def _replay(model_ptr, data_ptr, q, adr, qpos, xpos, xquat, site_xpos, site_xmat, tool, pos, quat, tips,
-                axes):  # pragma: no cover - compiled; the Python loop in _Kinematics.poses is its twin
-        for k in range(q.shape[0]):
-            for i in range(adr.shape[0]):
-                qpos[adr[i]] = q[k, i]
-            _mj_kinematics(model_ptr, data_ptr)
-            pos[k] = xpos
-            quat[k] = xquat
-            tips[k] = site_xpos[tool]
-            for r in range(3):
-                axes[k, r] = site_xmat[tool, 3 * r + 2]
 
 
 def _body_path(model: mujoco.MjModel, b: int) -> str:
@@ -182,55 +178,75 @@ def _log_geom(rec: rr.RecordingStream, model: mujoco.MjModel, g: int, path: str)
                                       fill_mode="solid"), static=True)
 
 
-def log_paths(rec: rr.RecordingStream, scenario: Scenario, command_tips: np.ndarray, actual_tips: np.ndarray) -> None:
-    """Commanded and actual tool-tip paths, and the planned curve for curve programs."""
+def log_paths(rec: rr.RecordingStream, command_tips: np.ndarray, actual_tips: np.ndarray) -> None:
+    """Commanded and actual tool-tip paths."""
     rec.log("/paths/commanded", rr.LineStrips3D([command_tips], colors=[[60, 120, 255]], radii=[0.0006]), static=True)
     rec.log("/paths/actual", rr.LineStrips3D([actual_tips], colors=[[255, 140, 0]], radii=[0.0004]), static=True)
-    prog = scenario.program
-    if isinstance(prog, NurbsProgram):
-        from cnc_twin.path_metrics import tip_curve
-
-        curve = tip_curve(prog)
-        dense = curve.point(np.linspace(*curve.domain, 4000))
-        rec.log("/paths/planned", rr.LineStrips3D([dense], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
 
 
-def log_axes(rec: rr.RecordingStream, trace: Trace, scenario: Scenario, ticks: np.ndarray, times: list) -> None:
-    """Per axis: command and actual [mm | deg], following error [counts], DAC code."""
+def log_planned_path(rec: rr.RecordingStream, points: np.ndarray | None) -> None:
+    """``points`` from :func:`planned_path`, if any."""
+    if points is not None:
+        rec.log("/paths/planned", rr.LineStrips3D([points], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
+
+
+WHITEBOARD_COUNTERS = ("fifo_fill", "missed_exchanges", "records_rejected")
+"""the per-period whiteboard signals in ``/whiteboard/counters``, in this order"""
+
+
+def log_series_names(rec: rr.RecordingStream, scenario: Scenario) -> None:
+    """Static names of the series that share an entity (one per value in a row)."""
+    names = {"/feed": ["commanded", "actual"], "/axes/ferr": list(AXES), "/axes/dac": list(AXES),
+             "/axes/saturated": [f"{a} saturated" for a in AXES], "/whiteboard/counters": list(WHITEBOARD_COUNTERS)}
+    for a in scenario.axes:
+        names[f"/axes/{a.name}/position"] = [f"{a.name} command [{a.display_unit}]", f"{a.name} actual [{a.display_unit}]"]
+    for path, series in names.items():
+        rec.log(path, rr.SeriesLines(names=series), static=True)
+
+
+def log_axes(rec: rr.RecordingStream, samples: PeriodSamples, scenario: Scenario, times: list) -> None:
+    """Per axis command and actual [mm | deg]; following error [counts], DAC code and saturation
+    of all axes."""
+    counts_per_unit = np.array([a.counts_per_unit for a in scenario.axes])
+    display = np.array([a.display_factor for a in scenario.axes])
+    to_user, home = display / counts_per_unit, np.asarray(scenario.home) * display
+    command = samples.command * to_user + home
+    actual = samples.actual * to_user + home
     for i, cfg in enumerate(scenario.axes):
-        to_user = cfg.display_factor / cfg.counts_per_unit
-        home = scenario.home[i] * cfg.display_factor
-        dac = trace.dac[ticks, i]
-        command, actual = trace.command[ticks, i], trace.actual[ticks, i]
-        for name, values in (("command", command * to_user + home),
-                             ("actual", actual * to_user + home),
-                             ("ferr", command - actual),
-                             ("dac", dac.astype(np.float64)),
-                             ("saturated", ((dac <= -2048) | (dac >= 2047)).astype(np.float64))):
-            rec.send_columns(f"/axes/{cfg.name}/{name}", indexes=times, columns=rr.Scalars.columns(scalars=values))
+        rec.send_columns(f"/axes/{cfg.name}/position", indexes=times,
+                         columns=rr.Scalars.columns(scalars=np.column_stack([command[:, i], actual[:, i]])))
+    dac = samples.dac
+    for name, values in (("ferr", samples.command - samples.actual),
+                         ("dac", dac.astype(np.float64)),
+                         ("saturated", ((dac <= -2048) | (dac >= 2047)).astype(np.float64))):
+        rec.send_columns(f"/axes/{name}", indexes=times, columns=rr.Scalars.columns(scalars=values))
 
 
-def log_events(rec: rr.RecordingStream, trace: Trace, metrics: dict) -> None:
-    """Controller state changes (and the fault, if any) as text, at the tick they happened."""
-    per_period = trace.period_signals.per_period("state")
+def log_events(rec: rr.RecordingStream, scenario: Scenario, per_period: np.ndarray, n_ticks: int,
+               metrics: dict) -> None:
+    """Controller state changes (and the fault, if any) as text, at the tick they happened.
+
+    ``per_period``: the state of every period; ``n_ticks``: ticks the run recorded.
+    """
+    tpp, servo_period = scenario.timing.ticks_per_period, scenario.timing.servo_period
     first_periods = np.flatnonzero(np.diff(per_period, prepend=-1))
     if len(first_periods) == 0:
         return
-    changes = first_periods * trace.ticks_per_period  # the first tick of each period that changed state
+    changes = first_periods * tpp  # the first tick of each period that changed state
     state = per_period[first_periods]
     texts = [f"state {STATE_NAMES.get(int(s), s)}" for s in state]
     levels = ["WARN" if s in (DspState.FEED_HOLD, DspState.STOPPING) else
               "ERROR" if s == DspState.FAULT else "INFO" for s in state]
     fault = metrics.get("fault")
     if fault:
-        fault_tick = min(len(trace) - 1, math.ceil(fault["time_s"] / trace.servo_period - 1e-9))
+        fault_tick = min(n_ticks - 1, math.ceil(fault["time_s"] / servo_period - 1e-9))
         changes = np.append(changes, fault_tick)
         texts.append(f"fault {fault['code']}: {fault['message']}")
         levels.append("ERROR")
         order = np.argsort(changes, kind="stable")
         changes, texts, levels = changes[order], [texts[i] for i in order], [levels[i] for i in order]
     rec.send_columns("/controller/events",
-                     indexes=_timelines(trace, changes),
+                     indexes=_timelines(changes, servo_period, tpp),
                      columns=rr.TextLog.columns(text=texts, level=levels))
 
 
@@ -247,87 +263,102 @@ def log_latency(rec: rr.RecordingStream, scenario: Scenario, exchange_latency) -
 
 class RunExporter:
     """Sends a run to a recording in stretches: :meth:`start`, :meth:`send` (any number of times,
-    consecutive tick ranges), :meth:`finish`. ``export_run`` does all three at once; a live
-    viewer gets each stretch as the run records it.
+    consecutive stretches of :class:`PeriodSamples`), :meth:`finish`. ``export_run`` does all
+    three at once; :mod:`cnc_twin.rerun_stream` feeds one in its own process during the run.
 
     Series are sampled at the last tick of each interpolation period; 3D poses, tool tips, feed
-    and the force arrow every ``POSE_INTERVAL`` on one global grid, so stretches line up.
+    and the force arrow every ``POSE_INTERVAL`` on one global grid of periods, so the recording
+    is the same however the run is cut into stretches.
     """
 
-    def __init__(self, scenario: Scenario, *, model: mujoco.MjModel | None = None):
+    def __init__(self, scenario: Scenario, *, model: mujoco.MjModel | None = None, compiled: bool = True):
         self.scenario = scenario
         self.model = model if model is not None else load_model(scenario.model_file)
-        self.kin = _Kinematics(self.model)
+        self.kin = _Kinematics(self.model, compiled=compiled)
         self.rec = rr.RecordingStream("cnc-twin", recording_id=str(uuid.uuid4()))
         timing = scenario.timing
         self.tpp = timing.ticks_per_period
+        self.servo_period = timing.servo_period
         self.stride = max(1, round(POSE_INTERVAL / timing.interpolation_period))
-        self.sent_ticks = 0
+        self.sent_periods = 0
+        self._states: list[np.ndarray] = []
         self._tips: list[np.ndarray] = []
         self._command_tips: list[np.ndarray] = []
         self._last = None
 
-    def start(self, *, rrd: Path | None = None, spawn: bool = False) -> None:
-        """Open the sinks, log the blueprint, axes convention and static geometry."""
+    def start(self, *, rrd: Path | None = None, spawn: bool = False, planned=PLANNED) -> None:
+        """Open the sinks (a file, a spawned viewer, or both), log the blueprint, axes convention
+        and static geometry. ``planned``: the planned path if already computed (see
+        :func:`planned_path`; a recording process gets it so that it needs no scipy)."""
         blueprint = default_blueprint()
         if spawn:
             from cnc_twin.viewer import viewer_environment
 
             with viewer_environment():  # the viewer starts with usage analytics disabled
-                self.rec.spawn(default_blueprint=blueprint)
-        if rrd is not None:
+                self.rec.spawn(connect=False)
+            sinks = [rr.GrpcSink()] + ([rr.FileSink(str(rrd))] if rrd is not None else [])
+            self.rec.set_sinks(*sinks, default_blueprint=blueprint)
+        elif rrd is not None:
             self.rec.save(str(rrd), default_blueprint=blueprint)
         self.rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         log_geometry(self.rec, self.model)
+        if planned is PLANNED:
+            from cnc_twin.path_metrics import planned_path
 
-    def send(self, trace: Trace, upto: int) -> None:
-        """Send ticks ``sent_ticks .. upto`` of ``trace`` (which must hold them)."""
-        first = self.sent_ticks
-        periods = np.arange(first // self.tpp, upto // self.tpp)
-        if len(periods) == 0:
+            planned = planned_path(self.scenario)
+        log_planned_path(self.rec, planned)
+        log_series_names(self.rec, self.scenario)
+        self.kin.poses(np.asarray([self.scenario.home], dtype=np.float64))  # loads the compiled replay now
+
+    def send(self, samples: PeriodSamples) -> None:
+        """Send the next stretch (it must start at period :attr:`sent_periods`)."""
+        if samples.first != self.sent_periods:
+            raise ValueError(f"stretch starts at period {samples.first}, expected {self.sent_periods}")
+        if len(samples) == 0:
             return
-        ticks = periods * self.tpp + self.tpp - 1
-        if len(ticks) and ticks[-1] >= len(trace):
-            ticks = ticks[ticks < len(trace)]
-        self.sent_ticks = (periods[-1] + 1) * self.tpp
-        sc, rec = self.scenario, self.rec
-        times = _timelines(trace, ticks)
-        log_axes(rec, trace, sc, ticks, times)
-        rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=trace.pad_force[ticks]))
-        for name in ("fifo_fill", "missed_exchanges", "records_rejected"):
-            rec.send_columns(f"/whiteboard/{name}", indexes=times,
-                             columns=rr.Scalars.columns(scalars=trace.period_signals.per_period(name)[
-                                 ticks // self.tpp].astype(np.float64)))
-        pose_ticks = ticks[(ticks // self.tpp) % self.stride == 0]
-        if len(pose_ticks) == 0:
+        self.sent_periods += len(samples)
+        self._states.append(samples.periods["state"])
+        sc, rec, tpp = self.scenario, self.rec, self.tpp
+        periods = samples.first + np.arange(len(samples))
+        ticks = periods * tpp + (tpp - 1)
+        times = _timelines(ticks, self.servo_period, tpp)
+        log_axes(rec, samples, sc, times)
+        rec.send_columns("/force/measured", indexes=times, columns=rr.Scalars.columns(scalars=samples.pad_force))
+        counters = np.column_stack([samples.periods[name] for name in WHITEBOARD_COUNTERS]).astype(np.float64)
+        rec.send_columns("/whiteboard/counters", indexes=times, columns=rr.Scalars.columns(scalars=counters))
+        posed = np.flatnonzero(periods % self.stride == 0)
+        if len(posed) == 0:
             return
-        pose_times = _timelines(trace, pose_ticks)
-        pos, quat, tips, tool_axes = self.kin.poses(_axis_positions(trace, sc, pose_ticks, trace.actual))
-        command_tips = self.kin.poses(_axis_positions(trace, sc, pose_ticks, trace.command))[2]
+        pose_ticks = ticks[posed]
+        pose_times = _timelines(pose_ticks, self.servo_period, tpp)
+        pos, quat, tips, tool_axes = self.kin.poses(_axis_positions(sc, samples.actual[posed]))
+        command_tips = self.kin.poses(_axis_positions(sc, samples.command[posed]))[2]
         log_poses(rec, self.model, pos, quat, pose_times)
-        vectors = -tool_axes * (trace.pad_force[pose_ticks] * 1e-3)[:, None]  # 1 mm per N, into the work
+        force = samples.pad_force[posed]
+        vectors = -tool_axes * (force * 1e-3)[:, None]  # 1 mm per N, into the work
         rec.send_columns("/force/arrow", indexes=pose_times, columns=rr.Arrows3D.columns(origins=tips, vectors=vectors))
-        t = pose_ticks * trace.servo_period
+        t = pose_ticks * self.servo_period
+        speeds = []
         for name, pts in (("commanded", command_tips), ("actual", tips)):
             prev = self._last[name] if self._last else pts[:1]
             t_prev = self._last["t"] if self._last else t[:1] - self.stride * sc.timing.interpolation_period
             steps = np.diff(np.vstack([prev, pts]), axis=0)
             dt = np.diff(np.concatenate([t_prev, t]))
-            speed = np.linalg.norm(steps, axis=1) / dt * 60e3
-            rec.send_columns(f"/feed/{name}", indexes=pose_times, columns=rr.Scalars.columns(scalars=speed))
+            speeds.append(np.linalg.norm(steps, axis=1) / dt * 60e3)
+        rec.send_columns("/feed", indexes=pose_times, columns=rr.Scalars.columns(scalars=np.column_stack(speeds)))
         self._last = {"commanded": command_tips[-1:], "actual": tips[-1:], "t": t[-1:]}
         self._tips.append(tips)
         self._command_tips.append(command_tips)
 
-    def finish(self, trace: Trace, metrics: dict, exchange_latency=None) -> None:
-        """Send the rest, the paths, controller events and exchange latency; flush and close."""
-        self.send(trace, len(trace))
+    def finish(self, n_ticks: int, metrics: dict, exchange_latency=None) -> None:
+        """After the last stretch: the paths, controller events and exchange latency; flush and
+        close. ``n_ticks``: ticks the run recorded."""
         if self._tips:
-            log_paths(self.rec, self.scenario, np.vstack(self._command_tips), np.vstack(self._tips))
-        log_events(self.rec, trace, metrics)
+            log_paths(self.rec, np.vstack(self._command_tips), np.vstack(self._tips))
+        states = np.concatenate(self._states) if self._states else np.empty(0, np.int8)
+        log_events(self.rec, self.scenario, states, n_ticks, metrics)
         log_latency(self.rec, self.scenario, exchange_latency)
-        self.rec.flush()
-        self.rec.disconnect()
+        self.rec.disconnect()  # flushes and closes the sinks (a flush before it only costs time)
 
 
 def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | None = None,
@@ -338,5 +369,6 @@ def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | N
     """
     exporter = RunExporter(scenario, model=model)
     exporter.start(rrd=rrd, spawn=spawn)
-    exporter.finish(trace, metrics, exchange_latency)
+    exporter.send(PeriodSamples.take(trace, 0, trace.whole_periods))
+    exporter.finish(len(trace), metrics, exchange_latency)
     return rrd

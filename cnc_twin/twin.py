@@ -33,6 +33,7 @@ missed exchange, and a starved card holds (FEED_HOLD) until records arrive again
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -96,13 +97,18 @@ class RunResult:
             raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
         return pd.DataFrame(self.trace.columns())
 
-    def write(self, run_dir: str | Path, *, recording: bool = True) -> Path:
+    def write(self, run_dir: str | Path, *, recording: bool | Path = True) -> Path:
         """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
-        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``."""
+        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``: exported now, or, when
+        ``recording`` is the path of a finished recording of this run (one a
+        :class:`~cnc_twin.rerun_stream.RecordingProcess` made during it, on the same file
+        system), moved in."""
         def extra(folder: Path) -> None:
             if self.removal is not None:
                 self.removal.save(folder)
-            if recording:
+            if isinstance(recording, Path):
+                os.replace(recording, folder / RECORDING_FILE)
+            elif recording:
                 self.export_rerun(rrd=folder / RECORDING_FILE)
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
                                      extra=extra)

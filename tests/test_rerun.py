@@ -2,31 +2,15 @@
 
 from __future__ import annotations
 
-import collections
-import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from cnc_twin.axes import AXES
+from rrd_read import rrd_contents, rrd_rows
 from cnc_twin.scenario import scenario_from_dict
 from cnc_twin.twin import run_scenario
-
-
-def rrd_rows(path: Path) -> dict[str, int]:
-    """Rows per entity path, read back with rerun's own CLI (``rerun rrd print``)."""
-    from cnc_twin.viewer import rerun_command
-
-    out = subprocess.run(rerun_command() + ["rrd", "print", str(path)], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    rows: dict[str, int] = collections.Counter()
-    for line in out.stdout.splitlines():
-        m = re.match(r"Chunk\(\S+\) with (\d+) rows .* - (\S+) - data columns", line)
-        if m:
-            rows[m.group(2)] += int(m.group(1))
-    return rows
 
 
 @pytest.fixture(scope="module")
@@ -39,21 +23,30 @@ def short_run(tmp_path_factory):
 
 def test_run_directory_holds_a_readable_recording_with_every_entity(short_run):
     result, run_dir = short_run
-    rows = rrd_rows(run_dir / "recording.rrd")
+    rows, static = rrd_rows(run_dir / "recording.rrd")
     periods = len(result.trace) // result.scenario.timing.ticks_per_period
-    for axis in AXES:
-        for signal in ("command", "actual", "ferr", "dac", "saturated"):
-            assert rows[f"/axes/{axis}/{signal}"] == periods, (axis, signal)
-    for name in ("/force/measured", "/whiteboard/fifo_fill", "/whiteboard/missed_exchanges"):
+    for axis in "XYZABC":
+        assert rows[f"/axes/{axis}/position"] == periods, axis
+    for name in ("/axes/ferr", "/axes/dac", "/axes/saturated", "/force/measured", "/whiteboard/counters"):
         assert rows[name] == periods, name
     poses = -(-periods // 4)  # 3D poses every 4 ms
     for body in ("x_carriage", "y_saddle", "z_ram", "a_yoke", "b_head", "c_spindle", "pad"):
         assert rows[f"/machine/{body}"] == poses, body
-    assert rows["/paths/commanded"] == 1 and rows["/paths/actual"] == 1
-    assert rows["/force/arrow"] == poses and rows["/feed/commanded"] == poses
+    assert static["/paths/commanded"] == 1 and static["/paths/actual"] == 1
+    assert rows["/force/arrow"] == poses and rows["/feed"] == poses
     assert rows["/controller/events"] >= 2  # IDLE -> RUNNING -> ... -> FINISHED
     assert rows["/whiteboard/exchange_latency_us"] == result.metrics["whiteboard"]["exchanges"]
-    assert any(k.startswith("/machine/pad/") for k in rows)  # geometry logged
+    assert any(k.startswith("/machine/pad/") for k in static)  # geometry logged
+    contents = rrd_contents(run_dir / "recording.rrd")
+    names = contents[("/axes/ferr", "SeriesLines:names", True)]
+    assert [r[2] for r in names] == [repr(list("XYZABC"))]
+    x = contents[("/axes/X/position", "Scalars:scalars", False)]
+    assert len(x) == periods and all(len(floats_of(r[2])) == 2 for r in x)  # command, actual
+
+
+def floats_of(text: str) -> list:
+    """A repr'd list of floats back (the test's own output: no scenario content)."""
+    return [float(v) for v in text.strip("[]").split(",")]
 
 
 def test_no_rrd_flag_and_rrd_path(tmp_path, write_scenario):
@@ -63,7 +56,7 @@ def test_no_rrd_flag_and_rrd_path(tmp_path, write_scenario):
                            "--rrd", str(extra), "--quiet"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert not (out / "recording.rrd").exists() and extra.is_file()
-    assert rrd_rows(extra)["/axes/X/command"] > 0
+    assert rrd_rows(extra)[0]["/axes/X/position"] > 0
 
 
 def test_view_without_a_recording_is_a_clear_error(tmp_path):
@@ -89,27 +82,24 @@ def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, mon
     assert os.environ["XDG_CONFIG_HOME"] == str(tmp_path / "user-config")
 
 
-def test_streaming_during_the_run_records_what_a_post_run_export_does(tmp_path):
-    """The live path (what --rerun feeds a viewer) sends the same rows, stretch by stretch."""
+def test_an_export_in_stretches_records_what_one_export_does(tmp_path):
+    """However a run is cut into stretches (as a recording process receives it), the recording
+    holds the same values: the pose grid, the feed across stretch edges, the events."""
+    from cnc_twin.record import PeriodSamples
     from cnc_twin.rerun_export import RunExporter
-    from cnc_twin.twin import Twin
 
-    scenario = scenario_from_dict({"name": "live", "program": {"type": "point_to_point", "settle": 0.05,
-                                                               "moves": [{"X": 20}, {"Y": -10}]}})
-    twin = Twin(scenario)
-    live = RunExporter(scenario, model=twin.plant.model)
-    live.start(rrd=tmp_path / "live.rrd")
-    stretches = []
-
-    def observe(t):
-        stretches.append(t.recorder.count)
-        live.send(t.partial_trace(), t.recorder.count)
-
-    result = twin.run(observer=observe)
-    live.finish(result.trace, result.metrics, result.exchange_latency)
-    result.export_rerun(rrd=tmp_path / "after.rrd")
-    assert len(stretches) > 10  # it really streamed, in many stretches
-    streamed, after = rrd_rows(tmp_path / "live.rrd"), rrd_rows(tmp_path / "after.rrd")
-    for path, n in after.items():
-        if not path.startswith(("/container", "/blueprint", "/view", "/__")):
-            assert streamed[path] == n, path
+    scenario = scenario_from_dict({"name": "stretches", "program": {"type": "point_to_point", "settle": 0.05,
+                                                                    "moves": [{"X": 20}, {"Y": -10, "A": 3}]}})
+    result = run_scenario(scenario)
+    exporter = RunExporter(scenario, compiled=False)
+    exporter.start(rrd=tmp_path / "stretches.rrd")
+    n = result.trace.whole_periods
+    assert n > 300
+    edges = [0, 1, 7, n // 3, n // 3 + 1, n - 5, n]  # poses every 4th period: edges on and off the grid
+    for first, stop in zip(edges, edges[1:]):
+        exporter.send(PeriodSamples.take(result.trace, first, stop))
+    with pytest.raises(ValueError, match="expected"):
+        exporter.send(PeriodSamples.take(result.trace, 3, 5))  # not the next stretch
+    exporter.finish(len(result.trace), result.metrics, result.exchange_latency)
+    result.export_rerun(rrd=tmp_path / "whole.rrd")
+    assert rrd_contents(tmp_path / "stretches.rrd") == rrd_contents(tmp_path / "whole.rrd")

@@ -154,3 +154,8 @@ def test_signal_stops_run_and_keeps_what_was_recorded(tmp_path, write_scenario, 
     n = len(trace["time"])
     assert 0 < n < 120.0 / 0.00025 and n % 4 == 0  # whole periods only
     assert metrics["servo_ticks"] == n
+    # the recording, made while the run ran, holds every period recorded up to the signal
+    from rrd_read import rrd_rows
+
+    assert rrd_rows(out / "recording.rrd")[0]["/axes/X/position"] == n // 4
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["run", "scenario.yaml"])
