@@ -76,3 +76,21 @@ def test_twin_over_bare_ratio(benchmark):
     benchmark.extra_info.update(figures)
     print(f"\ntwin / bare mj_step = {figures['ratio_twin_over_bare']:.2f} "
           f"({figures['twin_us_per_tick']:.1f} vs {figures['bare_us_per_step']:.1f} us)")
+
+
+def test_rerun_recording_after_the_run(benchmark):
+    """The wait after the run for its rerun recording, as ``cnc-twin run`` records (a recording
+    process fed during the run), over the run's clock; and the in-process export after the run."""
+    from cnc_twin.bench import time_rerun_export, time_streamed_recording
+    from cnc_twin.resources import scenarios_dir
+
+    circle = scenarios_dir() / "nurbs_circle.yaml"
+    figures = benchmark.pedantic(time_streamed_recording, args=(circle,), kwargs={"repeat": 5}, rounds=1)
+    export_s, _ = time_rerun_export(circle, repeat=3)
+    benchmark.extra_info.update(figures, rerun_export_s=export_s)
+    ratio = figures["rerun_streamed_tail_s"] / figures["rerun_streamed_run_alone_s"]
+    benchmark.extra_info["rerun_streamed_tail_over_run"] = ratio
+    print(f"\nrecording after the run: {figures['rerun_streamed_tail_s'] * 1e3:.1f} ms = "
+          f"{ratio:.1%} of the run (target 10 %); the run "
+          f"{figures['rerun_streamed_run_slowdown']:+.1%} with the recording process; in-process "
+          f"export after the run {export_s * 1e3:.1f} ms")

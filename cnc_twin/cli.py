@@ -159,18 +159,28 @@ def _run_and_write(args, scenario, twin, bar, run_dir: Path, recorder, staged: P
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
-    recording: bool | Path = not args.no_rrd
-    if recorder is not None:
-        from cnc_twin.rerun_stream import RecordingError
+    if recorder is None:  # neither the run directory nor --rrd nor --rerun wants a recording
+        result.write(run_dir, recording=False)
+    else:
+        # The recording process closes the recording while this process writes the trace.
+        recorder.hand_over(result)
 
-        try:
-            recorder.finish(result)
-            recording = staged or False
-        except RecordingError as exc:  # the run is whole: export it here instead
-            print(f"warning: {exc}; exporting the recording after the run instead", file=sys.stderr)
-            if args.no_rrd:
-                result.export_rerun(rrd=args.rrd)
-    result.write(run_dir, recording=recording)
+        def finished_recording() -> Path | None:
+            from cnc_twin.rerun_stream import RecordingError
+
+            try:
+                return recorder.wait()
+            except RecordingError as exc:  # the run is whole: export it here instead
+                print(f"warning: {exc}; exporting the recording after the run instead", file=sys.stderr)
+                if args.no_rrd and args.rrd is not None:
+                    result.export_rerun(rrd=args.rrd)
+                return None
+
+        if staged is not None:
+            result.write(run_dir, recording=finished_recording)
+        else:  # --no-rrd: the recording went to --rrd and/or a viewer only
+            result.write(run_dir, recording=False)
+            finished_recording()
     if args.rrd is not None and not args.no_rrd:
         from cnc_twin.record import RECORDING_FILE
 

@@ -46,6 +46,9 @@ MIN_STRETCH = 250
 """periods gathered before a stretch is sent: each stretch costs the recording process about
 4 ms of rerun calls whatever its length (and the twin about 20 us), so few and long, but the last
 one is encoded after the run"""
+NICENESS = 10
+"""the recording process yields the CPU to the twin and the planner (in lockstep the card waits
+for the planner's answers): recording is background work until the run is over"""
 FINISH_TIMEOUT = 120.0
 """how long :meth:`RecordingProcess.finish` waits for the recording to be closed [s]"""
 
@@ -57,7 +60,8 @@ class RecordingError(RuntimeError):
 class RecordingProcess:
     """A rerun recording process for one run. Start it early (its imports take about a second
     and overlap the twin's), :meth:`open` it, pass :meth:`observe` to
-    :meth:`~cnc_twin.twin.Twin.run` as ``observer``, then :meth:`finish` with the result.
+    :meth:`~cnc_twin.twin.Twin.run` as ``observer``, then :meth:`finish` with the result (or
+    :meth:`hand_over` it, do other work, and :meth:`wait`).
 
     After a failure (the process died, a pipe broke) the sends stop and :meth:`finish` raises
     :class:`RecordingError`: the run itself is never held up by its recording.
@@ -104,8 +108,13 @@ class RecordingProcess:
             self._send_periods(twin.recorder, done)
 
     def finish(self, result, *, timeout: float = FINISH_TIMEOUT) -> Path | None:
-        """Send what is left of ``result``'s trace and close the recording; returns the file.
-        Raises :class:`RecordingError` if the recording could not be completed."""
+        """:meth:`hand_over` then :meth:`wait`: the finished recording's file (None without one)."""
+        self.hand_over(result)
+        return self.wait(timeout=timeout)
+
+    def hand_over(self, result) -> None:
+        """Send what is left of the run ``result`` and ask for the recording to be closed; returns
+        at once (the twin's process can write its other files meanwhile)."""
         trace = result.trace
         self._send_periods(trace, trace.whole_periods)
         self._send(("finish", len(trace), result.metrics, result.exchange_latency))
@@ -113,6 +122,10 @@ class RecordingProcess:
             self.popen.stdin.close()
         except OSError:
             pass
+
+    def wait(self, *, timeout: float = FINISH_TIMEOUT) -> Path | None:
+        """After :meth:`hand_over`: wait until the recording is closed; returns its file. Raises
+        :class:`RecordingError` (one line) if it could not be completed."""
         # A process that failed has said why on its stdout before it ended: prefer its reason.
         answer = self._answer(timeout if self.failure is None else 1.0)
         if answer == "ready":
@@ -257,6 +270,7 @@ def _failed(exc: Exception, out) -> int:
 
 def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the group; the twin decides
+    os.nice(NICENESS)
     return serve(sys.stdin.fileno(), sys.stdout.buffer)
 
 

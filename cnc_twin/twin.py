@@ -97,17 +97,20 @@ class RunResult:
             raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
         return pd.DataFrame(self.trace.columns())
 
-    def write(self, run_dir: str | Path, *, recording: bool | Path = True) -> Path:
+    def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
         """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
-        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``: exported now, or, when
-        ``recording`` is the path of a finished recording of this run (one a
+        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``, exported now.
+
+        ``recording`` may instead be a callable, called once the trace is written, that returns
+        the path of a finished recording of this run to move in (one a
         :class:`~cnc_twin.rerun_stream.RecordingProcess` made during it, on the same file
-        system), moved in."""
+        system), or None to export it now after all."""
         def extra(folder: Path) -> None:
             if self.removal is not None:
                 self.removal.save(folder)
-            if isinstance(recording, Path):
-                os.replace(recording, folder / RECORDING_FILE)
+            finished = recording() if callable(recording) else None
+            if finished is not None:
+                os.replace(finished, folder / RECORDING_FILE)
             elif recording:
                 self.export_rerun(rrd=folder / RECORDING_FILE)
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,

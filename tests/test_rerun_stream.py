@@ -122,3 +122,15 @@ def test_cli_rrd_into_a_missing_folder_is_a_one_line_error(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "does not exist" in proc.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_bench_measures_the_recording_after_the_run(write_scenario):
+    """The figures, not their speed: a tail was measured and both clocks are the run's."""
+    from cnc_twin.bench import time_streamed_recording
+
+    path = write_scenario({"name": "bench", "program": {"type": "point_to_point", "settle": 0.0, "moves": [{"X": 3}]}})
+    figures = time_streamed_recording(path, repeat=1)
+    assert 0 < figures["rerun_streamed_tail_s"] < 60
+    assert 0 < figures["rerun_streamed_run_s"] and 0 < figures["rerun_streamed_run_alone_s"]
+    assert figures["rerun_streamed_run_slowdown"] == pytest.approx(
+        figures["rerun_streamed_run_s"] / figures["rerun_streamed_run_alone_s"] - 1.0)
