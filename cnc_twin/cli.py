@@ -102,6 +102,12 @@ def _run(args: argparse.Namespace) -> int:
 
     # The planner process and the recording process start first: their start-up (0.2 - 0.6 s,
     # about 1 s) overlaps the imports below.
+    if args.rerun and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or
+                                                                 os.environ.get("WAYLAND_DISPLAY")):
+        # A viewer cannot open here, and the recording would wait ~10 s for it to connect.
+        print("warning: --rerun: no display (DISPLAY and WAYLAND_DISPLAY unset), no viewer opened; "
+              "open the run later with `cnc-twin view RUN_DIR`", file=sys.stderr)
+        args.rerun = False
     with PlannerPool() as planners:
         planners.prestart()
         recorder = None

@@ -30,6 +30,7 @@ run in progress to a recording process, stretch by stretch, with the same result
 from __future__ import annotations
 
 import math
+import sys
 import uuid
 from pathlib import Path
 
@@ -292,10 +293,11 @@ class RunExporter:
         :func:`planned_path`; a recording process gets it so that it needs no scipy)."""
         blueprint = default_blueprint()
         if spawn:
-            from cnc_twin.viewer import viewer_environment
+            from cnc_twin.viewer import rerun_command, viewer_environment
 
+            binary = rerun_command()[0]  # this environment's viewer, whether or not it is on PATH
             with viewer_environment():  # the viewer starts with usage analytics disabled
-                self.rec.spawn(connect=False)
+                rr.spawn(connect=False, executable_path=binary if binary != sys.executable else None)
             sinks = [rr.GrpcSink()] + ([rr.FileSink(str(rrd))] if rrd is not None else [])
             self.rec.set_sinks(*sinks, default_blueprint=blueprint)
         elif rrd is not None:

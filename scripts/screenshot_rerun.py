@@ -14,7 +14,9 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -53,14 +55,15 @@ def main() -> int:
         return 2
     rerun = Path(sys.executable).with_name("rerun")
     server = subprocess.Popen([str(rerun), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(VIEWER_PORT),
-                               "--port", str(GRPC_PORT), str(rrd)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                               "--port", str(GRPC_PORT), str(rrd)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)  # venv/bin/rerun is a wrapper: its binary is a child
     profile = tempfile.mkdtemp(prefix="cnc-twin-chromium-")
     browser = subprocess.Popen([chromium, "--headless", "--no-sandbox", "--use-angle=swiftshader",
                                 "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist", "--disable-quic",
                                 "--no-first-run", "--disable-background-networking", "--disable-component-update",
                                 "--disable-sync", f"--user-data-dir={profile}", f"--window-size={args.size}",
                                 f"--remote-debugging-port={DEVTOOLS_PORT}", "about:blank"],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         wait_http(f"http://127.0.0.1:{VIEWER_PORT}/", 30)
         pages = json.loads(wait_http(f"http://127.0.0.1:{DEVTOOLS_PORT}/json/list", 30))
@@ -79,13 +82,22 @@ def main() -> int:
         print(f"wrote {args.out}")
         return 0
     finally:
-        for proc in (browser, server):
-            proc.terminate()
+        for proc in (browser, server):  # each in its own session: end the whole group, children too
+            _signal_group(proc, signal.SIGTERM)
             try:
                 proc.wait(10)
             except subprocess.TimeoutExpired:
-                proc.kill()
+                _signal_group(proc, signal.SIGKILL)
+                proc.wait()
+            _signal_group(proc, signal.SIGKILL)  # a child that outlived its parent
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def _signal_group(proc: subprocess.Popen, sig: int) -> None:
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
 
 
 if __name__ == "__main__":

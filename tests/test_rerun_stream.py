@@ -134,3 +134,13 @@ def test_bench_measures_the_recording_after_the_run(write_scenario):
     assert 0 < figures["rerun_streamed_run_s"] and 0 < figures["rerun_streamed_run_alone_s"]
     assert figures["rerun_streamed_run_slowdown"] == pytest.approx(
         figures["rerun_streamed_run_s"] / figures["rerun_streamed_run_alone_s"] - 1.0)
+
+
+def test_cli_rerun_without_a_display_says_so_and_keeps_the_recording(tmp_path, write_scenario):
+    path = write_scenario({"name": "tiny", "program": {"type": "point_to_point", "settle": 0.0, "moves": [{"X": 1}]}})
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(tmp_path / "run"), "--rerun",
+                           "--quiet"], capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr
+    assert "--rerun: no display" in proc.stderr and "cnc-twin view" in proc.stderr
+    assert rrd_rows(tmp_path / "run" / "recording.rrd")[0]["/axes/X/position"] > 0
