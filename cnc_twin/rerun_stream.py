@@ -34,6 +34,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from cnc_twin.child_process import end_process
 from cnc_twin.errors import one_line
 from cnc_twin.record import PeriodSamples
 
@@ -140,21 +141,8 @@ class RecordingProcess:
 
     def close(self) -> None:
         """End the process (EOF, then SIGTERM, then SIGKILL); idempotent."""
-        popen = self.popen
-        for stream in (popen.stdin, popen.stdout):
-            try:
-                stream.close()
-            except OSError:
-                pass
-        try:
-            popen.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:
-            popen.terminate()
-            try:
-                popen.wait(timeout=2.0)
-            except subprocess.TimeoutExpired:  # pragma: no cover - a recorder ignoring SIGTERM
-                popen.kill()
-                popen.wait()
+        end_process(self.popen, grace=5.0, term_grace=2.0)
+        self.popen.stdout.close()
         self._stderr.close()
 
     def __enter__(self) -> "RecordingProcess":

@@ -28,6 +28,7 @@ import subprocess
 import sys
 import weakref
 
+from cnc_twin.child_process import end_process
 from cnc_twin.whiteboard.doorbell import PipeDoorbells
 
 DONE_TIMEOUT = 2.0
@@ -99,21 +100,8 @@ class PlannerProcess:
 
     def close(self) -> None:
         """End the process: EOF on its stdin, then SIGTERM, then SIGKILL; release the pipes."""
-        popen = self.popen
-        try:
-            popen.stdin.close()
-        except OSError:
-            pass
-        try:
-            popen.wait(timeout=2.0)
-        except subprocess.TimeoutExpired:
-            popen.terminate()
-            try:
-                popen.wait(timeout=1.0)
-            except subprocess.TimeoutExpired:  # pragma: no cover - a planner ignoring SIGTERM
-                popen.kill()
-                popen.wait()
-        popen.stdout.close()
+        end_process(self.popen, grace=2.0, term_grace=1.0)
+        self.popen.stdout.close()
         self.bells.close()
 
 
