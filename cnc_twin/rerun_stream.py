@@ -1,16 +1,19 @@
 """Recording a run while it runs: a rerun recording process, fed stretch by stretch.
 
-Exporting a finished run to rerun takes about a third of the run's own time (rerun's Arrow
-encoding, the blueprint, the geometry, the flush) plus half a second to import rerun. A
+Exporting a finished run to rerun takes about a fifth of the run's own time on the reference
+curve (rerun's Arrow encoding, the blueprint, the geometry, the close) plus half a second to
+import rerun. A
 :class:`RecordingProcess` does that work in a process of its own, on another core, while the
 twin runs: the twin's process sends it each stretch of :class:`~cnc_twin.record.PeriodSamples`
 (167 bytes per period) as the run records them, and when the run is over only the last stretch,
-the paths, the events and the flush remain. The recording is the same as
+the paths, the events and the close remain. The recording is the same as
 :func:`~cnc_twin.rerun_export.export_run` makes after the run (``tests/test_rerun_stream.py``).
 
 The process is ``python -m cnc_twin.rerun_stream``. Its stdin carries length-prefixed pickles:
 
-- ``("open", scenario, rrd, spawn)``: the recording's sinks (a file path or None, a viewer);
+- ``("open", scenario, rrd, spawn, planned)``: the recording's sinks (a file path or None, a
+  viewer) and the planned path (:func:`~cnc_twin.path_metrics.planned_path`, computed by the
+  twin's process, which has scipy loaded already);
 - ``("samples", PeriodSamples)``: the next stretch;
 - ``("finish", n_ticks, metrics, exchange_latency)``: the rest, then flush and close.
 
@@ -131,12 +134,15 @@ class RecordingProcess:
         answer = self._answer(timeout if self.failure is None else 1.0)
         if answer == "ready":
             answer = self._answer(timeout if self.failure is None else 1.0)
-        if answer.startswith("error: "):
-            self.failure = answer.removeprefix("error: ")
+        said = answer.startswith("error: ")
+        if said:
+            reason = answer.removeprefix("error: ")
+            self.failure = reason if len(reason) <= 200 else reason[:200] + "..."
         elif answer != "ok" and self.failure is None:
             self.failure = "the recording process ended without closing the recording"
         if self.failure is not None:
-            raise RecordingError(one_line(f"rerun recording process: {self.failure}{self._stderr_tail()}"))
+            raise RecordingError(one_line(f"rerun recording process: {self.failure}"
+                                          f"{'' if said else self._stderr_tail()}"))
         return self.rrd
 
     def close(self) -> None:
