@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="run directory to create (default: runs/<name>-<UTC time>)")
     run.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
-    run.add_argument("--rerun", action="store_true", help="open the run in a spawned rerun viewer when it ends")
+    run.add_argument("--rerun", action="store_true", help="show the run in a spawned rerun viewer as it runs")
     run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
     run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
 
@@ -148,13 +148,14 @@ def _run_with(args: argparse.Namespace, planners, recorder) -> int:
             target = staged = run_dir.parent / f".{run_dir.name}.recording-{os.getpid()}.rrd"
         recorder.open(scenario, rrd=target, spawn=args.rerun)
     try:
-        return _run_and_write(args, scenario, twin, bar, run_dir, recorder, staged, planners)
+        return _run_and_write(args, twin, bar, run_dir, recorder, staged, planners)
     finally:
         if staged is not None and staged.exists():  # not moved in: the run stopped with an error
             staged.unlink()
 
 
-def _run_and_write(args, scenario, twin, bar, run_dir: Path, recorder, staged: Path | None, planners) -> int:
+def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners) -> int:
+    scenario = twin.scenario
     with _stop_on_signals(twin):
         if not args.quiet and twin.kernel is not None:
             from cnc_twin.dsp.period_kernel import kernels_cached

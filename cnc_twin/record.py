@@ -286,12 +286,6 @@ class PeriodSamples:
                    periods=source.periods[first:stop].copy())
 
     @classmethod
-    def empty(cls, first: int) -> "PeriodSamples":
-        return cls(first=first, command=np.empty((0, len(AXES))), actual=np.empty((0, len(AXES)), np.int32),
-                   dac=np.empty((0, len(AXES)), np.int16), pad_force=np.empty(0),
-                   periods=np.empty(0, PERIOD_DTYPE))
-
-    @classmethod
     def join(cls, parts: list["PeriodSamples"]) -> "PeriodSamples":
         """Consecutive stretches as one."""
         if len(parts) == 1:

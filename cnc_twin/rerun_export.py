@@ -21,8 +21,9 @@ Entity tree (timelines ``sim_time`` [s] and ``period``)::
 Series that share a plot share an entity (``Scalars`` with one value per series and row, named
 by a static ``SeriesLines``): rerun's cost is mostly per ``send_columns`` call, so 12 calls per
 stretch instead of 39 halve the export. Everything time-varying goes in bulk through
-``send_columns`` (one call per entity and stretch). Series are sampled at the last tick of each interpolation period
-(:class:`~cnc_twin.record.PeriodSamples`: all an export reads of a run), body poses every ``POSE_INTERVAL``.
+``send_columns`` (one call per entity and stretch). Series are sampled at the last tick of each
+interpolation period (:class:`~cnc_twin.record.PeriodSamples`: all an export reads of a run),
+body poses every ``POSE_INTERVAL``.
 :func:`export_run` sends a finished run in one stretch; :mod:`cnc_twin.rerun_stream` streams a
 run in progress to a recording process, stretch by stretch, with the same result.
 """
@@ -186,7 +187,7 @@ def log_paths(rec: rr.RecordingStream, command_tips: np.ndarray, actual_tips: np
 
 
 def log_planned_path(rec: rr.RecordingStream, points: np.ndarray | None) -> None:
-    """``points`` from :func:`planned_path`, if any."""
+    """``points`` from :func:`~cnc_twin.path_metrics.planned_path`, if any."""
     if points is not None:
         rec.log("/paths/planned", rr.LineStrips3D([points], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
 
@@ -290,7 +291,8 @@ class RunExporter:
     def start(self, *, rrd: Path | None = None, spawn: bool = False, planned=PLANNED) -> None:
         """Open the sinks (a file, a spawned viewer, or both), log the blueprint, axes convention
         and static geometry. ``planned``: the planned path if already computed (see
-        :func:`planned_path`; a recording process gets it so that it needs no scipy)."""
+        :func:`~cnc_twin.path_metrics.planned_path`; a recording process gets it so that it needs
+        no scipy)."""
         blueprint = default_blueprint()
         if spawn:
             from cnc_twin.viewer import rerun_command, viewer_environment
@@ -310,7 +312,8 @@ class RunExporter:
             planned = planned_path(self.scenario)
         log_planned_path(self.rec, planned)
         log_series_names(self.rec, self.scenario)
-        self.kin.poses(np.asarray([self.scenario.home], dtype=np.float64))  # loads the compiled replay now
+        if self.kin.compiled:  # load the compiled replay now, before the first stretch
+            self.kin.poses(np.asarray([self.scenario.home], dtype=np.float64))
 
     def send(self, samples: PeriodSamples) -> None:
         """Send the next stretch (it must start at period :attr:`sent_periods`)."""
