@@ -17,8 +17,8 @@ from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.planner.process import PlannerJob, build_program
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import load_scenario
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import load_scenario
 
 FREEFORM = NurbsCurve(np.array([[0, 0, 0], [20, 40, 0], [60, -20, 5], [100, 50, 0], [140, 0, -5], [160, 30, 0],
                                 [200, 0, 0]]) * 1e-3, [1, 0.8, 1.2, 1, 0.7, 1.1, 1],

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import yaml
 
-from cnc_twin.sweep import cases, parse_param, run_local, timed
+from cnc_twin.studies.sweep import cases, parse_param, run_local, timed
 
 
 def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):

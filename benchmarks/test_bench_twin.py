@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_twin.bench import bench_scenario, time_bare_steps
-from cnc_twin.resources import default_scenario
-from cnc_twin.scenario import load_scenario
-from cnc_twin.twin import Twin
+from cnc_twin.studies.bench import bench_scenario, time_bare_steps
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.scenario.load import load_scenario
+from cnc_twin.run.twin import Twin
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def test_servo_tick(benchmark, scenario):
 
 def _period(twin: Twin, compiled: bool):
     """One interpolation period of servo ticks and physics, compiled or on the reference path."""
-    from cnc_twin.record import Recorder
+    from cnc_twin.trace.record import Recorder
 
     recorder = Recorder(1, twin.scenario.timing.ticks_per_period, scratch=True)
     servo, plant, substeps = twin.servo, twin.plant, twin.scenario.timing.substeps_per_tick
@@ -69,7 +69,7 @@ def test_servo_period_with_physics(benchmark, scenario, compiled):
 
 def test_twin_over_bare_ratio(benchmark):
     """On the reference curve (nurbs_circle: 1 ms interpolation, 0.25 ms servo and physics)."""
-    from cnc_twin.resources import scenarios_dir
+    from cnc_twin.scenario.resources import scenarios_dir
 
     figures = benchmark.pedantic(bench_scenario, args=(scenarios_dir() / "nurbs_circle.yaml",),
                                  kwargs={"repeat": 3}, rounds=1)
@@ -81,8 +81,8 @@ def test_twin_over_bare_ratio(benchmark):
 def test_rerun_recording_after_the_run(benchmark):
     """The wait after the run for its rerun recording, as ``cnc-twin run`` records (a recording
     process fed during the run), over the run's clock; and the in-process export after the run."""
-    from cnc_twin.bench import time_rerun_export, time_streamed_recording
-    from cnc_twin.resources import scenarios_dir
+    from cnc_twin.studies.bench import time_rerun_export, time_streamed_recording
+    from cnc_twin.scenario.resources import scenarios_dir
 
     circle = scenarios_dir() / "nurbs_circle.yaml"
     figures = benchmark.pedantic(time_streamed_recording, args=(circle,), kwargs={"repeat": 5}, rounds=1)

@@ -6,7 +6,7 @@ than the 132 MB/s burst rate of the card's 32-bit / 33 MHz PCI bus.
 
 from __future__ import annotations
 
-from cnc_twin.bench_whiteboard import exchange_round_trip, stream_throughput
+from cnc_twin.studies.bench_whiteboard import exchange_round_trip, stream_throughput
 
 
 def test_exchange_round_trip(benchmark):

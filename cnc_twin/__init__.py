@@ -19,11 +19,11 @@ __all__ = ["Scenario", "ScenarioError", "RunResult", "load_scenario", "run_scena
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "Scenario": "cnc_twin.config",
-    "ScenarioError": "cnc_twin.errors",
-    "load_scenario": "cnc_twin.scenario",
-    "RunResult": "cnc_twin.twin",
-    "run_scenario": "cnc_twin.twin",
+    "Scenario": "cnc_twin.core.config",
+    "ScenarioError": "cnc_twin.core.errors",
+    "load_scenario": "cnc_twin.scenario.load",
+    "RunResult": "cnc_twin.run.twin",
+    "run_scenario": "cnc_twin.run.twin",
 }
 
 

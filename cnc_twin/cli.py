@@ -17,9 +17,9 @@ import sys
 import time
 from pathlib import Path
 
-from cnc_twin.errors import ScenarioError
-from cnc_twin.progress import ProgressBar
-from cnc_twin.resources import default_scenario
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.run.progress import ProgressBar
+from cnc_twin.scenario.resources import default_scenario
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -112,7 +112,7 @@ def _run(args: argparse.Namespace) -> int:
         planners.prestart()
         recorder = None
         if not args.no_rrd or args.rrd is not None or args.rerun:
-            from cnc_twin.rerun_stream import RecordingProcess
+            from cnc_twin.view.rerun_stream import RecordingProcess
 
             recorder = RecordingProcess()
         try:
@@ -123,10 +123,10 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_with(args: argparse.Namespace, planners, recorder) -> int:
-    """One run; ``recorder`` (a :class:`~cnc_twin.rerun_stream.RecordingProcess`, or None when
+    """One run; ``recorder`` (a :class:`~cnc_twin.view.rerun_stream.RecordingProcess`, or None when
     no recording is wanted) records it while it runs."""
-    from cnc_twin.scenario import load_scenario
-    from cnc_twin.twin import Twin
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.run.twin import Twin
 
     if args.rrd is not None and not args.rrd.parent.is_dir():
         raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
@@ -158,7 +158,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
     scenario = twin.scenario
     with _stop_on_signals(twin):
         if not args.quiet and twin.kernel is not None:
-            from cnc_twin.dsp.period_kernel import kernels_cached
+            from cnc_twin.run.period_kernel import kernels_cached
 
             if not kernels_cached():
                 print("compiling the twin's kernels for this machine (once after installing, about 10 s) ...",
@@ -173,7 +173,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         recorder.hand_over(result)
 
         def finished_recording() -> Path | None:
-            from cnc_twin.rerun_stream import RecordingError
+            from cnc_twin.view.rerun_stream import RecordingError
 
             try:
                 return recorder.wait()
@@ -189,7 +189,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
             result.write(run_dir, recording=False)
             finished_recording()
     if args.rrd is not None and not args.no_rrd:
-        from cnc_twin.record import RECORDING_FILE
+        from cnc_twin.trace.record import RECORDING_FILE
 
         shutil.copyfile(run_dir / RECORDING_FILE, args.rrd)
     if not args.quiet:
@@ -232,8 +232,8 @@ class _stop_on_signals:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from cnc_twin.scenario import load_scenario
-    from cnc_twin.sweep import best_row, cases, parse_param, run_dask, run_local, write_table
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.studies.sweep import best_row, cases, parse_param, run_dask, run_local, write_table
 
     params = []
     for text in args.param:
@@ -266,9 +266,9 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _tune(args: argparse.Namespace) -> int:
-    from cnc_twin.linearize import analyse
-    from cnc_twin.scenario import load_scenario
-    from cnc_twin.tuning import save_plots, twin_step, verified_proposal
+    from cnc_twin.studies.linearize import analyse
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.studies.tuning import save_plots, twin_step, verified_proposal
 
     scenario = load_scenario(args.scenario)
     axis, cfg = args.axis, scenario.axis(args.axis)
@@ -306,9 +306,9 @@ def params_of(params) -> list[str]:
 def _view(args: argparse.Namespace) -> int:
     import subprocess
 
-    from cnc_twin.record import RECORDING_FILE
+    from cnc_twin.trace.record import RECORDING_FILE
 
-    from cnc_twin.viewer import rerun_command, viewer_environment
+    from cnc_twin.view.viewer import rerun_command, viewer_environment
 
     path = args.run_dir / RECORDING_FILE if args.run_dir.is_dir() else args.run_dir
     if not path.is_file():
@@ -318,7 +318,7 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from cnc_twin.scenario import load_scenario
+    from cnc_twin.scenario.load import load_scenario
 
     for path in args.scenarios:
         scenario = load_scenario(path)
@@ -329,7 +329,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 def describe_program(program) -> str:
     """One line on what a program does."""
-    from cnc_twin.config import ContourProgram, MotionChipProgram, NurbsProgram, SurfaceProgram
+    from cnc_twin.core.config import ContourProgram, MotionChipProgram, NurbsProgram, SurfaceProgram
 
     if isinstance(program, SurfaceProgram):
         s = program.surface
@@ -347,13 +347,13 @@ def describe_program(program) -> str:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from cnc_twin.bench import bench_scenario, format_bench
+    from cnc_twin.studies.bench import bench_scenario, format_bench
 
     if args.repeat < 1:
         raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
     figures = bench_scenario(args.scenario or default_scenario(), repeat=args.repeat)
     if not args.no_whiteboard:
-        from cnc_twin.bench_whiteboard import exchange_round_trip, stream_throughput
+        from cnc_twin.studies.bench_whiteboard import exchange_round_trip, stream_throughput
 
         rt = exchange_round_trip()
         block = stream_throughput(kind="block")
@@ -415,7 +415,7 @@ def summary_table(metrics: dict) -> str:
             f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
         )
     if metrics.get("contour"):
-        from cnc_twin.contour_metrics import format_passes
+        from cnc_twin.run.contour_metrics import format_passes
 
         lines.append(format_passes(metrics["contour"]))
     lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")

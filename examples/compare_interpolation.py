@@ -7,7 +7,7 @@ interpolation and the output stage each add to the contour error.
 """
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.resources import scenarios_dir
+from cnc_twin.scenario.resources import scenarios_dir
 
 print(f"{'output':8}{'method':16}{'contour max um':>16}{'rms um':>9}{'command dev max um':>20}")
 for output in ("analog", "pulse"):

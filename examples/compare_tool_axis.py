@@ -4,7 +4,7 @@
 """
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.resources import scenarios_dir
+from cnc_twin.scenario.resources import scenarios_dir
 
 for name in ("nurbs_freeform.yaml", "nurbs_tilted.yaml"):
     result = run_scenario(load_scenario(scenarios_dir() / name))

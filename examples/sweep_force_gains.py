@@ -15,8 +15,8 @@ from pathlib import Path
 
 import yaml
 
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.sweep import cases, parse_param, run_dask, run_local
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.studies.sweep import cases, parse_param, run_dask, run_local
 
 
 def main() -> None:

@@ -9,8 +9,8 @@ under ``if __name__ == "__main__":`` (single runs need no guard).
 
 import sys
 
-from cnc_twin.resources import default_scenario
-from cnc_twin.sweep import cases, parse_param, run_dask, run_local
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.studies.sweep import cases, parse_param, run_dask, run_local
 
 
 def main() -> None:

@@ -7,9 +7,9 @@ import sys
 from pathlib import Path
 
 from cnc_twin import load_scenario
-from cnc_twin.linearize import analyse
-from cnc_twin.resources import default_scenario
-from cnc_twin.tuning import twin_step, verified_proposal
+from cnc_twin.studies.linearize import analyse
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.studies.tuning import twin_step, verified_proposal
 
 scenario_file = Path(sys.argv[1]) if len(sys.argv) > 1 else default_scenario()
 axis = sys.argv[2] if len(sys.argv) > 2 else "Y"

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from cnc_twin.dsp.step_interpolator import StepRun
-from cnc_twin.errors import ScenarioError
+from cnc_twin.core.errors import ScenarioError
 from cnc_twin.geometry.contour import contour_distance
-from cnc_twin.scenario import load_scenario, scenario_from_dict
-from cnc_twin.twin import run_scenario
+from cnc_twin.scenario.load import load_scenario, scenario_from_dict
+from cnc_twin.run.twin import run_scenario
 from cnc_twin.whiteboard.records import STEP_ARC, STEP_DDA, STEP_POINT_BY_POINT, StepContour
-from cnc_twin.dsp.scurve import SCurve
+from cnc_twin.motion.scurve import SCurve
 from conftest import REPO
 
 
@@ -132,7 +132,7 @@ def test_bad_contours_are_refused_with_the_key_path(change, key, message):
 
 def test_an_arc_end_off_the_pulse_lattice_circle_is_refused():
     from cnc_twin.geometry.contour import Arc
-    from cnc_twin.scenario_contour import _lattice
+    from cnc_twin.scenario.contour import _lattice
 
     cpu = (1e6, 1e6)
     ok = _lattice(Arc((0.01, 0.0), (0.0, 0.01), (0.0, 0.0), False), (0.0, 0.0), cpu, Path("s.yaml"), "k")

@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cnc_twin.fault_catalog import CASES, markdown, run_case
-from cnc_twin.scenario import scenario_from_dict
-from cnc_twin.twin import run_scenario
+from cnc_twin.studies.fault_catalog import CASES, markdown, run_case
+from cnc_twin.scenario.load import scenario_from_dict
+from cnc_twin.run.twin import run_scenario
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
@@ -85,7 +85,7 @@ def test_a_harsher_fault_escalates_the_stop():
     ({"type": "dsp_hang", "at": 0.1}, "faults[0].duration", "missing"),
 ])
 def test_bad_fault_specs_name_the_key(fault, key, fragment):
-    from cnc_twin.errors import ScenarioError
+    from cnc_twin.core.errors import ScenarioError
 
     with pytest.raises(ScenarioError) as info:
         scenario_from_dict({**JOG, "faults": [fault]})
@@ -93,7 +93,7 @@ def test_bad_fault_specs_name_the_key(fault, key, fragment):
 
 
 def test_soft_limits_must_lie_within_the_travel():
-    from cnc_twin.errors import ScenarioError
+    from cnc_twin.core.errors import ScenarioError
 
     with pytest.raises(ScenarioError) as info:
         scenario_from_dict({**JOG, "axes": {"X": {"soft_limits": [-450, 100]}}})

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cnc_twin.cli import main
-from cnc_twin.resources import scenarios_dir
+from cnc_twin.scenario.resources import scenarios_dir
 
 BUNDLED = [p.read_text() for p in sorted(scenarios_dir().glob("*.yaml"))]
 

@@ -7,7 +7,7 @@ import pytest
 
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.planner.ptp import plan_move
-from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.whiteboard.records import EndOfProgram, FeedOverride, Move
 
 T = 0.001

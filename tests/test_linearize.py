@@ -6,10 +6,10 @@ import control
 import numpy as np
 import pytest
 
-from cnc_twin.linearize import analyse, axis_plant
-from cnc_twin.resources import default_scenario
-from cnc_twin.scenario import load_scenario, scenario_from_dict
-from cnc_twin.twin import run_scenario
+from cnc_twin.studies.linearize import analyse, axis_plant
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.scenario.load import load_scenario, scenario_from_dict
+from cnc_twin.run.twin import run_scenario
 
 
 @pytest.mark.parametrize("kp, ki", [(40.0, 400.0), (70.0, 0.0)])

@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from cnc_twin.plant import Plant, load_model
-from cnc_twin.resources import models_dir
+from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.scenario.resources import models_dir
 
 SCENES = sorted(p for p in models_dir().glob("*.xml"))
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from cnc_twin.dsp.chip import IndexMarks
-from cnc_twin.errors import ScenarioError
-from cnc_twin.scenario import load_scenario, scenario_from_dict
-from cnc_twin.twin import run_scenario
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.scenario.load import load_scenario, scenario_from_dict
+from cnc_twin.run.twin import run_scenario
 from conftest import REPO
 
 

@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cnc_twin.dsp.curve_stepper import CurveStepper
-from cnc_twin.dsp.scurve import InfeasibleProfile, SCurve
+from cnc_twin.motion.scurve import InfeasibleProfile, SCurve
 from cnc_twin.geometry.nurbs import NurbsCurve, NurbsError
-from cnc_twin.config import PathLimits
+from cnc_twin.core.config import PathLimits
 from cnc_twin.planner.feed import plan_feed
 
 S2 = math.sqrt(2.0) / 2.0

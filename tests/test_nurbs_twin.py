@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import scenario_from_dict
 
 CURVES = ["nurbs_circle.yaml", "nurbs_freeform.yaml", "nurbs_tilted.yaml"]
 # Contour error bounds [um]. With the tool axis moving, A/B following errors (about 0.04 deg with
@@ -115,7 +115,7 @@ def test_cli_runs_a_curve_and_reports_contour_error(tmp_path):
                                                   "knots": [0, 0, 1, 1]}}, "program.tool_axis", "not both"),
 ])
 def test_bad_curve_programs_name_the_key(write_scenario, change, key, fragment):
-    from cnc_twin.errors import ScenarioError
+    from cnc_twin.core.errors import ScenarioError
 
     raw = yaml.safe_load((scenarios_dir() / "nurbs_circle.yaml").read_text())
     if "tool_axis_curve" in change and "tool_axis" not in change:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from cnc_twin import load_scenario
-from cnc_twin.errors import ScenarioError
-from cnc_twin.overrides import parse_path
-from cnc_twin.resources import default_scenario, scenarios_dir
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.scenario.overrides import parse_path
+from cnc_twin.scenario.resources import default_scenario, scenarios_dir
 
 
 def test_parse_path():
@@ -58,8 +58,8 @@ def test_bad_overrides_fail_naming_the_override(overrides, key, fragment):
 
 
 def test_result_dataframe_or_a_clear_import_error():
-    from cnc_twin.scenario import scenario_from_dict
-    from cnc_twin.twin import run_scenario
+    from cnc_twin.scenario.load import scenario_from_dict
+    from cnc_twin.run.twin import run_scenario
 
     result = run_scenario(scenario_from_dict({"name": "df", "program": {"type": "point_to_point", "settle": 0.0,
                                                                        "moves": [{"X": 1}]}}))

@@ -11,9 +11,9 @@ import yaml
 
 from cnc_twin import load_scenario, run_scenario
 from cnc_twin.planner.launch import PlannerPool, PlannerProcess
-from cnc_twin.resources import default_scenario, scenarios_dir
-from cnc_twin.scenario import scenario_from_dict
-from cnc_twin.twin import Twin
+from cnc_twin.scenario.resources import default_scenario, scenarios_dir
+from cnc_twin.scenario.load import scenario_from_dict
+from cnc_twin.run.twin import Twin
 
 
 def _short(**changes):

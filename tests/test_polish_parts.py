@@ -7,15 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from cnc_twin.config import ForceControl, SurfaceDef
+from cnc_twin.core.config import ForceControl, SurfaceDef
 from cnc_twin.dsp.force import ForceController, ForceState
 from cnc_twin.geometry.kinematics import HeadGeometry, UnreachablePose, pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface
 from cnc_twin.geometry.surface_path import SurfacePath, tool_axes
 from cnc_twin.planner.toolpath import ToolpathError, raster, spiral
-from cnc_twin.plant import load_model
-from cnc_twin.resources import resolve_model_file
+from cnc_twin.machine.plant import load_model
+from cnc_twin.scenario.resources import resolve_model_file
 from cnc_twin.whiteboard.records import ForceControlRecord, SurfaceCurve, SurfaceGeometry, decode, encode
 
 HEAD = HeadGeometry.from_model(load_model(resolve_model_file("scene.xml", None)))
@@ -222,7 +222,7 @@ def test_force_loop_anti_windup_holds_the_clamp():
 def _surface_scenario(**program_changes) -> dict:
     import yaml
 
-    from cnc_twin.resources import scenarios_dir
+    from cnc_twin.scenario.resources import scenarios_dir
 
     raw = yaml.safe_load((scenarios_dir() / "flat_plate_polish.yaml").read_text())
     for path, value in program_changes.items():
@@ -246,8 +246,8 @@ def _surface_scenario(**program_changes) -> dict:
     ({"force.profile": [[0, 20], [0, 25]]}, "program.force.profile", "increase"),
 ])
 def test_bad_surface_programs_are_refused_with_the_key(change, key, message):
-    from cnc_twin.errors import ScenarioError
-    from cnc_twin.scenario import scenario_from_dict
+    from cnc_twin.core.errors import ScenarioError
+    from cnc_twin.scenario.load import scenario_from_dict
 
     with pytest.raises(ScenarioError) as info:
         scenario_from_dict(_surface_scenario(**change))
@@ -257,8 +257,8 @@ def test_bad_surface_programs_are_refused_with_the_key(change, key, message):
 
 def test_a_face_tilted_beyond_the_head_is_refused_before_motion():
     """A wall (normals horizontal) cannot be reached with |B| < 90 deg: refused at load."""
-    from cnc_twin.errors import ScenarioError
-    from cnc_twin.scenario import scenario_from_dict
+    from cnc_twin.core.errors import ScenarioError
+    from cnc_twin.scenario.load import scenario_from_dict
 
     wall = [[[-80, 0, -30], [-80, 0, 30]], [[80, 0, -30], [80, 0, 30]]]
     with pytest.raises(ScenarioError, match="unreachable: tool axis") as info:
@@ -267,8 +267,8 @@ def test_a_face_tilted_beyond_the_head_is_refused_before_motion():
 
 
 def test_a_surface_too_large_for_one_record_is_refused():
-    from cnc_twin.errors import ScenarioError
-    from cnc_twin.scenario import scenario_from_dict
+    from cnc_twin.core.errors import ScenarioError
+    from cnc_twin.scenario.load import scenario_from_dict
 
     n = 14
     net = [[[-80 + 160 * i / (n - 1), -60 + 120 * j / (n - 1), 0] for j in range(n)] for i in range(n)]

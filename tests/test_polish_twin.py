@@ -13,8 +13,8 @@ import sys
 import numpy as np
 import pytest
 
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.sweep import run_local
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.studies.sweep import run_local
 
 PLATE = "flat_plate_polish.yaml"
 

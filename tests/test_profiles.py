@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cnc_twin.dsp.profiles import Trapezoid
+from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.planner.ptp import plan_move, plan_point_to_point
-from cnc_twin.planner.segments import DwellSegment, MoveSegment
-from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.motion.segments import DwellSegment, MoveSegment
+from cnc_twin.scenario.load import scenario_from_dict
 
 T = 0.001
 

@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cnc_twin.config import AxisConfig
-from cnc_twin.drive import INPUT_LIMIT, PositionModeDrive
+from cnc_twin.core.config import AxisConfig
+from cnc_twin.machine.drive import INPUT_LIMIT, PositionModeDrive
 from cnc_twin.dsp.step_output import StepGenerator
-from cnc_twin.errors import ScenarioError
-from cnc_twin.scenario import load_scenario
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.scenario.load import load_scenario
 from conftest import REPO
 
 AXIS = AxisConfig(name="X", rotary=False, max_velocity=0.4, max_acceleration=2.0, max_jerk=50.0,

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 
 from cnc_twin.dsp.servo import PERIOD_FIELDS
-from cnc_twin.record import PERIOD_DTYPE, TICK_BYTES, Recorder
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import load_scenario
-from cnc_twin.twin import Twin
+from cnc_twin.trace.record import PERIOD_DTYPE, TICK_BYTES, Recorder
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import load_scenario
+from cnc_twin.run.twin import Twin
 
 TPP = 4
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cnc_twin.dsp.profiles import Trapezoid
-from cnc_twin.dsp.scurve import SCurve
+from cnc_twin.motion.trapezoid import Trapezoid
+from cnc_twin.motion.scurve import SCurve
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.records import (
@@ -185,7 +185,7 @@ def test_curve_records_round_trip_and_every_bit_flip_is_caught():
     geometry = CurveGeometry(degree=2, knots=(0, 0, 0, 0.5, 1, 1, 1), weights=(1, 0.7, 1.2, 1),
                              control_points=((0.0, 0.1, -0.2), (0.1, 0.2, -0.2), (0.2, 0.1, -0.2), (0.3, 0.0, -0.2)),
                              hold=(0.1, -0.2, 0.0))
-    from cnc_twin.dsp.scurve import SCurve
+    from cnc_twin.motion.scurve import SCurve
 
     block = CurveBlock(SCurve(0.05, 0.0, 0.1, 0.02, 2.0, 50.0))
     for record in (geometry, block):
@@ -203,7 +203,7 @@ def test_curve_records_round_trip_and_every_bit_flip_is_caught():
 def test_curve_geometry_with_a_tool_axis_curve_round_trips():
     from cnc_twin.whiteboard.records import CurveGeometry
 
-    from cnc_twin.config import AxisCurve
+    from cnc_twin.core.config import AxisCurve
 
     axis = AxisCurve(1, (0.0, 0.0, 1.0, 1.0), (1.0, 1.0), ((0.0, 0.0, 1.0), (0.3, -0.2, 1.0)))
     rec = CurveGeometry(degree=1, knots=(0, 0, 1, 1), weights=(1, 1), control_points=((0, 0, 0.1), (0.1, 0, 0.1)),

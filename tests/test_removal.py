@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.integrate import dblquad, quad
 from scipy.optimize import brentq
 
-from cnc_twin.removal import PrestonModel, RemovalGrid
+from cnc_twin.polishing.removal import PrestonModel, RemovalGrid
 
 KP = 1e-13       # Preston coefficient [1/Pa]
 R = 25e-3        # pad radius [m]

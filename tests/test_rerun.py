@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from rrd_read import rrd_contents, rrd_rows
-from cnc_twin.scenario import scenario_from_dict
-from cnc_twin.twin import run_scenario
+from cnc_twin.scenario.load import scenario_from_dict
+from cnc_twin.run.twin import run_scenario
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +69,7 @@ def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, mon
     import json
     import os
 
-    from cnc_twin.viewer import viewer_config_home, viewer_environment
+    from cnc_twin.view.viewer import viewer_config_home, viewer_environment
 
     monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "user-config"))
     base = viewer_config_home()
@@ -85,8 +85,8 @@ def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, mon
 def test_an_export_in_stretches_records_what_one_export_does(tmp_path):
     """However a run is cut into stretches (as a recording process receives it), the recording
     holds the same values: the pose grid, the feed across stretch edges, the events."""
-    from cnc_twin.record import PeriodSamples
-    from cnc_twin.rerun_export import RunExporter
+    from cnc_twin.trace.record import PeriodSamples
+    from cnc_twin.view.rerun_export import RunExporter
 
     scenario = scenario_from_dict({"name": "stretches", "program": {"type": "point_to_point", "settle": 0.05,
                                                                     "moves": [{"X": 20}, {"Y": -10, "A": 3}]}})

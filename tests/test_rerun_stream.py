@@ -11,11 +11,11 @@ import sys
 import pytest
 from rrd_read import rrd_contents, rrd_rows
 
-from cnc_twin.record import read_trace
-from cnc_twin.rerun_stream import RecordingError, RecordingProcess
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import load_scenario, scenario_from_dict
-from cnc_twin.twin import Twin, run_scenario
+from cnc_twin.trace.record import read_trace
+from cnc_twin.view.rerun_stream import RecordingError, RecordingProcess
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import load_scenario, scenario_from_dict
+from cnc_twin.run.twin import Twin, run_scenario
 
 
 def _ptp():
@@ -126,7 +126,7 @@ def test_cli_rrd_into_a_missing_folder_is_a_one_line_error(tmp_path):
 
 def test_bench_measures_the_recording_after_the_run(write_scenario):
     """The figures, not their speed: a tail was measured and both clocks are the run's."""
-    from cnc_twin.bench import time_streamed_recording
+    from cnc_twin.studies.bench import time_streamed_recording
 
     path = write_scenario({"name": "bench", "program": {"type": "point_to_point", "settle": 0.0, "moves": [{"X": 3}]}})
     figures = time_streamed_recording(path, repeat=1)

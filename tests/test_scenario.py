@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from cnc_twin.errors import ScenarioError
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import load_scenario
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import load_scenario
 
 BUNDLED = sorted(scenarios_dir().glob("*.yaml"))
 
@@ -127,7 +127,7 @@ def test_cli_exit_code_2_one_line_no_traceback(write_scenario, label, content, k
 def test_errors_stay_one_line_whatever_the_input_held():
     """Found by the fuzzer: a control character in a value (here U+001E, a line break to
     str.splitlines) used to split the error message."""
-    from cnc_twin.errors import ScenarioError
+    from cnc_twin.core.errors import ScenarioError
 
     text = str(ScenarioError("f.yaml", "machine.model", "file '\x1e\n\u2028x' not found"))
     assert len(text.splitlines()) == 1

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnc_twin.dsp import servo_kernel
-from cnc_twin.resources import scenarios_dir
-from cnc_twin.scenario import load_scenario
-from cnc_twin.twin import Twin
+from cnc_twin.run import servo_kernel
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.load import load_scenario
+from cnc_twin.run.twin import Twin
 
 TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path"}
 """wall-clock figures, different between any two runs (the rest of metrics must agree)"""
@@ -92,8 +92,8 @@ def test_the_reference_path_serves_what_the_kernel_does_not(name):
 
 
 def test_compiled_kinematics_replay_matches_the_python_loop():
-    from cnc_twin.plant import load_model
-    from cnc_twin.rerun_export import _Kinematics
+    from cnc_twin.machine.plant import load_model
+    from cnc_twin.view.rerun_export import _Kinematics
 
     scenario = load_scenario(scenarios_dir() / "nurbs_tilted.yaml")
     model = load_model(scenario.model_file)
@@ -147,7 +147,7 @@ def test_batches_into_a_scratch_recorder_keep_the_last_period():
 
 def test_a_planner_lost_during_batches_is_noticed_at_the_same_liveness_check(monkeypatch):
     """The card checks the planner every 64 periods while solo; batches make that check first."""
-    import cnc_twin.twin as twin_module
+    import cnc_twin.run.twin as twin_module
 
     class DyingPort(twin_module.DspPort):
         checks = 0
@@ -179,7 +179,7 @@ def test_a_planner_lost_during_batches_is_noticed_at_the_same_liveness_check(mon
 
 def test_the_cli_says_when_it_compiles_the_kernels(monkeypatch, capsys, tmp_path):
     from cnc_twin import cli
-    from cnc_twin.dsp import period_kernel
+    from cnc_twin.run import period_kernel
 
     Twin(load_scenario(scenarios_dir() / "jog_axes.yaml")).run()
     assert period_kernel.kernels_cached()  # numba cached the kernels it compiled or loaded

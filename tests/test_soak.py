@@ -1,4 +1,4 @@
-"""A short soak (15 s simulated; ``python -m cnc_twin.soak --minutes 10`` is the full one), run
+"""A short soak (15 s simulated; ``python -m cnc_twin.studies.soak --minutes 10`` is the full one), run
 as the command in a fresh process:
 periodic planner delays in lockstep lose or tear no record, and memory beyond the trace stays flat."""
 
@@ -8,7 +8,7 @@ import json
 import subprocess
 import sys
 
-from cnc_twin.soak import soak_scenario
+from cnc_twin.studies.soak import soak_scenario
 
 
 def test_soak_scenario_repeats_the_cycle_with_periodic_delays():
@@ -20,7 +20,7 @@ def test_soak_scenario_repeats_the_cycle_with_periodic_delays():
 def test_short_soak_loses_nothing():
     # In a process of its own, as the command runs it: resident memory in this one depends on
     # what earlier tests allocated and freed (pages reused or returned), swinging +-10 MB.
-    done = subprocess.run([sys.executable, "-m", "cnc_twin.soak", "--minutes", "0.25", "--every", "2", "--delay", "2"],
+    done = subprocess.run([sys.executable, "-m", "cnc_twin.studies.soak", "--minutes", "0.25", "--every", "2", "--delay", "2"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr + done.stdout
     figures = json.loads(done.stdout)

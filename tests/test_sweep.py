@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from cnc_twin.sweep import WALL_CLOCK_COLUMNS, Param, best_row, cases, parse_param, run_case, run_local
+from cnc_twin.studies.sweep import WALL_CLOCK_COLUMNS, Param, best_row, cases, parse_param, run_case, run_local
 
 SHORT = {"name": "sweep", "program": {"type": "point_to_point", "settle": 0.02, "moves": [{"X": 5}]}}
 
@@ -44,7 +44,7 @@ def test_local_pool_and_dask_cluster_give_identical_tables(scenario_file):
     import dask
     from distributed import LocalCluster
 
-    from cnc_twin.sweep import run_dask
+    from cnc_twin.studies.sweep import run_dask
 
     todo = cases([parse_param("servo.X.kp=30:50:20"), parse_param("servo.X.ki=0,400")])
     local = run_local(scenario_file, todo, workers=2)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.record import read_trace
-from cnc_twin.resources import default_scenario
-from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.trace.record import read_trace
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.scenario.load import scenario_from_dict
 from conftest import single_move
 
 SETTLE = 0.6  # s simulated after each test move

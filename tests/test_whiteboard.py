@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.record import read_trace
-from cnc_twin.resources import default_scenario
-from cnc_twin.scenario import scenario_from_dict
+from cnc_twin.trace.record import read_trace
+from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.whiteboard.block import leftover_segments
 from cnc_twin.whiteboard.status import DspState, FaultCode
 from conftest import _leaked
@@ -142,7 +142,7 @@ def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_sc
 
 def test_benchmark_paths_move_and_verify_every_record():
     """The speed benchmarks run the real ports; check they move what they claim (not their speed)."""
-    from cnc_twin.bench_whiteboard import exchange_round_trip, stream_throughput
+    from cnc_twin.studies.bench_whiteboard import exchange_round_trip, stream_throughput
 
     rt = exchange_round_trip(200)
     assert rt["exchanges"] == 200 and 0 < rt["min_us"] <= rt["median_us"] <= rt["p99_us"]
@@ -154,8 +154,8 @@ def test_benchmark_paths_move_and_verify_every_record():
 
 @pytest.mark.parametrize("path", ["batched", "compiled-servo", "python-servo"])
 def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, monkeypatch):
-    from cnc_twin.dsp.period_kernel import PeriodBatch
-    from cnc_twin.twin import Twin
+    from cnc_twin.run.period_kernel import PeriodBatch
+    from cnc_twin.run.twin import Twin
 
     twin = Twin(JOG, compiled=path != "python-servo", batch=path == "batched")
     calls = {"n": 0}
@@ -192,7 +192,7 @@ def test_card_goes_solo_once_the_program_is_streamed_and_still_notices_a_dead_pl
     import os
     import signal
 
-    from cnc_twin.twin import Twin
+    from cnc_twin.run.twin import Twin
 
     result = run_scenario(JOG)
     wb = result.metrics["whiteboard"]

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import bisect
 
-from cnc_twin.config import ForceControl
+from cnc_twin.core.config import ForceControl
 
 
 class ForceState:

@@ -56,7 +56,7 @@ import math
 from collections import deque
 from collections.abc import Sequence
 
-from cnc_twin.config import AxisConfig
+from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
@@ -66,7 +66,7 @@ from cnc_twin.geometry.kinematics import pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
 from cnc_twin.geometry.surface_path import SurfacePathEvaluator
-from cnc_twin.planner.segments import MoveSegment
+from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
     ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
@@ -191,7 +191,7 @@ class SegmentInterpolator:
         self.mark = 0
         """the last Mark record's number (0 before any)"""
         self.inputs = [0] * len(axes)
-        """switch inputs per axis, set by the period task (:data:`cnc_twin.plant.SWITCH_HOME` ...)"""
+        """switch inputs per axis, set by the period task (:data:`cnc_twin.machine.plant.SWITCH_HOME` ...)"""
         self.actual = [0] * len(axes)
         """encoder counts per axis at the last tick, set by the period task"""
         self.events: list[tuple[int, int, int]] = []

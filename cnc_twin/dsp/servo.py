@@ -19,7 +19,7 @@ the linear fine interpolation (``begin_period(setpoint, ticks)``).
 
 Pulse output (``tick_pulses``): no PID and no DAC; each axis's step generator
 (:mod:`cnc_twin.dsp.step_output`) emits the pulses that bring its count to the command, and
-the amplifiers, in position mode, close the loop (:mod:`cnc_twin.drive`). The card still reads
+the amplifiers, in position mode, close the loop (:mod:`cnc_twin.machine.drive`). The card still reads
 its encoders, for the following error it reports.
 
 Drives disabled (a supervisor stop, :mod:`cnc_twin.dsp.supervisor`): ``tick_disabled`` only
@@ -39,7 +39,7 @@ from cnc_twin.dsp.dac import Dac12
 from cnc_twin.dsp.encoder import QuadratureEncoder
 from cnc_twin.dsp.pid import PidFF
 from cnc_twin.dsp.step_output import StepGenerator
-from cnc_twin.config import AxisConfig, ForceSensorConfig, Timing
+from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""

@@ -2,7 +2,7 @@
 
 Cards that drive servo amplifiers with pulse trains (and the older CPLD and motion-chip cards)
 send each axis a step line and a direction line; the amplifier, in position mode, counts the
-steps into its position command (:mod:`cnc_twin.drive`). The card has no DAC in this mode.
+steps into its position command (:mod:`cnc_twin.machine.drive`). The card has no DAC in this mode.
 
 Per servo tick, for a command ``p`` [counts, float] from the fine interpolator::
 

@@ -2,7 +2,7 @@
 
 Inputs, from the last servo tick of the period before (``check``): command and actual
 position per axis [counts], each DAC channel's saturation count, the switch inputs per axis
-(:data:`cnc_twin.plant.SWITCH_LIMIT_POS` ...), the tared load-cell force [N]. And the coming
+(:data:`cnc_twin.machine.plant.SWITCH_LIMIT_POS` ...), the tared load-cell force [N]. And the coming
 period's setpoint [counts] (``clamp``).
 
 Checks, in this order; the first that trips is reported::
@@ -14,7 +14,7 @@ Checks, in this order; the first that trips is reported::
     setpoint beyond a soft limit (clamped there from then)  SOFT_LIMIT       stop: controlled
 
 The watchdog (WATCHDOG, stop: disable) is a hardware timer outside the task, in
-:mod:`cnc_twin.twin`: it trips when no servo interrupt has run for ``watchdog`` seconds.
+:mod:`cnc_twin.run.twin`: it trips when no servo interrupt has run for ``watchdog`` seconds.
 
 Stops (the end state is always FAULT, with the machine at rest):
 
@@ -27,7 +27,7 @@ Stops (the end state is always FAULT, with the machine at rest):
   (``retract`` at ``retract_speed``, trapezoid at 90 % of the slowest X/Y/Z acceleration); the
   force loop's depth is frozen.
 
-Soft limits are checked at load on the whole planned path (:mod:`cnc_twin.scenario`), so the
+Soft limits are checked at load on the whole planned path (:mod:`cnc_twin.scenario.load`), so the
 run-time check is the second line: it catches what only happens at run time (a force loop's
 depth, a retract, an override). Motion-chip programs (home return, jog) run before the machine
 is referenced, so they get neither soft limits nor the hard-limit fault: the chip itself stops
@@ -39,9 +39,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from cnc_twin.config import AxisConfig, SupervisorConfig
-from cnc_twin.dsp.profiles import Trapezoid
-from cnc_twin.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
+from cnc_twin.core.config import AxisConfig, SupervisorConfig
+from cnc_twin.motion.trapezoid import Trapezoid
+from cnc_twin.machine.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.status import FaultCode
 
 STOP_DISABLE, STOP_CONTROLLED, STOP_RETRACT = "disable", "controlled", "retract"

@@ -131,7 +131,7 @@ class NurbsSurface:
 
     @classmethod
     def from_def(cls, d) -> "NurbsSurface":
-        """From a :class:`cnc_twin.config.SurfaceDef` (or anything with its six fields)."""
+        """From a :class:`cnc_twin.core.config.SurfaceDef` (or anything with its six fields)."""
         return cls(d.control_net, d.weights, d.knots_u, d.knots_v, d.degree_u, d.degree_v)
 
     def _basis(self, which: str, x: np.ndarray, order: int) -> list[np.ndarray]:

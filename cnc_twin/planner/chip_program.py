@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from cnc_twin.config import ChipStep, MotionChipProgram
+from cnc_twin.core.config import ChipStep, MotionChipProgram
 from cnc_twin.planner.ptp import dwell_chunk, dwell_periods
 from cnc_twin.whiteboard.records import (
     CHIP_CONSTANT, CHIP_HOME, CHIP_INDEX, CHIP_JOG, CHIP_LINEAR, CHIP_S_CURVE, CHIP_TRAPEZOID, ChipCommand, Dwell,

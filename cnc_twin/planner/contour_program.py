@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import math
 
-from cnc_twin.config import AxisConfig, ContourProgram, LatticeElement
-from cnc_twin.dsp.scurve import SCurve
+from cnc_twin.core.config import AxisConfig, ContourProgram, LatticeElement
+from cnc_twin.motion.scurve import SCurve
 from cnc_twin.geometry.contour import element_length
 from cnc_twin.planner.ptp import dwell_chunk, move_chunk
 from cnc_twin.whiteboard.records import (

@@ -17,7 +17,7 @@
 2. Critical points: the local minima of the limit where it binds, plus start and end (at rest).
 3. Bidirectional scan: each critical speed is lowered until a jerk-limited ramp can reach it
    from its neighbours within the distance between them.
-4. Each block between critical points gets the fastest S-curve (:mod:`cnc_twin.dsp.scurve`).
+4. Each block between critical points gets the fastest S-curve (:mod:`cnc_twin.motion.scurve`).
    Where a block's speed would exceed the limit curve, that sample becomes a critical point and
    steps 3-4 repeat.
 
@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_twin.config import PathLimits
-from cnc_twin.dsp.scurve import SCurve, ramp_distance, reachable
+from cnc_twin.core.config import PathLimits
+from cnc_twin.motion.scurve import SCurve, ramp_distance, reachable
 from cnc_twin.geometry.nurbs import NurbsCurve
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)

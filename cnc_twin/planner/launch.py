@@ -28,7 +28,7 @@ import subprocess
 import sys
 import weakref
 
-from cnc_twin.child_process import end_process
+from cnc_twin.core.child_process import end_process
 from cnc_twin.whiteboard.doorbell import PipeDoorbells
 
 DONE_TIMEOUT = 2.0
@@ -118,8 +118,8 @@ class PlannerPool:
     """Keeps the planner of a clean run for the next run in this process (at most ``size`` idle).
 
     Use as a context manager, or call :meth:`close`; a pool collected or still open at
-    interpreter exit closes its planners then. Give it to :meth:`cnc_twin.twin.Twin.run` (``planners=``) or
-    :func:`cnc_twin.twin.run_scenario`.
+    interpreter exit closes its planners then. Give it to :meth:`cnc_twin.run.twin.Twin.run` (``planners=``) or
+    :func:`cnc_twin.run.twin.run_scenario`.
     """
 
     def __init__(self, size: int = 1):

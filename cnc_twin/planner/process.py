@@ -31,11 +31,11 @@ from multiprocessing.connection import Connection
 
 import numpy as np
 
-from cnc_twin.config import (
+from cnc_twin.core.config import (
     AxisConfig, ContourProgram, FaultInjection, MotionChipProgram, NurbsProgram, PointToPoint, SurfaceProgram,
 )
 from cnc_twin.planner.ptp import dwell_chunk, plan_move, plan_point_to_point
-from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
+from cnc_twin.motion.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbell

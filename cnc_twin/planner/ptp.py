@@ -15,10 +15,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from cnc_twin.axes import LINEAR_AXES
-from cnc_twin.dsp.profiles import Trapezoid
-from cnc_twin.planner.segments import DwellSegment, MoveSegment, Segment
-from cnc_twin.config import AxisConfig, PointToPoint
+from cnc_twin.core.axes import LINEAR_AXES
+from cnc_twin.motion.trapezoid import Trapezoid
+from cnc_twin.motion.segments import DwellSegment, MoveSegment, Segment
+from cnc_twin.core.config import AxisConfig, PointToPoint
 from cnc_twin.whiteboard.records import Dwell, Move, Record
 
 

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from cnc_twin.config import AxisConfig, SurfaceProgram
+from cnc_twin.core.config import AxisConfig, SurfaceProgram
 from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface

@@ -27,7 +27,7 @@ import math
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from cnc_twin.config import UvCurve
+from cnc_twin.core.config import UvCurve
 from cnc_twin.geometry.surface import NurbsSurface
 
 MAX_SECTION_POINTS = 110

@@ -64,9 +64,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_twin.config import AxisCurve, ForceControl, SurfaceDef, UvCurve
-from cnc_twin.dsp.profiles import Trapezoid
-from cnc_twin.dsp.scurve import SCurve
+from cnc_twin.core.config import AxisCurve, ForceControl, SurfaceDef, UvCurve
+from cnc_twin.motion.trapezoid import Trapezoid
+from cnc_twin.motion.scurve import SCurve
 
 SYNC = 0xA5
 HEADER_WORDS = 5

@@ -1,0 +1,1 @@
+"""machine: (docstring to come)"""

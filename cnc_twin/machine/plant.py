@@ -1,0 +1,286 @@
+"""The machine as MuJoCo sees it: load the MJCF, resolve names to ids once, step, read sensors.
+
+Inputs per servo tick: drive command voltages, shape ``(6,)`` [V], axis order ``X Y Z A B C``.
+Outputs: axis positions [m | rad], the pad load-cell force [N, compression positive], the
+tool-tip position in the world frame [m].
+
+The servo amplifiers (velocity mode) are MuJoCo ``general`` actuators whose ctrl is the analog
+command in volts, so the drive's own velocity loop runs in C at the physics rate. Their scaling
+``speed_per_volt`` is read back from the model so the controller and the machine cannot disagree.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from cnc_twin.core.axes import AXES, actuator_name, joint_name
+from cnc_twin.core.errors import ScenarioError
+
+PAD_FORCE_SENSOR = "pad_force"
+TOOL_POS_SENSOR = "tool_pos"
+HOME_KEYFRAME = "home"
+
+SWITCH_HOME, SWITCH_LIMIT_POS, SWITCH_LIMIT_NEG = 1, 2, 4
+"""bits of an axis's switch inputs (:meth:`Plant.switch_inputs`)"""
+_SWITCH_SENSORS = (("home", SWITCH_HOME, 1.0), ("lim_pos", SWITCH_LIMIT_POS, 1.0), ("lim_neg", SWITCH_LIMIT_NEG, -1.0))
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """Facts about an MJCF machine the scenario loader checks targets against.
+
+    Attributes
+    ----------
+    travel : per axis ``(lo, hi)`` [m | rad], or ``None`` for an unlimited (continuous) joint.
+    home : per axis position at the ``home`` keyframe [m | rad], shape ``(6,)``.
+    speed_per_volt : per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``.
+    """
+
+    travel: tuple[tuple[float, float] | None, ...]
+    home: tuple[float, ...]
+    speed_per_volt: tuple[float, ...]
+
+
+_COMPILED: dict[tuple, mujoco.MjModel] = {}
+"""checked models compiled in this process, by file and the state of its folder (see load_model)"""
+_COMPILED_MAX = 8
+
+
+def _folder_state(path: Path) -> tuple:
+    """What a compiled model depends on: the file and everything next to it (includes, meshes),
+    by name, size and modification time."""
+    try:
+        entries = sorted((entry.name, entry.stat().st_mtime_ns, entry.stat().st_size)
+                         for entry in os.scandir(path.parent) if entry.is_file())
+    except OSError:
+        return (str(path), None)
+    return (str(path.resolve()), tuple(entries))
+
+
+def load_model(path: Path) -> mujoco.MjModel:
+    """Compile an MJCF file and check it has what the twin drives and reads.
+
+    Returns a model of its own (a run changes gains and timestep): a copy of the one compiled for
+    the same file earlier in this process while neither it nor anything in its folder changed
+    (a copy takes 3 ms, compiling 20 ms).
+
+    Raises
+    ------
+    ScenarioError
+        If the file does not compile or lacks a required joint, actuator, sensor or keyframe.
+    """
+    key = _folder_state(Path(path))
+    compiled = _COMPILED.get(key)
+    if compiled is None:
+        try:
+            compiled = mujoco.MjModel.from_xml_path(str(path))
+        except ValueError as exc:
+            first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "does not compile"
+            raise ScenarioError(path, "", f"MJCF does not compile: {first_line}") from None
+        _require(compiled, path)
+        if len(_COMPILED) >= _COMPILED_MAX:
+            _COMPILED.clear()
+        _COMPILED[key] = compiled
+    return copy.copy(compiled)
+
+
+def _require(model: mujoco.MjModel, path: Path) -> None:
+    def has(obj_type: mujoco.mjtObj, name: str) -> bool:
+        return mujoco.mj_name2id(model, obj_type, name) >= 0
+
+    for axis in AXES:
+        if not has(mujoco.mjtObj.mjOBJ_JOINT, joint_name(axis)):
+            raise ScenarioError(path, "", f"MJCF lacks joint '{joint_name(axis)}' for axis {axis}")
+        if not has(mujoco.mjtObj.mjOBJ_ACTUATOR, actuator_name(axis)):
+            raise ScenarioError(path, "", f"MJCF lacks actuator '{actuator_name(axis)}' for axis {axis}")
+        act = model.actuator(actuator_name(axis))
+        if not (act.biasprm[2] < 0 and act.gainprm[0] > 0):
+            raise ScenarioError(
+                path, "", f"actuator '{act.name}' is not a velocity-mode drive (need gainprm[0] > 0, biasprm[2] < 0)"
+            )
+    for sensor in (PAD_FORCE_SENSOR, TOOL_POS_SENSOR):
+        if not has(mujoco.mjtObj.mjOBJ_SENSOR, sensor):
+            raise ScenarioError(path, "", f"MJCF lacks sensor '{sensor}'")
+    if not has(mujoco.mjtObj.mjOBJ_KEY, HOME_KEYFRAME):
+        raise ScenarioError(path, "", f"MJCF lacks keyframe '{HOME_KEYFRAME}'")
+
+
+BRAKES = {2: 1e7, 3: 1e6, 4: 1e6}
+"""holding brakes that close when the drives are disabled: axis index -> joint damping
+[N s/m | N m s/rad]. Z's motor has one (it hangs on its counterbalance), and so do the A/B
+motors of the tilting head. A brake is modelled as heavy viscous damping rather than
+frictionloss: MuJoCo's soft frictionloss lets a load below it creep at a rate independent of
+its size, while damping of 1e7 N s/m lets Z's 88 N of unbalance creep under 10 um/s."""
+
+OBSTACLE_PARK = (0.0, 0.0, -50.0)
+"""where an obstacle waits until its time comes [m]: far below the table"""
+
+
+def add_obstacles(spec: mujoco.MjSpec, boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
+                  ) -> None:
+    """Add one mocap body per obstacle box (``(centre, half sizes)`` [m], world frame) to ``spec``,
+    parked at :data:`OBSTACLE_PARK`; :meth:`Plant.place_obstacle` puts one in place. Their geoms
+    collide with the head and pad as the workpiece does (contype 1, conaffinity 2)."""
+    for n, (_, size) in enumerate(boxes):
+        body = spec.worldbody.add_body(name=f"obstacle_{n}", mocap=True, pos=list(OBSTACLE_PARK))
+        body.add_geom(name=f"obstacle_{n}", type=mujoco.mjtGeom.mjGEOM_BOX, size=list(size), contype=1,
+                      conaffinity=2, group=3, rgba=[0.85, 0.2, 0.2, 1.0], density=0.0)
+
+
+def load_model_with_obstacles(path: Path, boxes) -> mujoco.MjModel:
+    """:func:`load_model` plus obstacle boxes (see :func:`add_obstacles`)."""
+    model = load_model(path)  # checks the file first, with its clear errors
+    if not boxes:
+        return model
+    spec = mujoco.MjSpec.from_file(str(path))
+    add_obstacles(spec, boxes)
+    return spec.compile()
+
+
+def model_info(model: mujoco.MjModel) -> ModelInfo:
+    """Travel ranges, home positions and drive scaling of a checked model."""
+    key = model.key(HOME_KEYFRAME)
+    travel, home, spv = [], [], []
+    for axis in AXES:
+        joint = model.joint(joint_name(axis))
+        travel.append((float(joint.range[0]), float(joint.range[1])) if joint.limited[0] else None)
+        home.append(float(key.qpos[joint.qposadr[0]]))
+        act = model.actuator(actuator_name(axis))
+        spv.append(float(act.gainprm[0] / -act.biasprm[2]))
+    return ModelInfo(travel=tuple(travel), home=tuple(home), speed_per_volt=tuple(spv))
+
+
+class Plant:
+    """A MuJoCo machine with named accessors resolved once and a lean per-tick path.
+
+    Parameters
+    ----------
+    model : a model checked by :func:`load_model`; its ``opt.timestep`` is set to ``timestep``.
+    timestep : physics step [s].
+    """
+
+    def __init__(self, model: mujoco.MjModel, *, timestep: float):
+        self.model = model
+        self.model.opt.timestep = timestep
+        self.data = mujoco.MjData(model)
+        self.info = model_info(model)
+        self.qpos_adr = np.array([model.joint(joint_name(a)).qposadr[0] for a in AXES], dtype=np.intp)
+        self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
+        if not np.array_equal(self.actuator_ids, np.arange(len(AXES))):
+            raise ScenarioError("<model>", "", "drive actuators must be the first six actuators, in X Y Z A B C order")
+        if not np.array_equal(self.qpos_adr, np.arange(len(AXES))):
+            raise ScenarioError("<model>", "", "axis joints must be the first six joints, in X Y Z A B C order")
+        force = model.sensor(PAD_FORCE_SENSOR)
+        # z of the force sensor, in the pad site frame (tool axis); see pad_force().
+        self._force_z_adr = int(force.adr[0]) + 2
+        tool = model.sensor(TOOL_POS_SENSOR)
+        self._tool_adr = slice(int(tool.adr[0]), int(tool.adr[0]) + 3)
+        # Views into MjData kept once: no attribute lookups on the hot path.
+        self._qpos = self.data.qpos
+        self._ctrl = self.data.ctrl
+        self._sensordata = self.data.sensordata
+        self._n_drives = len(AXES)
+        self.drives_enabled = True
+        """False once :meth:`disable_drives` was called"""
+        # Switches (optional in a model): framepos of the axis's dog in the switch's frame; the
+        # switch is on when the dog is past it: coordinate along the axis >= 0 (<= 0 for -limit).
+        self._switches = []
+        for i, axis in enumerate(AXES[:3]):
+            for suffix, bit, sign in _SWITCH_SENSORS:
+                sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{axis.lower()}_{suffix}")
+                if sid >= 0:
+                    self._switches.append((i, bit, int(model.sensor_adr[sid]) + i, sign))
+        self.reset()
+
+    def reset(self) -> None:
+        """Put the machine at the ``home`` keyframe at rest, drives at 0 V."""
+        mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key(HOME_KEYFRAME).id)
+        self.data.ctrl[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    # --- lean per-tick path -------------------------------------------------------------
+    def axis_positions(self) -> list[float]:
+        """Joint positions in axis order [m | rad], as a list of 6 floats."""
+        # The axis joints are qpos[0:6] (checked in __init__); tolist() is the cheapest exit.
+        return self._qpos.tolist()[: self._n_drives]
+
+    def apply_volts(self, volts: list[float]) -> None:
+        """Set the six drive command voltages [V] (held until the next call)."""
+        self._ctrl[: self._n_drives] = volts
+
+    def step(self, n: int) -> None:
+        """Advance the physics ``n`` steps of ``timestep``."""
+        mujoco.mj_step(self.model, self.data, nstep=n)
+
+    def pad_force(self) -> float:
+        """Load-cell force between head and pad along the tool axis [N], compression positive.
+
+        The sensor reports the force the spindle exerts on the pad in the pad frame; pressing the
+        pad onto the workpiece makes that force point down the tool axis (negative z), so the sign
+        is flipped. With no contact it reads minus the pad's weight (about -1.5 N) when vertical.
+        """
+        return -float(self._sensordata[self._force_z_adr])
+
+    @property
+    def force_sensor_adr(self) -> int:
+        """Index in ``data.sensordata`` of the load cell's z (see :meth:`pad_force`)."""
+        return self._force_z_adr
+
+    def switch_inputs(self) -> list[int]:
+        """Home and limit switch states per axis, shape ``(6,)``: bits ``SWITCH_*`` (0 without switches)."""
+        out = [0] * self._n_drives
+        data = self._sensordata
+        for i, bit, adr, sign in self._switches:
+            if sign * data[adr] >= 0.0:
+                out[i] |= bit
+        return out
+
+    # --- faults and stops ----------------------------------------------------------------
+    def disable_drives(self) -> None:
+        """Amplifier enable off: the six drives make no force from now on (gains zeroed), and
+        the holding brakes (:data:`BRAKES`) close. Once is enough; later calls do nothing."""
+        if not self.drives_enabled:
+            return
+        self.drives_enabled = False
+        model = self.model
+        ids = self.actuator_ids
+        model.actuator_gainprm[ids, 0] = 0.0
+        model.actuator_biasprm[ids, 2] = 0.0
+        self._ctrl[: self._n_drives] = 0.0
+        for axis, damping in BRAKES.items():
+            model.dof_damping[model.jnt_dofadr[self.qpos_adr[axis]]] = damping
+
+    def scale_force_limit(self, axis: int, fraction: float) -> None:
+        """The drive of ``axis`` can deliver only ``fraction`` of its force range from now on."""
+        self.model.actuator_forcerange[self.actuator_ids[axis]] *= fraction
+
+    def place_obstacle(self, index: int, centre: tuple[float, float, float]) -> None:
+        """Move obstacle ``index`` (see :func:`add_obstacles`) to ``centre`` [m], world frame."""
+        body = self.model.body(f"obstacle_{index}")
+        self.data.mocap_pos[body.mocapid[0]] = centre
+
+    def tool_position(self) -> np.ndarray:
+        """Tool-tip (pad face centre) position in the world frame [m], shape ``(3,)``."""
+        return self._sensordata[self._tool_adr].copy()
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo warnings raised so far, by name, only those with a non-zero count."""
+        out = {}
+        for i, name in enumerate(mujoco.mjtWarning.__members__):
+            if i >= len(self.data.warning):
+                break
+            if self.data.warning[i].number:
+                out[name] = int(self.data.warning[i].number)
+        return out

@@ -1,0 +1,1 @@
+"""motion: (docstring to come)"""

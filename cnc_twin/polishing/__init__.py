@@ -1,0 +1,1 @@
+"""polishing: (docstring to come)"""

@@ -1,0 +1,231 @@
+"""The twin's side of a surface polishing run: the workpiece model, the removal map, the metrics.
+
+During the run, every ``preston.every`` interpolation periods, :class:`RemovalTracker` reads the
+machine as MuJoCo has it (pad face centre and tool axis from the ``tool_site`` / ``pad`` frames,
+the pad's linear and angular velocity, the normal force of every pad-workpiece contact) and adds
+that interval's Preston removal to the map (:mod:`cnc_twin.polishing.removal`). It is the physics' truth,
+not the card's measurement: the load cell and its ADC are what the force loop sees.
+
+Metrics (``metrics.json`` key ``polish``): force tracking once the ramp is over (RMS and largest
+error, % of the setpoint), the overshoot at first contact, time at reduced feed, and the removal
+map's volume and uniformity, with the Preston integral for the whole run as a cross-check.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from cnc_twin.core.config import SurfaceProgram
+from cnc_twin.dsp.force import ForceState
+from cnc_twin.motion.scurve import ramp_distance
+from cnc_twin.geometry.surface import NurbsSurface
+from cnc_twin.trace.record import Trace
+from cnc_twin.polishing.removal import Patch, PrestonModel, RemovalGrid
+
+CONTACT_SETTLE = 0.3
+"""after the ramp, time within which the first-contact overshoot is judged [s]"""
+
+
+def removal_grid(surface: NurbsSurface, spacing: float, scales: tuple[float, float]) -> tuple[RemovalGrid, np.ndarray]:
+    """Points about ``spacing`` apart on the surface (cell centres of a (u, v) grid), and their
+    (u, v), shape (m, 2). ``scales``: the surface's mean ``|S_u|``, ``|S_v|``
+    (:func:`cnc_twin.planner.toolpath.parameter_scales`)."""
+    lu, lv = scales
+    (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
+    nu = max(2, math.ceil((u1 - u0) * lu / spacing))
+    nv = max(2, math.ceil((v1 - v0) * lv / spacing))
+    du, dv = (u1 - u0) / nu, (v1 - v0) / nv
+    # rows along v, columns along u: drawn as an image, u runs across like x on the plate grid
+    u, v = np.meshgrid(u0 + du * (np.arange(nu) + 0.5), v0 + dv * (np.arange(nv) + 0.5), indexing="xy")
+    u, v = u.ravel(), v.ravel()
+    d = surface.derivatives(u, v, 1)
+    cross = np.cross(d[(1, 0)], d[(0, 1)])
+    points = d[(0, 0)]
+    grid = RemovalGrid(points=points, normals=surface.normal(u, v), areas=np.linalg.norm(cross, axis=1) * du * dv,
+                       shape=(nv, nu), extent=(float(points[:, 0].min()), float(points[:, 0].max()),
+                                               float(points[:, 1].min()), float(points[:, 1].max())))
+    return grid, np.column_stack([u, v])
+
+
+class RemovalTracker:
+    """Accumulates the removal map from the MuJoCo state during a run."""
+
+    def __init__(self, program: SurfaceProgram, surface: NurbsSurface, model: mujoco.MjModel, data: mujoco.MjData,
+                 period: float):
+        from cnc_twin.planner.toolpath import parameter_scales
+
+        p = program.preston
+        self.surface = surface
+        self.scales = parameter_scales(self.surface)[:2]
+        self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
+        self.model_removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
+                                          pad_modulus=p.pad_modulus)
+        self.model, self.data = model, data
+        from cnc_twin.machine.workpiece import pad_friction
+
+        self.friction = program.friction if program.friction is not None else pad_friction(model)
+        self.dt = p.every * period
+        self.every = p.every
+        self._site = model.site("tool_site").id
+        self._pad_body = model.body("pad").id
+        pad_geom = model.geom("pad_collision").id
+        self._pad_geom = pad_geom
+        self._velocity = np.zeros(6)
+        self._wrench = np.zeros(6)
+        self.force_time_integral = 0.0
+        """integral of the pad's contact normal force over time [N s]"""
+        self.calls = 0
+        self.cost_ns = 0
+
+    def contact_force(self) -> float:
+        """Normal force of the pad's contacts along the tool axis [N] (a contact on a tile's side
+        face, pushing sideways, does not press the pad onto the surface)."""
+        d, total = self.data, 0.0
+        axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
+        for i in range(d.ncon):
+            c = d.contact[i]
+            if c.geom1 == self._pad_geom or c.geom2 == self._pad_geom:
+                mujoco.mj_contactForce(self.model, d, i, self._wrench)
+                total += self._wrench[0] * abs(float(c.frame[:3] @ axis))
+        return total
+
+    def update(self) -> None:
+        """Add the removal of the last ``every`` periods (called once per such interval)."""
+        started = time.perf_counter_ns()
+        d = self.data
+        force = self.contact_force()
+        wrench = d.xfrc_applied[self._pad_body]
+        wrench[:] = 0.0
+        if force > 0.0:
+            mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_SITE, self._site, self._velocity, 0)
+            tip = d.site_xpos[self._site]
+            axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
+            removal = self.model_removal
+            patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
+            if patch is not None:
+                removal.add(patch, self.dt)
+                wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
+            self.force_time_integral += force * self.dt
+        self.calls += 1
+        self.cost_ns += time.perf_counter_ns() - started
+
+
+FRICTION_SPEED = 1e-3
+"""sliding speed below which the pad's friction fades linearly to zero (regularisation) [m/s]"""
+
+
+def friction_wrench(patch: Patch, areas: np.ndarray, tip: np.ndarray, centre: np.ndarray, mu: float) -> np.ndarray:
+    """Force and torque (6,) [N, N m] about ``centre`` (world frame) of the pad's sliding friction
+    over its contact patch (the removal model's Winkler pressures): ``-mu p A v / max(|v|,
+    FRICTION_SPEED)`` per point, ``v`` the pad's tangential sliding velocity there; ``areas`` the
+    grid's point areas [m^2]."""
+    v = patch.sliding
+    speed = np.sqrt(np.einsum("ij,ij->j", v, v))
+    f = v * (-mu * patch.pressure * areas[patch.index] / np.maximum(speed, FRICTION_SPEED))
+    arm = patch.arm + (tip - centre)[:, None]
+    out = np.empty(6)
+    out[:3] = f.sum(axis=1)
+    out[3:] = np.cross(arm.T, f.T).sum(axis=0)
+    return out
+
+
+def polished_band(program: SurfaceProgram, uv: np.ndarray, scales: tuple[float, float]) -> np.ndarray:
+    """Mask of the grid points in the raster's *middle band*: along the passes, farther from
+    their ends than the pad radius plus the feed's ramp distance; across, from the first pass plus
+    the pad radius to the last minus it. There every point saw every pass that reaches it at full
+    feed (no start, stop or turn nearby), so the removal there shows the raster's own uniformity.
+    For a spiral: the annulus between the pad radius from the start and the pad radius from the
+    outer turn. ``scales`` as for :func:`removal_grid`."""
+    lu, lv = scales
+    pts = np.concatenate([np.asarray(c.control_points) for c in program.sections])
+    r = program.preston.pad_radius
+    x, y = uv[:, 0] * lu, uv[:, 1] * lv
+    px, py = pts[:, 0] * lu, pts[:, 1] * lv
+    if program.pattern == "spiral":
+        cx, cy = 0.5 * (px.min() + px.max()), 0.5 * (py.min() + py.max())
+        rho = np.hypot(x - cx, y - cy)
+        outer = min(px.max() - cx, py.max() - cy)
+        return (rho >= r) & (rho <= outer - r)
+    along, across, p_along, p_across = (x, y, px, py) if program.direction == "u" else (y, x, py, px)
+    # along the passes: clear of the turns by the pad radius plus the distance the feed needs to
+    # come up to speed after one (and down before the next)
+    lim = program.limits
+    ramp = ramp_distance(lim.feed, 0.0, lim.tangential_acceleration, lim.tangential_jerk)
+    a_lo, a_hi = p_along.min() + r + ramp, p_along.max() - r - ramp
+    # across: the turns' control points bulge no further than the passes
+    return (along >= a_lo) & (along <= a_hi) & (across >= p_across.min() + r) & (across <= p_across.max() - r)
+
+
+def force_metrics(trace: Trace, program: SurfaceProgram) -> dict[str, Any]:
+    """Force tracking after the ramp, and the overshoot at first contact."""
+    state = trace.period_signals["force_state"]
+    setpoint = trace.period_signals["force_setpoint"]
+    force = trace.pad_force
+    servo_period = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
+    track = state == ForceState.TRACK
+    out: dict[str, Any] = {"setpoint_n": program.force.setpoint}
+    if not np.any(track):
+        out["tracking"] = None
+        return out
+    e = force[track] - setpoint[track]
+    rel = e / np.maximum(setpoint[track], 1e-9)
+    out["tracking"] = {
+        "rms_error_n": float(np.sqrt(np.mean(e * e))),
+        "rms_error_pct": float(100.0 * np.sqrt(np.mean(rel * rel))),
+        "max_error_pct": float(100.0 * np.max(np.abs(rel))),
+        "mean_force_n": float(np.mean(force[track])),
+        "time_s": float(np.count_nonzero(track) * servo_period),
+    }
+    contact = np.flatnonzero(state == ForceState.RAMP)
+    first_track = int(np.flatnonzero(track)[0])
+    if contact.size:
+        window = slice(int(contact[0]), first_track + int(CONTACT_SETTLE / servo_period))
+        peak = float(np.max(force[window]))
+        goal = float(setpoint[first_track])
+        out["first_contact"] = {"time_s": float(trace.time[contact[0]]), "peak_n": peak,
+                                "overshoot_pct": float(100.0 * max(0.0, peak - goal) / goal)}
+    reduced = trace.period_signals["feed_factor"][track] < 1.0
+    out["reduced_feed_s"] = float(np.count_nonzero(reduced) * servo_period)
+    return out
+
+
+def removal_metrics(tracker: RemovalTracker, program: SurfaceProgram, wall_time: float) -> dict[str, Any]:
+    """Volume and uniformity of the removal map; the model's cost."""
+    model = tracker.model_removal
+    band = polished_band(program, tracker.uv, tracker.scales)
+    p = program.preston
+    out: dict[str, Any] = {
+        "volume_mm3": model.volume() * 1e9,
+        "touched": model.stats(),
+        "middle_band": model.stats(band & (model.depth > 0)) if np.any(band & (model.depth > 0)) else None,
+        "contact_time_s": model.contact_time,
+        "force_time_integral_ns": tracker.force_time_integral,
+        "grid_points": int(len(model.depth)),
+        "updates": tracker.calls,
+        "cost_us_per_update": tracker.cost_ns / max(1, tracker.calls) / 1e3,
+        "cost_fraction_of_run": tracker.cost_ns / 1e9 / wall_time if wall_time > 0 else None,
+        "preston_k": p.k,
+    }
+    return out
+
+
+def preston_by_hand(trace: Trace, program: SurfaceProgram) -> float:
+    """Removed volume [m^3] by Preston's law in closed form: a flat pad of radius R spinning at
+    the programmed speed w under the force setpoint, pressure uniform, feed negligible against
+    the pad's own sliding speed (mean over the disc of w r = 2 w R / 3)::
+
+        V = k (2 w R / 3) integral F*(t) dt      over the ramps and the tracking
+
+    The cross-check of the removal map on a flat plate (on a curved face the pressure is not
+    uniform, and the formula does not apply)."""
+    state = trace.period_signals["force_state"]
+    active = (state == ForceState.RAMP) | (state == ForceState.TRACK) | (state == ForceState.RAMP_DOWN)
+    dt = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
+    impulse = float(np.sum(trace.period_signals["force_setpoint"][active])) * dt
+    p = program.preston
+    return p.k * 2.0 * program.spindle_speed * p.pad_radius / 3.0 * impulse

@@ -1,0 +1,149 @@
+"""Contour metrics of a NURBS run, computed after it from the trace (nothing here runs per tick).
+
+Per interpolation period ``k`` on the curve the trace holds the parameter ``u_k`` and the arc
+length commanded ``ds_k``; positions come from the commanded and encoder counts.
+
+- feed fluctuation: ``|s_k - ds_k| / ds_k`` with ``s_k`` the arc length between ``u_{k-1}`` and
+  ``u_k`` by Gauss-Legendre quadrature (split at knots), not the chord; periods that ended
+  clamped at the curve's end, or commanded under 1 nm, are left out;
+- chord error: largest distance of the curve between ``u_{k-1}`` and ``u_k`` from the chord
+  between the commanded points, by dense sampling;
+- axis velocity / acceleration / jerk: finite differences of the commanded X/Y/Z per period,
+  against each axis's limits;
+- contour error: distance of the actual tool tip (encoders, through the kinematics) from the
+  ideal curve, per period: nearest of dense curve samples (KD-tree), refined on the segment to its
+  neighbours.
+
+Everything is measured on the tool tip in the world frame: commanded and actual tips come from
+the axes through the forward kinematics, so a varying tool axis is measured the same way as a
+held one. Axis peaks cover X/Y/Z, and A/B when the tool axis varies.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cnc_twin.core.config import NurbsProgram, Scenario
+from cnc_twin.geometry.kinematics import rotation_ab
+from cnc_twin.geometry.nurbs import NurbsCurve
+from cnc_twin.trace.record import Trace
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+
+
+def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarray:
+    mid, half = 0.5 * (u0 + u1), 0.5 * (u1 - u0)
+    nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
+    speed = np.linalg.norm(curve.derivatives(nodes.ravel(), 1)[1], axis=1).reshape(nodes.shape)
+    out = half * (speed @ _GL_W)
+    knots = np.unique(curve.knots)
+    straddle = np.flatnonzero([np.any((knots > a) & (knots < b)) for a, b in zip(u0, u1)])
+    for i in straddle:  # a kink in |C'| at a knot: split there
+        out[i] = curve.arc_length(u0[i], u1[i])
+    return out
+
+
+def _point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    from scipy.spatial import cKDTree  # here: only curve and contour runs need it
+
+    tree = cKDTree(poly)
+    _, idx = tree.query(points)
+    best = np.full(len(points), np.inf)
+    for offset in (-1, 0):
+        i0 = np.clip(idx + offset, 0, len(poly) - 2)
+        a, b = poly[i0], poly[i0 + 1]
+        d = b - a
+        t = np.clip(np.sum((points - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-300), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * d), axis=1))
+    return best
+
+
+def tip_curve(prog: NurbsProgram) -> NurbsCurve:
+    """The programmed tool-tip curve in the world frame (a held-axis program stores its curve in
+    axis space: shifted back by the head offset)."""
+    points = np.asarray(prog.control_points)
+    if prog.axis_curve is None:
+        points = points + np.asarray(prog.tip_shift)
+    return NurbsCurve(points, prog.weights, prog.knots, prog.degree)
+
+
+def planned_path(scenario: Scenario, n: int = 4000) -> np.ndarray | None:
+    """The programmed tool-tip curve of a curve program at ``n`` parameter values evenly spread
+    over its domain, (n, 3) [m]; None for other programs."""
+    prog = scenario.program
+    if not isinstance(prog, NurbsProgram):
+        return None
+    curve = tip_curve(prog)
+    return curve.point(np.linspace(*curve.domain, n))
+
+
+def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
+                 plan_us: int = 0, plan_blocks: int = 0) -> dict[str, Any]:
+    """The contour metrics of a curve run (see the module docstring); lengths in um."""
+    prog = scenario.program
+    assert isinstance(prog, NurbsProgram)
+    curve = tip_curve(prog)
+    tpp = scenario.timing.ticks_per_period
+    T = scenario.timing.interpolation_period
+    u = trace.period_signals["path_u"][tpp - 1::tpp]
+    ds = trace.period_signals["path_ds"][tpp - 1::tpp]
+    on = u >= 0.0
+    cpu = trace.counts_per_unit
+    home = np.asarray(scenario.home)
+    command_axes = trace.command[tpp - 1::tpp] / cpu + home
+    actual_axes = trace.actual[tpp - 1::tpp] / cpu + home
+    pivot, offset = np.asarray(prog.pivot_home), np.asarray(prog.tool_offset)
+
+    def tips(q: np.ndarray) -> np.ndarray:
+        return q[:, :3] + pivot + np.array([rotation_ab(a, b) @ offset for a, b in zip(q[:, 3], q[:, 4])])
+
+    command, actual = tips(command_axes), tips(actual_axes)
+    out: dict[str, Any] = {"periods_on_curve": int(on.sum()), "length_mm": curve.arc_length() * 1e3}
+    if on.sum() < 3:
+        return out
+    k = np.flatnonzero(on[1:] & on[:-1]) + 1  # periods whose start and end are both on the curve
+    u_end = curve.domain[1]
+    steps = k[(ds[k] > 1e-9) & (u[k] < u_end)]
+    s_true = _arc_lengths(curve, u[steps - 1], u[steps])
+    fluct = np.abs(s_true - ds[steps]) / ds[steps]
+    out["feed_fluctuation"] = {"max": float(fluct.max()), "rms": float(np.sqrt(np.mean(fluct**2))),
+                               "periods": int(len(steps))}
+    frac = np.linspace(0.0, 1.0, 9)[1:-1]
+    uu = u[k - 1][:, None] + (u[k] - u[k - 1])[:, None] * frac[None, :]
+    pts = curve.point(uu.ravel()).reshape(len(k), len(frac), 3)
+    a, b = command[k - 1], command[k]
+    d = b - a
+    t = np.clip(np.einsum("kij,kj->ki", pts - a[:, None, :], d) / np.maximum(np.sum(d * d, axis=1), 1e-300)[:, None], 0, 1)
+    chord = np.linalg.norm(pts - (a[:, None, :] + t[..., None] * d[:, None, :]), axis=2).max(axis=1)
+    out["chord_error_um"] = {"max": float(chord.max() * 1e6), "tolerance": prog.limits.chord_tolerance * 1e6}
+    seg = np.flatnonzero(on)
+    lim = prog.limits
+    names = "XYZ" if prog.axis_curve is None else "XYZAB"
+    limits = [(lim.axis_velocity[i], lim.axis_acceleration[i], lim.axis_jerk[i]) for i in range(3)]
+    if prog.axis_curve is not None:
+        limits += [tuple(group[i] for group in prog.rotary_limits) for i in range(2)]
+    pos = command_axes[seg[0] - 1:seg[-1] + 2, :len(names)]
+    v = np.diff(pos, axis=0) / T
+    acc = np.diff(v, axis=0) / T
+    jerk = np.diff(acc, axis=0) / T
+    out["axis_peaks"] = {
+        name: {"velocity": float(np.abs(v[:, i]).max()), "velocity_limit": limits[i][0],
+               "acceleration": float(np.abs(acc[:, i]).max()), "acceleration_limit": limits[i][1],
+               "jerk": float(np.abs(jerk[:, i]).max()), "jerk_limit": limits[i][2]}
+        for i, name in enumerate(names)
+    }
+    poly = curve.point(np.linspace(*curve.domain, 20001))
+    contour = _point_to_polyline(actual[on], poly)
+    out["contour_error_um"] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}
+    if interpolator_ns is not None and len(interpolator_ns):
+        out["interpolator_us_per_period"] = {"median": float(np.median(interpolator_ns) / 1e3),
+                                             "p99": float(np.percentile(interpolator_ns, 99) / 1e3)}
+    if plan_blocks:
+        block_time = float(on.sum()) * T / max(1, plan_blocks)
+        out["planning"] = {"total_ms": plan_us / 1e3, "blocks": plan_blocks,
+                           "per_block_ms": plan_us / 1e3 / plan_blocks,
+                           "block_execution_ms": block_time * 1e3,
+                           "ratio_execution_over_planning": block_time * 1e6 / max(1.0, plan_us / plan_blocks)}
+    return out

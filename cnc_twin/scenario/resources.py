@@ -1,0 +1,47 @@
+"""Find the bundled MJCF models and scenarios, installed or in a source checkout.
+
+A wheel carries them inside the package (``cnc_twin/models``, ``cnc_twin/scenarios``); a source
+checkout or editable install has them at the repository top level next to ``cnc_twin/``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+_PACKAGE_DIR = Path(__file__).resolve().parent.parent  # cnc_twin/
+
+
+def _bundled_dir(name: str) -> Path:
+    for candidate in (_PACKAGE_DIR / name, _PACKAGE_DIR.parent / name):
+        if candidate.is_dir():
+            return candidate
+    raise FileNotFoundError(f"bundled '{name}' directory not found next to {_PACKAGE_DIR}")
+
+
+def models_dir() -> Path:
+    """Directory holding the bundled MJCF files and machine parameter files."""
+    return _bundled_dir("models")
+
+
+def scenarios_dir() -> Path:
+    """Directory holding the bundled scenarios."""
+    return _bundled_dir("scenarios")
+
+
+def default_scenario() -> Path:
+    """The scenario ``cnc-twin run`` runs when no file is given."""
+    return scenarios_dir() / "jog_axes.yaml"
+
+
+def resolve_model_file(name: str, relative_to: Path | None) -> Path | None:
+    """Resolve ``name`` against the scenario's folder first, then the bundled models.
+
+    Returns ``None`` when neither holds the file.
+    """
+    path = Path(name)
+    if path.is_absolute():
+        return path if path.is_file() else None
+    if relative_to is not None and (relative_to / path).is_file():
+        return (relative_to / path).resolve()
+    bundled = models_dir() / path
+    return bundled if bundled.is_file() else None

@@ -1,0 +1,1 @@
+"""studies: (docstring to come)"""

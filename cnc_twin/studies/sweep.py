@@ -1,0 +1,245 @@
+"""Parameter sweeps: many runs of one scenario with overrides, on local processes or a Dask cluster.
+
+    cnc-twin sweep scenarios/jog_axes.yaml --param servo.X.kp=20:80:20 --param servo.X.ki=0,400
+
+A parameter is ``PATH=start:stop:step`` (inclusive grid), ``PATH=a,b,c`` or ``PATH=value``;
+paths are override paths (:mod:`cnc_twin.scenario.overrides`). The cases are the grid's cartesian
+product, or ``random`` cases drawn uniformly within each parameter's range (seeded).
+
+Each case is one complete twin run (its own planner process) in a worker process. Runs are
+lockstep-deterministic, so the table does not depend on where or in which order cases ran
+(wall-clock columns aside). A worker that dies takes its runs with it: they are retried once in
+a fresh pool, then reported as ``lost``; the rest of the sweep completes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import multiprocessing
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+WALL_CLOCK_COLUMNS = ("wall_time_s", "real_time_factor")
+"""columns that vary from run to run of the same case"""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One swept parameter: an override path and its values (grid) or range (random)."""
+
+    path: str
+    values: tuple[Any, ...]
+
+    @property
+    def low(self) -> float:
+        return float(min(self.values))
+
+    @property
+    def high(self) -> float:
+        return float(max(self.values))
+
+
+def parse_param(text: str) -> Param:
+    """``"servo.X.kp=20:200:10"`` (inclusive), ``"a=1,2,5"`` or ``"a=3"``.
+
+    Raises
+    ------
+    ValueError
+        With a message saying what was expected.
+    """
+    if "=" not in text:
+        raise ValueError(f"expected PATH=VALUES in {text!r}, e.g. servo.X.kp=20:200:10")
+    path, spec = (part.strip() for part in text.split("=", 1))
+    if not path or not spec:
+        raise ValueError(f"expected PATH=VALUES in {text!r}")
+    if ":" in spec:
+        try:
+            start, stop, step = (float(x) for x in spec.split(":"))
+        except ValueError:
+            raise ValueError(f"expected start:stop:step numbers in {text!r}") from None
+        if step <= 0 or stop < start:
+            raise ValueError(f"expected start <= stop and step > 0 in {text!r}")
+        n = int(math.floor((stop - start) / step + 1e-9)) + 1
+        values = tuple(float(x) for x in np.round(start + step * np.arange(n), 12))
+    else:
+        values = tuple(_number(x.strip()) for x in spec.split(","))
+    return Param(path=path, values=values)
+
+
+def _number(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def cases(params: Sequence[Param], *, random: int | None = None, seed: int = 0) -> list[dict[str, Any]]:
+    """The sweep's override sets: grid product, or ``random`` uniform draws (seeded)."""
+    if random:
+        rng = np.random.default_rng(seed)
+        return [{p.path: float(rng.uniform(p.low, p.high)) for p in params} for _ in range(random)]
+    return [dict(zip((p.path for p in params), combo)) for combo in itertools.product(*(p.values for p in params))]
+
+
+def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """One flat row of a run's metrics (following errors in counts, path figures in um; force
+    tracking in % of the setpoint and the removal map's figures for a polishing run)."""
+    row: dict[str, Any] = {k: metrics.get(k) for k in ("status", "final_state", "sim_time_s", *WALL_CLOCK_COLUMNS)}
+    total = 0.0
+    for axis, fe in metrics["following_error"].items():
+        row[f"ferr_max_{axis}"] = fe["max_counts"]
+        row[f"ferr_rms_{axis}"] = fe["rms_counts"]
+        total += fe["rms_counts"]
+        row[f"dac_sat_{axis}"] = metrics["dac_saturation_ticks"][axis]
+    row["ferr_rms_sum"] = total
+    path = metrics.get("path")
+    if path and "contour_error_um" in path:
+        row["contour_max_um"] = path["contour_error_um"]["max"]
+        row["contour_rms_um"] = path["contour_error_um"]["rms"]
+        row["feed_fluctuation_max"] = path["feed_fluctuation"]["max"]
+    polish = metrics.get("polish")
+    if polish:
+        tracking = polish["force"].get("tracking") or {}
+        row["force_rms_pct"] = tracking.get("rms_error_pct")
+        row["force_max_pct"] = tracking.get("max_error_pct")
+        row["force_overshoot_pct"] = (polish["force"].get("first_contact") or {}).get("overshoot_pct")
+        row["reduced_feed_s"] = polish["force"].get("reduced_feed_s")
+        removal = polish["removal"]
+        row["removal_volume_mm3"] = removal["volume_mm3"]
+        row["preston_by_hand_mm3"] = removal["preston_by_hand_mm3"]
+        band = removal.get("middle_band") or {}
+        row["band_mean_um"] = band.get("mean_um")
+        row["band_pv_um"] = band.get("pv_um")
+    row["fault"] = (metrics.get("fault") or {}).get("code")
+    return row
+
+
+def _exit_on_sigterm() -> None:
+    """In a worker's main thread: SIGTERM (a pool shutting down after another worker died) exits
+    through the twin's clean-up (planner reaped, shared memory unlinked) instead of killing it."""
+    import signal
+    import threading
+
+    def leave(signum, _frame):
+        raise SystemExit(128 + signum)
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, leave)
+
+
+_WORKER_PLANNERS = None
+"""the worker process's planner pool: its cases after the first reuse one planner process"""
+
+
+def run_case(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
+    """Run one case (in a worker); returns its overrides and flattened metrics, or its error."""
+    global _WORKER_PLANNERS
+    from cnc_twin.core.errors import ScenarioError
+    from cnc_twin.planner.launch import PlannerPool
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.run.twin import run_scenario
+
+    _exit_on_sigterm()
+    if _WORKER_PLANNERS is None:
+        _WORKER_PLANNERS = PlannerPool()
+    try:
+        result = run_scenario(load_scenario(scenario_file, overrides=overrides), planners=_WORKER_PLANNERS)
+    except ScenarioError as exc:
+        return {**overrides, "status": "invalid", "error": str(exc)}
+    return {**overrides, **flatten_metrics(result.metrics)}
+
+
+ProgressCallback = Callable[[int, int], None]
+
+
+def run_local(scenario_file: str, todo: list[dict[str, Any]], *, workers: int | None = None,
+              progress: ProgressCallback | None = None, case_fn=run_case) -> list[dict[str, Any]]:
+    """Run the cases on a local process pool.
+
+    A worker that dies breaks the pool and fails every case in flight with it, so failed cases
+    are retried one at a time, each in a fresh single-worker pool: only a case that kills its
+    worker again is reported ``lost``.
+    """
+    rows: list[dict[str, Any] | None] = [None] * len(todo)
+    ctx = multiprocessing.get_context("spawn")
+    done = 0
+    failed = []
+    with ProcessPoolExecutor(max_workers=workers or 2, mp_context=ctx) as pool:
+        futures = {pool.submit(case_fn, scenario_file, todo[i]): i for i in range(len(todo))}
+        for future in as_completed(futures):
+            i = futures[future]
+            try:
+                rows[i] = future.result()
+            except BrokenProcessPool:
+                failed.append(i)
+                continue
+            done += 1
+            if progress is not None:
+                progress(done, len(todo))
+    for i in sorted(failed):
+        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+            try:
+                rows[i] = pool.submit(case_fn, scenario_file, todo[i]).result()
+            except BrokenProcessPool:
+                rows[i] = {**todo[i], "status": "lost", "error": "its worker process died (twice)"}
+        done += 1
+        if progress is not None:
+            progress(done, len(todo))
+    return rows  # type: ignore[return-value]
+
+
+def run_dask(scenario_file: str, todo: list[dict[str, Any]], *, scheduler: str,
+             progress: ProgressCallback | None = None, retries: int = 1) -> list[dict[str, Any]]:
+    """Run the cases on a Dask cluster at ``scheduler``; a case whose worker died is retried,
+    then reported ``lost``. Workers must be non-daemonic (each run starts a planner process)."""
+    from distributed import Client, as_completed as dask_completed
+
+    rows: list[dict[str, Any] | None] = [None] * len(todo)
+    with Client(scheduler) as client:
+        futures = {client.submit(run_case, scenario_file, todo[i], pure=False, retries=retries): i
+                   for i in range(len(todo))}
+        for done, future in enumerate(dask_completed(futures), start=1):
+            i = futures[future]
+            try:
+                rows[i] = future.result()
+            except Exception as exc:  # KilledWorker after the retries, or a crash in the case
+                rows[i] = {**todo[i], "status": "lost", "error": f"{type(exc).__name__}: {exc}"}
+            if progress is not None:
+                progress(done, len(todo))
+    return rows  # type: ignore[return-value]
+
+
+def write_table(rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
+    """``sweep.parquet`` and ``sweep.csv`` in ``out_dir``, one row per case."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    table = pa.Table.from_pylist([{k: row.get(k) for k in columns} for row in rows])
+    parquet, csv = out_dir / "sweep.parquet", out_dir / "sweep.csv"
+    pq.write_table(table, parquet)
+    pacsv.write_csv(table, csv)
+    return parquet, csv
+
+
+def best_row(rows: list[dict[str, Any]], minimize: str) -> dict[str, Any] | None:
+    """The completed row with the smallest ``minimize`` column."""
+    ok = [r for r in rows if r.get("status") == "complete" and r.get(minimize) is not None]
+    return min(ok, key=lambda r: r[minimize]) if ok else None
+
+
+def timed(fn, *args, **kwargs) -> tuple[Any, float]:
+    started = time.perf_counter()
+    return fn(*args, **kwargs), time.perf_counter() - started
