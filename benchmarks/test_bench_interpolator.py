@@ -16,7 +16,7 @@ from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.geometry.nurbs import NurbsCurve
-from cnc_twin.planner.process import PlannerJob, build_program
+from cnc_twin.planner.job import PlannerJob, build_program
 from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import load_scenario
 

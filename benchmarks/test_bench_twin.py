@@ -43,7 +43,7 @@ def test_servo_tick(benchmark, scenario):
 
 def _period(twin: Twin, compiled: bool):
     """One interpolation period of servo ticks and physics, compiled or on the reference path."""
-    from cnc_twin.trace.record import Recorder
+    from cnc_twin.trace.recorder import Recorder
 
     recorder = Recorder(1, twin.scenario.timing.ticks_per_period, scratch=True)
     servo, plant, substeps = twin.servo, twin.plant, twin.scenario.timing.substeps_per_tick

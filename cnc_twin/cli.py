@@ -189,7 +189,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
             result.write(run_dir, recording=False)
             finished_recording()
     if args.rrd is not None and not args.no_rrd:
-        from cnc_twin.trace.record import RECORDING_FILE
+        from cnc_twin.run.run_dir import RECORDING_FILE
 
         shutil.copyfile(run_dir / RECORDING_FILE, args.rrd)
     if not args.quiet:
@@ -306,7 +306,7 @@ def params_of(params) -> list[str]:
 def _view(args: argparse.Namespace) -> int:
     import subprocess
 
-    from cnc_twin.trace.record import RECORDING_FILE
+    from cnc_twin.run.run_dir import RECORDING_FILE
 
     from cnc_twin.view.viewer import rerun_command, viewer_environment
 
@@ -329,21 +329,9 @@ def _validate(args: argparse.Namespace) -> int:
 
 def describe_program(program) -> str:
     """One line on what a program does."""
-    from cnc_twin.core.config import ContourProgram, MotionChipProgram, NurbsProgram, SurfaceProgram
+    from cnc_twin.run.program_kinds import kind_of
 
-    if isinstance(program, SurfaceProgram):
-        s = program.surface
-        return (f"{program.pattern} on a {len(s.control_net)} x {len(s.control_net[0])} NURBS surface, "
-                f"{program.path_length * 1e3:.0f} mm of path in {len(program.sections)} section(s), "
-                f"{program.force.setpoint:g} N")
-    if isinstance(program, NurbsProgram):
-        return f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points"
-    if isinstance(program, ContourProgram):
-        return (f"contour of {len(program.elements)} element(s), {len(program.methods)} pass(es): "
-                f"{', '.join(program.methods)}")
-    if isinstance(program, MotionChipProgram):
-        return f"{len(program.commands)} motion-chip command(s), {program.profile} profiles"
-    return f"{len(program.moves)} moves"
+    return kind_of(program).describe(program)
 
 
 def _bench(args: argparse.Namespace) -> int:

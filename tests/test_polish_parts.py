@@ -16,7 +16,8 @@ from cnc_twin.geometry.surface_path import SurfacePath, tool_axes
 from cnc_twin.planner.toolpath import ToolpathError, raster, spiral
 from cnc_twin.machine.plant import load_model
 from cnc_twin.scenario.resources import resolve_model_file
-from cnc_twin.whiteboard.records import ForceControlRecord, SurfaceCurve, SurfaceGeometry, decode, encode
+from cnc_twin.whiteboard.codec import decode, encode
+from cnc_twin.whiteboard.records import ForceControlRecord, SurfaceCurve, SurfaceGeometry
 
 HEAD = HeadGeometry.from_model(load_model(resolve_model_file("scene.xml", None)))
 KNOTS = [0, 0, 0, 0, 0.4, 1, 1, 1, 1]

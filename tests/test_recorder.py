@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from cnc_twin.dsp.servo import PERIOD_FIELDS
-from cnc_twin.trace.record import PERIOD_DTYPE, TICK_BYTES, Recorder
+from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES
+from cnc_twin.trace.recorder import Recorder
 from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import load_scenario
 from cnc_twin.run.twin import Twin

@@ -11,11 +11,11 @@ from hypothesis import strategies as st
 
 from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.motion.scurve import SCurve
+from cnc_twin.whiteboard.codec import MAX_RECORD_WORDS, RecordError, crc16, decode, encode
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.records import (
-    MAX_RECORD_WORDS, DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Mark, Move, RecordError, Spindle,
-    StepContour, crc16, decode, encode,
+    DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Mark, Move, Spindle, StepContour,
 )
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)

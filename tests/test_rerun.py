@@ -85,7 +85,7 @@ def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, mon
 def test_an_export_in_stretches_records_what_one_export_does(tmp_path):
     """However a run is cut into stretches (as a recording process receives it), the recording
     holds the same values: the pose grid, the feed across stretch edges, the events."""
-    from cnc_twin.trace.record import PeriodSamples
+    from cnc_twin.trace.trace import PeriodSamples
     from cnc_twin.view.rerun_export import RunExporter
 
     scenario = scenario_from_dict({"name": "stretches", "program": {"type": "point_to_point", "settle": 0.05,

@@ -11,7 +11,7 @@ import sys
 import pytest
 from rrd_read import rrd_contents, rrd_rows
 
-from cnc_twin.trace.record import read_trace
+from cnc_twin.trace.parquet import read_trace
 from cnc_twin.view.rerun_stream import RecordingError, RecordingProcess
 from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import load_scenario, scenario_from_dict

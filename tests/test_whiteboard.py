@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.trace.record import read_trace
+from cnc_twin.trace.parquet import read_trace
 from cnc_twin.scenario.resources import default_scenario
 from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.whiteboard.block import leftover_segments

@@ -1,1 +1,10 @@
-"""core: (docstring to come)"""
+"""The core: what every part of the twin shares, with no heavy imports (the planner process loads it).
+
+- :mod:`~cnc_twin.core.config`         the validated scenario in SI units: frozen dataclasses
+- :mod:`~cnc_twin.core.axes`           the six axes, their order and MJCF names; the home keyframe; switch bits
+- :mod:`~cnc_twin.core.units`          the unit conversion factors (scenario units -> SI)
+- :mod:`~cnc_twin.core.errors`         :class:`ScenarioError`, one line naming file, key path and problem
+- :mod:`~cnc_twin.core.child_process`  ending a helper process (planner, recorder): EOF, SIGTERM, SIGKILL
+
+May import: nothing of cnc_twin. Imported by: every other part.
+"""

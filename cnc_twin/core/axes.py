@@ -8,6 +8,12 @@ LINEAR_AXES: frozenset[str] = frozenset({"X", "Y", "Z"})
 ROTARY_AXES: frozenset[str] = frozenset({"A", "B", "C"})
 N_AXES = len(AXES)
 
+HOME_KEYFRAME = "home"
+"""the MJCF keyframe every run starts from (the axes' power-on positions)"""
+
+SWITCH_HOME, SWITCH_LIMIT_POS, SWITCH_LIMIT_NEG = 1, 2, 4
+"""bits of an axis's switch inputs, as the machine wires them to the card's digital inputs"""
+
 
 def is_rotary(axis: str) -> bool:
     """True for A/B/C (positions in rad inside, deg in scenarios)."""

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 
 from cnc_twin.legacy.motion_chip import IndexMove, Jog, linear_move
-from cnc_twin.machine.plant import SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
+from cnc_twin.core.axes import SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.records import (
     CHIP_CONSTANT, CHIP_HOME, CHIP_INDEX, CHIP_JOG, CHIP_LINEAR, CHIP_TRAPEZOID, ChipCommand,
 )

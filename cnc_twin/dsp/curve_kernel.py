@@ -74,7 +74,7 @@ def _speed(starts, blocks, lo, hi, d, u, h):
 
 
 @njit(cache=True)
-def _evaluate(starts, blocks, lo, hi, d, u, h, c, c1, c2):
+def evaluate_span(starts, blocks, lo, hi, d, u, h, c, c1, c2):
     """``C, C', C''`` at ``u`` into ``c, c1, c2``, as :meth:`SpanEvaluator.evaluate`."""
     n = d + 1
     _homogeneous(starts, blocks, lo, hi, u, 3 * n, h)
@@ -115,7 +115,7 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
     u = state[U]
     u_p = u + du
     if u_p >= hi:
-        _evaluate(starts, blocks, lo, hi, d, hi, h, cp, c1p, c2p)
+        evaluate_span(starts, blocks, lo, hi, d, hi, h, cp, c1p, c2p)
         sq = 0.0
         for k in range(d):
             sq += c1p[k] * c1p[k]
@@ -126,7 +126,7 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
             c1[k] = c1p[k]
             c2[k] = c2p[k]
         return
-    _evaluate(starts, blocks, lo, hi, d, u_p, h, cp, c1p, c2p)
+    evaluate_span(starts, blocks, lo, hi, d, u_p, h, cp, c1p, c2p)
     sq = 0.0
     for k in range(d):
         sq += c1p[k] * c1p[k]
@@ -159,7 +159,7 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
 def start(starts, blocks, lo, hi, d, u, state, scratch):
     """The state at parameter ``u``, as :class:`CurveStepper`'s constructor."""
     h = scratch[:3 * (d + 1)]
-    _evaluate(starts, blocks, lo, hi, d, u, h, state[2 + 2 * d:2 + 3 * d], state[2:2 + d], state[2 + d:2 + 2 * d])
+    evaluate_span(starts, blocks, lo, hi, d, u, h, state[2 + 2 * d:2 + 3 * d], state[2:2 + d], state[2 + d:2 + 2 * d])
     sq = 0.0
     for k in range(d):
         sq += state[2 + k] * state[2 + k]

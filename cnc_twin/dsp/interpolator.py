@@ -37,6 +37,7 @@ ForceControl records wait at the head of the queue until the force loop
 (off); in between the loop's ``depth`` is added along the tool axis every period and its feed
 factor scales the path's speed. Spindle records put C in speed mode: its angle advances by the
 ramped speed each period, on top of every C setpoint.
+Curve, surface, force-control and block records are queued as :mod:`cnc_twin.dsp.path_blocks` items.
 
 Step contours (StepContour records, the older cards' point-by-point and DDA interpolation):
 each element runs its own clock along its S-curve (:mod:`cnc_twin.dsp.step_interpolator`) and
@@ -57,114 +58,18 @@ from collections import deque
 from collections.abc import Sequence
 
 from cnc_twin.core.config import AxisConfig
-from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
-from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew
 from cnc_twin.dsp.step_interpolator import StepRun
-from cnc_twin.geometry.kinematics import pose_to_axes
-from cnc_twin.geometry.nurbs import NurbsCurve
-from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
-from cnc_twin.geometry.surface_path import SurfacePathEvaluator
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
     ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
-SLEW_MARGIN = 0.9
 STOP_MARGIN = 1.5
 """a starved curve block starts holding when its remaining length is within 1.5x the stopping distance"""
-
-
-class _Curve:
-    """A curve ready to run: its stepper, and either the held A, B, C or the tool-axis curve with
-    the head geometry for the per-period kinematics (tip + axis -> X, Y, Z, A, B)."""
-
-    def __init__(self, record: CurveGeometry, compiled: bool = True):
-        curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
-        stepper = CompiledCurveStepper if compiled else CurveStepper
-        self.stepper = stepper(curve.span_evaluator(), curve.domain[0])
-        self.hold = tuple(record.hold)
-        self.axis = None
-        if record.axis is not None:
-            ac = record.axis
-            self.axis = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree).span_evaluator()
-            self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
-        end = curve.point(curve.domain[1])[0].tolist()
-        self.end = self.pose(end, curve.domain[1])
-
-    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
-        """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""
-        if self.axis is None:
-            return (point[0], point[1], point[2], *self.hold)
-        x, y, z, a, b = pose_to_axes(point, self.axis.evaluate(u)[0], self.pivot, self.offset)
-        return (x, y, z, a, b, self.hold[2])
-
-
-class _Surface:
-    """The surface of the following path sections, ready for per-period evaluation."""
-
-    def __init__(self, record: SurfaceGeometry):
-        self.evaluator: SurfaceSpanEvaluator = NurbsSurface.from_def(record.surface).span_evaluator()
-        self.lead, self.tilt = record.lead, record.tilt
-        self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
-
-
-class _SurfaceRun:
-    """One path section on a surface: its stepper, the tool axis along the surface normal (with
-    lead and tilt), the kinematics per period. ``axis`` is the tool axis of the last pose."""
-
-    def __init__(self, surface: _Surface, section: SurfaceCurve, c_hold: float):
-        c = section.curve
-        uv = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
-        self.surface = surface
-        self.evaluator = SurfacePathEvaluator(surface.evaluator, uv.span_evaluator())
-        self.c_hold = c_hold
-        t0, t1 = uv.domain
-        self.end = self.pose(self.evaluator.evaluate(t1)[0], t1)
-        self.end_axis = self.axis
-        self.stepper = CurveStepper(self.evaluator, t0)  # evaluates t0 last: the kept tangents are the start's
-        self.start = self.pose(self.stepper.point, t0)
-        self.start_axis = self.axis
-
-    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
-        """Machine position for the tip at ``point``, with the tool axis at the last evaluated point."""
-        sf = self.surface
-        self.axis = self.evaluator.tool_axis(sf.lead, sf.tilt)
-        return (*pose_to_axes(point, self.axis, sf.pivot, sf.offset), self.c_hold)
-
-
-class _ForceWait:
-    """Force control switching on (seek, ramp) or off (ramp down, retract) at a section's start or
-    end pose; the queue waits until it is done."""
-
-    def __init__(self, record: ForceControlRecord, run: _SurfaceRun):
-        self.record = record
-        self.on = record.on
-        self.base = run.start if record.on else run.end
-        self.axis = run.start_axis if record.on else run.end_axis
-        standoff = record.params.standoff
-        # where the tool is when force control is off: standoff above the section's pose
-        self.clear_pose = tuple(p + standoff * n for p, n in zip(self.base[:3], self.axis)) + self.base[3:]
-
-
-class _Block:
-    """A queued curve block: the S-curve and the curve (or surface section) it runs on."""
-
-    def __init__(self, record: CurveBlock, curve: "_Curve | _SurfaceRun", period: float):
-        self.profile = record.profile
-        self.curve = curve
-        self.periods = math.ceil(self.profile.duration / period)
-
-
-def _slew(lam: float, target: float, v: float, a: float, a_lim: float, dt: float) -> float:
-    """Move the time scale toward ``target`` as fast as ``|a lam^2 + v lam'| <= a_lim`` allows."""
-    if v <= 1e-12:
-        return target
-    if lam > target:
-        return max(target, lam - SLEW_MARGIN * (a_lim + a * lam * lam) / v * dt)
-    return min(target, lam + SLEW_MARGIN * (a_lim - a * lam * lam) / v * dt)
 
 
 class SegmentInterpolator:
@@ -218,8 +123,8 @@ class SegmentInterpolator:
         self.spindle_speed = 0.0
         self._hold_counts = [0.0] * len(self.counts_per_unit)
         self._queued_periods = 0
-        self._pending_curve: _Curve | _SurfaceRun | None = None
-        self._surface: _Surface | None = None
+        self._pending_curve: Curve | SurfaceRun | None = None
+        self._surface: Surface | None = None
         self.force = ForceController(period)
         """the grinding-force loop (see :mod:`cnc_twin.dsp.force`)"""
         self.measured_force = 0.0
@@ -234,7 +139,7 @@ class SegmentInterpolator:
         """spindle speed commanded this period [rad/s]"""
         self._c_offset = 0.0
         """C angle turned by the spindle so far [rad], added to every C setpoint"""
-        self._curve: _Curve | None = None
+        self._curve: Curve | None = None
         self._s = 0.0
         self._starved_hold = False
         self._queued_path = 0.0
@@ -267,19 +172,19 @@ class SegmentInterpolator:
             self._queued_periods += record.periods
         elif isinstance(record, CurveGeometry):
             # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
-            self._pending_curve = _Curve(record, self.compiled)
+            self._pending_curve = Curve(record, self.compiled)
             self.programmed = self._pending_curve.end
             self._queue.append((seq, self._pending_curve))
         elif isinstance(record, SurfaceGeometry):
-            self._surface = _Surface(record)
+            self._surface = Surface(record)
             self._queue.append((seq, record))
             self._path_open = False
         elif isinstance(record, SurfaceCurve):
-            self._pending_curve = _SurfaceRun(self._surface, record, self.programmed[5])
+            self._pending_curve = SurfaceRun(self._surface, record, self.programmed[5])
             self.programmed = self._pending_curve.end
             self._queue.append((seq, self._pending_curve))
         elif isinstance(record, ForceControlRecord):
-            wait = _ForceWait(record, self._pending_curve)
+            wait = ForceWait(record, self._pending_curve)
             if not record.on:
                 self.programmed = wait.clear_pose
             self._queue.append((seq, wait))
@@ -292,7 +197,7 @@ class SegmentInterpolator:
             self._queued_periods += run.periods
             self._path_open = False
         elif isinstance(record, CurveBlock):
-            block = _Block(record, self._pending_curve, self.period)
+            block = Block(record, self._pending_curve, self.period)
             self._queue.append((seq, block))
             self._queued_periods += block.periods
             self._queued_path += block.profile.length
@@ -311,7 +216,7 @@ class SegmentInterpolator:
 
     @property
     def in_motion(self) -> bool:
-        return (self._current is not None and isinstance(self._current[1], (MoveSegment, _Block, StepRun, ChipRun))
+        return (self._current is not None and isinstance(self._current[1], (MoveSegment, Block, StepRun, ChipRun))
                 and self.override > 0.0)
 
     @property
@@ -335,9 +240,9 @@ class SegmentInterpolator:
     @property
     def on_curve(self) -> bool:
         """A curve block is running or next in line."""
-        if self._current is not None and isinstance(self._current[1], _Block):
+        if self._current is not None and isinstance(self._current[1], Block):
             return True
-        return bool(self._queue) and isinstance(self._queue[0][1], (_Block, _Curve, _SurfaceRun))
+        return bool(self._queue) and isinstance(self._queue[0][1], (Block, Curve, SurfaceRun))
 
     @property
     def pending(self) -> int:
@@ -352,11 +257,17 @@ class SegmentInterpolator:
             seg = self._current[1]
             if isinstance(seg, Dwell):
                 left = self._dwell_left
-            elif isinstance(seg, (_ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
+            elif isinstance(seg, (ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
                 left = 0
             else:  # move or curve block
                 left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
         return self._queued_periods + left
+
+    @property
+    def path_position(self) -> tuple[float, ...]:
+        """Axis positions [m | rad] of the last period's path setpoint, shape ``(6,)``: without the
+        force loop's offset along the tool axis and the spindle's turn of C."""
+        return self._position_of(self._hold_counts)
 
     # --- per period --------------------------------------------------------------------------
     def next_period(self) -> list[float]:
@@ -372,7 +283,7 @@ class SegmentInterpolator:
             counts = list(self._hold_counts)
         else:
             seq, seg = self._current
-            if isinstance(seg, _Block):
+            if isinstance(seg, Block):
                 counts = self._advance_block(seq, seg)
             elif isinstance(seg, StepRun):
                 self.path_u = -1.0
@@ -384,7 +295,7 @@ class SegmentInterpolator:
                 if seg.done:
                     self._complete(seq)
                     self.programmed = self._position_of(counts)
-            elif isinstance(seg, _ForceWait):
+            elif isinstance(seg, ForceWait):
                 self.path_u = -1.0
                 self._axis = seg.axis
                 counts = self._counts_of(seg.base)
@@ -426,19 +337,19 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:
             seq, item = self._queue.popleft()
-            if isinstance(item, (MoveSegment, Dwell, _Block, StepRun)):
+            if isinstance(item, (MoveSegment, Dwell, Block, StepRun)):
                 self._queued_periods -= item.periods
-            if isinstance(item, _Block):
+            if isinstance(item, Block):
                 self._begin_block(seq, item, 0.0)
             elif isinstance(item, StepRun):
                 self._current = (seq, item)
                 self._tau = 0.0
             elif isinstance(item, ChipCommand):  # starts from where the axes are commanded now
                 self._current = (seq, ChipRun(item, list(self._hold_counts), dt=self.period, marks=self.index_marks))
-            elif isinstance(item, (_Curve, _SurfaceRun)):
+            elif isinstance(item, (Curve, SurfaceRun)):
                 self._curve = item
                 self.last_seq_executed = seq
-            elif isinstance(item, _ForceWait):
+            elif isinstance(item, ForceWait):
                 self._current = (seq, item)
                 if item.on:
                     self.force.start(item.record.params)
@@ -496,7 +407,7 @@ class SegmentInterpolator:
         target = 0.0 if self.hold else min(self.override_target, self._lam_max)
         if lam != target:
             _, sd, sdd = prof.evaluate(self._tau)
-            lam = _slew(lam, target, sd, sdd, self._a_lim, self.period)
+            lam = slew(lam, target, sd, sdd, self._a_lim, self.period)
             self.override = lam
         self._tau += lam * self.period
         if self._tau >= prof.duration - 1e-9 * self.period:
@@ -512,7 +423,7 @@ class SegmentInterpolator:
         target = 0.0 if self.hold else min(self.override_target, 1.0)
         if lam != target:
             _, v, a = prof.state(self._tau)
-            lam = _slew(lam, target, v, a, prof.a_max, self.period)
+            lam = slew(lam, target, v, a, prof.a_max, self.period)
             self.override = lam
         tau, dt = self._tau, lam * self.period / self.ticks_per_period
         ticks = [run.point_at(tau + dt * (j + 1)) for j in range(self.ticks_per_period)]
@@ -522,7 +433,7 @@ class SegmentInterpolator:
             self._complete(seq)
         return ticks[-1]
 
-    def _begin_block(self, seq: int, block: _Block, tau: float) -> None:
+    def _begin_block(self, seq: int, block: Block, tau: float) -> None:
         """Make ``block`` the running segment, ``tau`` [s] into its clock (0 at a fresh start;
         the rest of a period when the previous block ended inside it)."""
         self._queued_path -= block.profile.length
@@ -531,7 +442,7 @@ class SegmentInterpolator:
         self._s = block.profile.state(tau)[0] if tau > 0.0 else 0.0
         self._block_state = None
 
-    def _advance_block(self, seq: int, block: _Block) -> list[float]:
+    def _advance_block(self, seq: int, block: Block) -> list[float]:
         """One period along a curve block; the setpoint in counts."""
         prof = block.profile
         tau = self._tau
@@ -560,7 +471,7 @@ class SegmentInterpolator:
         else:
             target = self.override_target * force.feed_factor
         if lam != target:
-            lam = _slew(lam, target, v, a, prof.a_max, self.period)
+            lam = slew(lam, target, v, a, prof.a_max, self.period)
             self.override = lam
         tau += lam * self.period
         if tau < prof.duration:
@@ -575,7 +486,7 @@ class SegmentInterpolator:
             self._block_state = None
             self._complete(seq)
             nxt = self._queue[0][1] if self._queue else None
-            if isinstance(nxt, _Block):
+            if isinstance(nxt, Block):
                 seq_next, nxt = self._queue.popleft()
                 self._queued_periods -= nxt.periods
                 self._begin_block(seq_next, nxt, tau - prof.duration)
@@ -586,7 +497,7 @@ class SegmentInterpolator:
         self.path_u = stepper.u
         self.path_ds = ds
         pose = curve.pose(point, stepper.u)
-        if isinstance(curve, _SurfaceRun):
+        if isinstance(curve, SurfaceRun):
             self._axis = curve.axis
             self.path_s += ds
         return self._counts_of(pose)

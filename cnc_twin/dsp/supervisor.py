@@ -2,7 +2,7 @@
 
 Inputs, from the last servo tick of the period before (``check``): command and actual
 position per axis [counts], each DAC channel's saturation count, the switch inputs per axis
-(:data:`cnc_twin.machine.plant.SWITCH_LIMIT_POS` ...), the tared load-cell force [N]. And the coming
+(:data:`cnc_twin.core.axes.SWITCH_LIMIT_POS` ...), the tared load-cell force [N]. And the coming
 period's setpoint [counts] (``clamp``).
 
 Checks, in this order; the first that trips is reported::
@@ -41,7 +41,7 @@ from collections.abc import Sequence
 
 from cnc_twin.core.config import AxisConfig, SupervisorConfig
 from cnc_twin.motion.trapezoid import Trapezoid
-from cnc_twin.machine.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
+from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.status import FaultCode
 
 STOP_DISABLE, STOP_CONTROLLED, STOP_RETRACT = "disable", "controlled", "retract"

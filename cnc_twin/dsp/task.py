@@ -37,8 +37,8 @@ from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import PERIOD_FIELDS, ServoTask
 from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
 from cnc_twin.geometry.kinematics import rotation_ab
+from cnc_twin.whiteboard.codec import RecordError, decode
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
-from cnc_twin.whiteboard.records import RecordError, decode
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 SOLO_LIVENESS_PERIODS = 64
@@ -201,7 +201,7 @@ class DspTask:
         """Freeze the force loop and move the tool up its axis (from the commanded A, B)."""
         interp, config = self.interpolator, self.supervisor.config
         interp.force.frozen = True
-        a, b = interp._position_of(interp._hold_counts)[3:5]
+        a, b = interp.path_position[3:5]
         tool_axis = rotation_ab(a, b)[:, 2]  # the head's z (tool) axis in the machine frame
         cpu = interp.counts_per_unit
         accel = 0.9 * min(axis.max_acceleration for axis in interp.axes[:3])

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from cnc_twin.machine.plant import HOME_KEYFRAME
+from cnc_twin.core.axes import HOME_KEYFRAME
 
 class UnreachablePose(ValueError):
     """A tool pose the head cannot take; ``index`` is the first offending pose, ``reason`` why."""

@@ -308,3 +308,12 @@ class SurfaceSpanEvaluator:
         if n[2] < -_FLAT_Z * length:
             length = -length
         return [c / length for c in n]
+
+
+def parameter_scales(surface: NurbsSurface, n: int = 24) -> tuple[float, float, float, float]:
+    """``(mean |S_u|, mean |S_v|, max |S_u|, max |S_v|)`` over an n x n parameter grid [m per unit]."""
+    (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
+    u, v = np.meshgrid(np.linspace(u0, u1, n), np.linspace(v0, v1, n), indexing="ij")
+    d = surface.derivatives(u.ravel(), v.ravel(), 1)
+    su, sv = np.linalg.norm(d[(1, 0)], axis=1), np.linalg.norm(d[(0, 1)], axis=1)
+    return float(su.mean()), float(sv.mean()), float(su.max()), float(sv.max())

@@ -7,4 +7,6 @@ twin's plant or whiteboard: each module is a generator of steps or per-cycle pul
 - :mod:`~cnc_twin.legacy.point_by_point`  point-by-point comparison interpolation (lines, arcs)
 - :mod:`~cnc_twin.legacy.dda`             digital differential analyser (lines, arcs)
 - :mod:`~cnc_twin.legacy.motion_chip`     a 4-axis motion chip's per-cycle pulse profiles
+
+May import: nothing of cnc_twin. Imported by: dsp (step interpolation, the chip), scenario (lattice checks).
 """

@@ -20,15 +20,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from cnc_twin.core.axes import AXES, actuator_name, joint_name
+from cnc_twin.core.axes import (
+    AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name,
+)
 from cnc_twin.core.errors import ScenarioError
 
 PAD_FORCE_SENSOR = "pad_force"
 TOOL_POS_SENSOR = "tool_pos"
-HOME_KEYFRAME = "home"
-
-SWITCH_HOME, SWITCH_LIMIT_POS, SWITCH_LIMIT_NEG = 1, 2, 4
-"""bits of an axis's switch inputs (:meth:`Plant.switch_inputs`)"""
 _SWITCH_SENSORS = (("home", SWITCH_HOME, 1.0), ("lim_pos", SWITCH_LIMIT_POS, 1.0), ("lim_neg", SWITCH_LIMIT_NEG, -1.0))
 
 

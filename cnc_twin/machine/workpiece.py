@@ -27,7 +27,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.geometry.surface import NurbsSurface
+from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 
 WORKPIECE_BODY = "workpiece"
 BLOCK_GEOM = "workpiece_collision"
@@ -56,8 +56,6 @@ class Tiling:
 def tile_meshes(surface: NurbsSurface, *, tile_size: float, points_per_edge: int = 5
                 ) -> tuple[list[np.ndarray], Tiling]:
     """Vertices (each (2 k^2, 3)) of the tile meshes and the tiling's figures; ``tile_size`` [m]."""
-    from cnc_twin.planner.toolpath import parameter_scales
-
     lu, lv, _, _ = parameter_scales(surface)
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
     # A convex face (flat, dome) is one hull: no seams between tiles for the pad to catch on.

@@ -59,7 +59,7 @@ class ContourPlan:
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
         from cnc_twin.planner.feed import plan_feed_windows
-        from cnc_twin.planner.process import curve_setup
+        from cnc_twin.planner.curve_program import curve_setup
 
         prog, T = self.prog, self.period
         here = self.home

@@ -28,7 +28,7 @@ import numpy as np
 from scipy.interpolate import make_interp_spline
 
 from cnc_twin.core.config import UvCurve
-from cnc_twin.geometry.surface import NurbsSurface
+from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 
 MAX_SECTION_POINTS = 110
 """control points per section: a (u, v) curve of 110 points is ~1800 words, within one record"""
@@ -44,15 +44,6 @@ class ToolpathError(ValueError):
     def __init__(self, key: str, message: str):
         self.key = key
         super().__init__(message)
-
-
-def parameter_scales(surface: NurbsSurface, n: int = 24) -> tuple[float, float, float, float]:
-    """``(mean |S_u|, mean |S_v|, max |S_u|, max |S_v|)`` over an n x n parameter grid [m per unit]."""
-    (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
-    u, v = np.meshgrid(np.linspace(u0, u1, n), np.linspace(v0, v1, n), indexing="ij")
-    d = surface.derivatives(u.ravel(), v.ravel(), 1)
-    su, sv = np.linalg.norm(d[(1, 0)], axis=1), np.linalg.norm(d[(0, 1)], axis=1)
-    return float(su.mean()), float(sv.mean()), float(su.max()), float(sv.max())
 
 
 def _bezier_pieces_to_nurbs(pieces: list[tuple[np.ndarray, np.ndarray]], scale: np.ndarray) -> UvCurve:

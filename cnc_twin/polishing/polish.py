@@ -23,8 +23,8 @@ import numpy as np
 from cnc_twin.core.config import SurfaceProgram
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.motion.scurve import ramp_distance
-from cnc_twin.geometry.surface import NurbsSurface
-from cnc_twin.trace.record import Trace
+from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
+from cnc_twin.trace.trace import Trace
 from cnc_twin.polishing.removal import Patch, PrestonModel, RemovalGrid
 
 CONTACT_SETTLE = 0.3
@@ -34,7 +34,7 @@ CONTACT_SETTLE = 0.3
 def removal_grid(surface: NurbsSurface, spacing: float, scales: tuple[float, float]) -> tuple[RemovalGrid, np.ndarray]:
     """Points about ``spacing`` apart on the surface (cell centres of a (u, v) grid), and their
     (u, v), shape (m, 2). ``scales``: the surface's mean ``|S_u|``, ``|S_v|``
-    (:func:`cnc_twin.planner.toolpath.parameter_scales`)."""
+    (:func:`cnc_twin.geometry.surface.parameter_scales`)."""
     lu, lv = scales
     (u0, u1), (v0, v1) = surface.domain_u, surface.domain_v
     nu = max(2, math.ceil((u1 - u0) * lu / spacing))
@@ -57,8 +57,6 @@ class RemovalTracker:
 
     def __init__(self, program: SurfaceProgram, surface: NurbsSurface, model: mujoco.MjModel, data: mujoco.MjData,
                  period: float):
-        from cnc_twin.planner.toolpath import parameter_scales
-
         p = program.preston
         self.surface = surface
         self.scales = parameter_scales(self.surface)[:2]

@@ -20,7 +20,7 @@ import numpy as np
 
 from cnc_twin.core.config import ContourProgram, Scenario
 from cnc_twin.geometry.contour import contour_distance, elements_length
-from cnc_twin.trace.record import Trace
+from cnc_twin.trace.trace import Trace
 
 
 def contour_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:

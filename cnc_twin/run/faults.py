@@ -1,7 +1,7 @@
 """Injected card and machine faults (scenario ``faults:``), applied at interpolation-period boundaries.
 
 The PC-side faults (planner stall, delay, kill, record bit flip) act in the planner process
-(:class:`cnc_twin.planner.process.FaultSchedule`). The rest act here, on the simulated hardware,
+(:class:`cnc_twin.planner.faults.FaultSchedule`). The rest act here, on the simulated hardware,
 each from the first period starting at or after its ``at``:
 
 ==============  ===============================================================================

@@ -28,7 +28,8 @@ import numpy as np
 from cnc_twin.core.config import NurbsProgram, Scenario
 from cnc_twin.geometry.kinematics import rotation_ab
 from cnc_twin.geometry.nurbs import NurbsCurve
-from cnc_twin.trace.record import Trace
+from cnc_twin.geometry.tip_path import tip_curve
+from cnc_twin.trace.trace import Trace
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
@@ -58,25 +59,6 @@ def _point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
         t = np.clip(np.sum((points - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-300), 0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * d), axis=1))
     return best
-
-
-def tip_curve(prog: NurbsProgram) -> NurbsCurve:
-    """The programmed tool-tip curve in the world frame (a held-axis program stores its curve in
-    axis space: shifted back by the head offset)."""
-    points = np.asarray(prog.control_points)
-    if prog.axis_curve is None:
-        points = points + np.asarray(prog.tip_shift)
-    return NurbsCurve(points, prog.weights, prog.knots, prog.degree)
-
-
-def planned_path(scenario: Scenario, n: int = 4000) -> np.ndarray | None:
-    """The programmed tool-tip curve of a curve program at ``n`` parameter values evenly spread
-    over its domain, (n, 3) [m]; None for other programs."""
-    prog = scenario.program
-    if not isinstance(prog, NurbsProgram):
-        return None
-    curve = tip_curve(prog)
-    return curve.point(np.linspace(*curve.domain, n))
 
 
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,

@@ -42,12 +42,12 @@ from cnc_twin.dsp import curve_kernel
 from cnc_twin.run import servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
-from cnc_twin.dsp.interpolator import _Curve
+from cnc_twin.dsp.path_blocks import Curve
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
 from cnc_twin.motion.segments import MoveSegment
-from cnc_twin.machine.plant import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
+from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
@@ -109,7 +109,7 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
     """Run up to ``n_max`` periods; returns how many were committed (0 .. n_max).
 
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
-    ``servo_kernel._run_period`` but the first row; ``feed`` / ``check`` / ``cs``: the blocks
+    ``servo_kernel.run_ticks`` but the first row; ``feed`` / ``check`` / ``cs``: the blocks
     above (updated to the last committed period); ``sstate`` the stepper's state; ``axis_args``:
     the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: the tool axis is held) and the
     head geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
@@ -182,8 +182,8 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
                 curve_kernel.step(starts, blocks, lo, hi, d, correct, ds, trial, sscratch)
             for i in range(n):
                 pose[i] = trial[2 + 2 * d + i] if i < 3 else check[HOLD, i - 3]
-            if tilting:  # _Curve.pose: the tool axis at u, then the head's inverse kinematics
-                curve_kernel._evaluate(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1, a_c2)
+            if tilting:  # Curve.pose: the tool axis at u, then the head's inverse kinematics
+                curve_kernel.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1, a_c2)
                 _pose_to_axes(trial[2 + 2 * d:2 + 3 * d], direction, head[0], head[1], pose)
             for i in range(n):
                 setpoint[i] = (pose[i] - check[POWER_ON, i]) * check[CPU, i]
@@ -243,7 +243,7 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
             fstate[ACCELERATION, i] = (velocity - fstate[VELOCITY, i]) * inv_t
             fstate[VELOCITY, i] = velocity
         row = row0 + k * row_step
-        servo_kernel._run_period(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions,
+        servo_kernel.run_ticks(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions,
                                  tick_commands, False, qpos, ctrl, sensordata, force_adr, rec_command, rec_actual,
                                  rec_dac, rec_force, row)
         last = row + tpp - 1
@@ -345,7 +345,7 @@ class PeriodBatch:
         if isinstance(segment, Dwell):
             return DWELL
         curve = getattr(segment, "curve", None)
-        if (isinstance(curve, _Curve) and isinstance(curve.stepper, CompiledCurveStepper)
+        if (isinstance(curve, Curve) and isinstance(curve.stepper, CompiledCurveStepper)
                 and isinstance(segment.profile, SCurve)
                 and interp.override == interp.override_target * interp.force.feed_factor):
             return CURVE
@@ -466,6 +466,6 @@ def kernels_cached() -> bool:
         from pathlib import Path
 
         return all(Path(kernel._cache._cache_file._index_path).exists()
-                   for kernel in (run_periods, servo_kernel._run_period))
+                   for kernel in (run_periods, servo_kernel.run_ticks))
     except AttributeError:  # another numba's internals
         return True

@@ -59,7 +59,7 @@ if mujoco_c.IMPORT_ERROR is None:
     _mj_step = mujoco_c.mj_step
 
     @njit(cache=True, nogil=True)
-    def _run_period(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands,
+    def run_ticks(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands,
                     use_tick_commands, qpos, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac,
                     rec_force, t0):  # pragma: no cover - compiled; its Python twin is ServoTask.tick
         """Run ``len(fractions)`` servo ticks from recorder row ``t0``; returns DAC saturations added."""
@@ -181,7 +181,7 @@ class CompiledServo:
         ``Twin.run`` calls it while the planner process starts."""
         n = self.servo.n_axes
         qpos, ctrl, sensordata, force_adr = self._args_plant
-        _run_period(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate.copy(),
+        run_ticks(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate.copy(),
                     self.istate.copy(), self.scalars.copy(), self.fractions[:0], self.tick_commands, False, qpos,
                     ctrl, sensordata, force_adr, np.zeros((1, n)), np.zeros((1, n), dtype=np.int32),
                     np.zeros((1, n), dtype=np.int16), np.zeros(1), 0)
@@ -228,7 +228,7 @@ class CompiledServo:
         if ticks is not None:
             self.tick_commands[:] = ticks
         qpos, ctrl, sensordata, force_adr = self._args_plant
-        saturated = _run_period(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate,
+        saturated = run_ticks(self._model_ptr, self._data_ptr, self.substeps, self.fparams, self.fstate,
                                 self.istate, self.scalars, self.fractions, self.tick_commands, ticks is not None, qpos,
                                 ctrl, sensordata, force_adr, recorder.command, recorder.actual, recorder.dac,
                                 recorder.pad_force, recorder.row(t))

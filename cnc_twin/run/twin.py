@@ -1,29 +1,17 @@
-"""Wiring: build the plant, the card and the planner process for a scenario; run the clock.
+"""Wiring: build the plant, the card and the planner process for a scenario; run it.
 
-The clock, on simulated time; real-time mode also paces each period to the wall clock::
+A run::
 
     create the whiteboard; start the planner process (a plain subprocess; or take the idle one a
-    PlannerPool kept from an earlier clean run) and hand it the job; wait until it attached
-    for k = 0, 1, ...:
-        injector.begin_period(k)             # injected card/machine faults due now (if any)
-        if the card's task hangs (dsp_hang): # no exchange, no servo interrupt: the DACs hold;
-            step the plant tick by tick      # the watchdog disables the drives after its timeout
-            continue
-        dsp.begin_period(k)                  # supervisor, whiteboard exchange, records, state, setpoint
-        for each of ticks_per_period servo ticks:
-            volts = servo.tick(j, plant.axis_positions(), plant.pad_force())
-                                             # drives disabled by a stop: servo.tick_disabled
-            plant.apply_volts(volts)         # DAC -> drives (zero-order hold)
-            plant.step(substeps_per_tick)    # MuJoCo, drive loops in C
-            recorder.record_tick(t, frame)   # typed preallocated columns
-        (analog output, drives on, no injected card faults: the ticks, the physics and the
-        recording of the whole period run as one compiled call, cnc_twin.run.servo_kernel;
-        lockstep and solo, in the steady middle of a curve block, move or dwell: up to 64 whole
-        periods, the card's task included, run as one compiled call, cnc_twin.run.period_kernel)
-        stop when the program finished, a fault stopped the machine, time ran out, or a stop
-        was requested (signal)
+    PlannerPool kept from an earlier clean run) and hand it the job; wait until it attached and
+    planned its first chunks
+    run the clock (cnc_twin.run.clock: one interpolation period after another on simulated time)
     finally: tell the planner the run is over; close it (EOF, then terminate/kill if needed) or,
     with a pool and a clean run, keep it for the next run; unlink the whiteboard
+    the metrics: the run's, the whiteboard's, the faults, and the program kind's own
+
+What depends on the kind of program (the plant with a workpiece, the removal map, the look-ahead,
+the metrics) comes from its :class:`~cnc_twin.run.program_kinds.ProgramKind`.
 
 In lockstep mode the DSP waits for the planner's answer every period, so the same scenario
 gives the same trace bit for bit. In real-time mode the DSP never waits: a late answer is a
@@ -32,98 +20,32 @@ missed exchange, and a starved card holds (FEED_HOLD) until records arrive again
 
 from __future__ import annotations
 
-import math
-import os
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.core.config import PLANNER_FAULTS, ContourProgram, MotionChipProgram, NurbsProgram, Scenario, SurfaceProgram
+from cnc_twin.core.config import PLANNER_FAULTS, Scenario
 from cnc_twin.dsp.interpolator import SegmentInterpolator
-from cnc_twin.dsp import curve_kernel
-from cnc_twin.run import servo_kernel
 from cnc_twin.dsp.servo import ServoTask
-from cnc_twin.dsp.supervisor import STOP_DISABLE, Supervisor
+from cnc_twin.dsp.supervisor import Supervisor
 from cnc_twin.dsp.task import DspTask
-from cnc_twin.run.faults import FaultInjector
+from cnc_twin.planner.job import PlannerJob
 from cnc_twin.planner.launch import PlannerPool, PlannerProcess
-from cnc_twin.planner.process import PlannerJob
-from cnc_twin.machine.plant import Plant, add_obstacles, load_model_with_obstacles
-from cnc_twin.run.path_metrics import path_metrics
-from cnc_twin.trace.record import RECORDING_FILE, Recorder, Trace, compute_metrics, write_run_dir
+from cnc_twin.run import servo_kernel
+from cnc_twin.run.clock import Clock, ProgressCallback
+from cnc_twin.run.faults import FaultInjector
+from cnc_twin.run.metrics import compute_metrics
+from cnc_twin.run.program_kinds import kind_of, lookahead_periods
+from cnc_twin.run.result import RunResult
+from cnc_twin.trace.recorder import Recorder
+from cnc_twin.trace.trace import Trace
 from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost, signal_shutdown
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
-ProgressCallback = Callable[[int, int], None]
-"""called as ``progress(periods_done, periods_expected)`` a few hundred times per run"""
-
-FAULT_LINGER = 0.05
-"""simulated time recorded after a fault brought the machine to rest [s]"""
-STOP_ALLOWANCE = 5.0
-"""simulated time a stop after the run's time limit may take to reach rest [s]"""
-
-
-@dataclass
-class RunResult:
-    """What a run produced. Nothing is written to disk unless :meth:`write` is called."""
-
-    scenario: Scenario
-    trace: Trace
-    metrics: dict[str, Any]
-    run_dir: Path | None = field(default=None)
-    model: Any = field(default=None, repr=False)
-    """the compiled MJCF the run used (for exports)"""
-    exchange_latency: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
-    """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
-    removal: Any = field(default=None, repr=False)
-    """the removal map of a surface polishing run (:class:`cnc_twin.polishing.removal.PrestonModel`)"""
-
-    @property
-    def status(self) -> str:
-        """``complete``, ``fault`` or ``interrupted``."""
-        return self.metrics["status"]
-
-    def dataframe(self):
-        """The trace as a pandas DataFrame (columns as in trace.parquet); needs pandas installed."""
-        try:
-            import pandas as pd
-        except ImportError:
-            raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
-        return pd.DataFrame(self.trace.columns())
-
-    def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
-        """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
-        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``, exported now.
-
-        ``recording`` may instead be a callable, called once the trace is written, that returns
-        the path of a finished recording of this run to move in (one a
-        :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
-        system), or None to export it now after all."""
-        def extra(folder: Path) -> None:
-            if self.removal is not None:
-                self.removal.save(folder)
-            finished = recording() if callable(recording) else None
-            if finished is not None:
-                os.replace(finished, folder / RECORDING_FILE)
-            elif recording:
-                self.export_rerun(rrd=folder / RECORDING_FILE)
-        self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
-                                     extra=extra)
-        return self.run_dir
-
-    def export_rerun(self, *, rrd: Path | None = None, spawn: bool = False) -> None:
-        """Write a rerun recording of the run and/or open it in a spawned viewer."""
-        from cnc_twin.view.rerun_export import export_run
-
-        export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model,
-                   exchange_latency=self.exchange_latency)
+__all__ = ["ProgressCallback", "RunResult", "Twin", "run_scenario"]
 
 
 class Twin:
@@ -149,22 +71,9 @@ class Twin:
         self.scenario = scenario
         timing = scenario.timing
         self.tiling = self.removal = None
+        self.kind = kind_of(scenario.program)
         obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
-        if isinstance(scenario.program, SurfaceProgram):
-            from cnc_twin.planner.surface_program import build_surface
-            from cnc_twin.polishing.polish import RemovalTracker
-            from cnc_twin.machine.workpiece import build_model
-
-            surface = build_surface(scenario.program)
-            model, self.tiling = build_model(scenario.model_file, surface,
-                                             tile_size=scenario.program.surface_tile_size,
-                                             edit=lambda spec: add_obstacles(spec, obstacles))
-            self.plant = Plant(model, timestep=timing.physics_timestep)
-            self.removal = RemovalTracker(scenario.program, surface, self.plant.model, self.plant.data,
-                                          timing.interpolation_period)
-        else:
-            self.plant = Plant(load_model_with_obstacles(scenario.model_file, obstacles),
-                               timestep=timing.physics_timestep)
+        self.plant = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor,
             output=scenario.command_output,
@@ -185,13 +94,13 @@ class Twin:
             period=timing.interpolation_period,
             layout_words=scenario.whiteboard.words,
             chunk_words=scenario.whiteboard.chunk_words,
-            lookahead_periods=_lookahead_periods(scenario),
+            lookahead_periods=lookahead_periods(scenario),
             faults=tuple(f for f in scenario.faults if f.kind in PLANNER_FAULTS),
             lockstep=timing.mode == "lockstep",
         )
         self.supervisor = Supervisor(scenario.axes, scenario.supervisor, power_on=scenario.home,
                                      period=timing.interpolation_period, ticks_per_period=timing.ticks_per_period,
-                                     referenced=not isinstance(scenario.program, MotionChipProgram))
+                                     referenced=self.kind.referenced)
         card_faults = [f for f in scenario.faults if f.kind not in PLANNER_FAULTS]
         self.injector = FaultInjector(tuple(card_faults), servo=self.servo, plant=self.plant,
                                       period=timing.interpolation_period, servo_period=timing.servo_period,
@@ -208,6 +117,7 @@ class Twin:
         self.recorder: Recorder | None = None
         self.period_batch = None
         """the run's :class:`~cnc_twin.run.period_kernel.PeriodBatch`, if it had one"""
+        self.late_periods = self.missed_ticks = 0
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
@@ -238,8 +148,7 @@ class Twin:
             planner.submit(wb.name, self.job)
             if self.kernel is not None:  # compiles (or loads) while the planner starts and plans
                 self.kernel.warm_up()
-            if self.interpolator.compiled and isinstance(sc.program, NurbsProgram):
-                curve_kernel.warm_up()
+            self.kind.warm_up(self)
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
@@ -253,7 +162,7 @@ class Twin:
             except PlannerLost as exc:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
-            wall_time, periods = self._clock(dsp, planned, progress)
+            wall_time, periods = Clock(self, dsp, planned, progress).run()
             retransmits = int(wb.retransmits[0])
             self.plan_us, self.plan_blocks = int(wb.plan_us[0]), int(wb.plan_blocks[0])
         finally:
@@ -268,194 +177,18 @@ class Twin:
                     wb.close()
         return self._result(dsp, wall_time, periods, retransmits)
 
-    def _clock(self, dsp: DspTask, planned: int, progress: ProgressCallback | None) -> tuple[float, int]:
-        sc = self.scenario
-        timing = sc.timing
-        period_s = timing.interpolation_period
-        max_time = sc.max_time if sc.max_time is not None else 2.0 * planned * period_s + 5.0
-        max_periods = max(1, round(max_time / period_s))
-        linger = round(FAULT_LINGER / period_s)
-        self.expected_periods = planned + 1
-        ticks_per_period = timing.ticks_per_period
-        substeps = timing.substeps_per_tick
-        self.recorder = recorder = Recorder(planned + 2, ticks_per_period, scratch=not self.record)
-        record_tick, record_period = recorder.record_tick, recorder.record_period
-        plant, servo = self.plant, self.servo
-        frame = servo.frame
-        first_period_field = servo.period_slot
-        kernel = self.kernel
-        room = recorder.room
-        axis_positions, pad_force, apply_volts, step = (
-            plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
-        )
-        tick = servo.tick
-        tick_range = range(ticks_per_period)
-        realtime = timing.mode == "realtime"
-        report_every = max(1, self.expected_periods // 200)
-        removal = self.removal
-        removal_every = removal.every if removal is not None else 0
-        self.late_periods = 0
-        self.missed_ticks = 0
-        k = 0
-        t = 0
-        # the steady middle of curve blocks, moves and dwells, many periods per compiled call
-        # (lockstep only: real time paces every period; not for surfaces: the removal map updates
-        # between periods)
-        self.period_batch = batch = None
-        if kernel is not None and self.batch and not realtime and removal is None:
-            from cnc_twin.run.period_kernel import PeriodBatch
-
-            self.period_batch = batch = PeriodBatch(dsp, kernel, recorder)
-            batch.warm_up()
-        wall_start = time.perf_counter()
-        drives = self.drives
-        if drives is not None:
-            tick_pulses, drive = servo.tick_pulses, drives.update
-        injector = self.injector
-        reporting = progress is not None or self.observer is not None  # batches stop at report periods
-        timed_out = False
-        while True:
-            if k >= max_periods:
-                if timed_out:  # the stop after the time limit did not come to rest either
-                    break
-                # A controlled stop, run to rest like any fault's (within STOP_ALLOWANCE).
-                dsp.raise_fault(FaultCode.RUN_TIMEOUT, f"program not finished after {max_time:g} s simulated", k)
-                timed_out = True
-                max_periods = k + round(STOP_ALLOWANCE / period_s)
-            if self.stop_reason is not None:
-                break
-            if realtime:
-                self._pace(wall_start + k * period_s, period_s)
-            if t + ticks_per_period > room:
-                recorder.grow()
-                room = recorder.room
-            if injector is not None and k >= injector.next_period:
-                injector.begin_period(k)
-            if injector is not None and injector.hang_ticks:
-                if kernel is not None:
-                    kernel.store()
-                record_period(k, frame, first_period_field)
-                t = self._hung_period(dsp, k, t)
-                k += 1
-                continue
-            if batch is not None:
-                ran = batch.run(k, t, min(max_periods - k, (room - t) // ticks_per_period,
-                                          report_every - k % report_every if reporting else max_periods))
-                if ran:
-                    k += ran
-                    t += ran * ticks_per_period
-                    if k % report_every == 0:
-                        self._report(progress, recorder, k, t)
-                    continue
-            dsp.begin_period(k)
-            record_period(k, frame, first_period_field)
-            if kernel is not None and dsp.drives_enabled:
-                kernel.load()
-                kernel.run_period(recorder, t)
-                t += ticks_per_period
-            else:
-                if kernel is not None:
-                    kernel.store()
-                if not dsp.drives_enabled:
-                    self._drives_off()  # at the first such period: the stop just disabled them
-                    tick_disabled = servo.tick_disabled
-                    for j in tick_range:
-                        apply_volts(tick_disabled(j, axis_positions(), pad_force()))
-                        step(substeps)
-                        record_tick(t, frame)
-                        t += 1
-                elif drives is None:
-                    for j in tick_range:
-                        apply_volts(tick(j, axis_positions(), pad_force()))
-                        step(substeps)
-                        record_tick(t, frame)
-                        t += 1
-                else:  # step pulses -> the amplifiers' position loops -> their speed loops
-                    for j in tick_range:
-                        positions = axis_positions()
-                        apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
-                        step(substeps)
-                        record_tick(t, frame)
-                        t += 1
-            k += 1
-            if removal_every and k % removal_every == 0:
-                removal.update()
-            if k % report_every == 0:
-                self._report(progress, recorder, k, t)
-            if dsp.done:
-                if dsp.state == DspState.FINISHED:
-                    break
-                linger -= 1
-                if linger < 0:
-                    break
-        wall_time = time.perf_counter() - wall_start
-        recorder.count = t
-        if kernel is not None:
-            kernel.store()  # the metrics read the DACs' saturation counts
-        if progress is not None and self.stop_reason is None:
-            progress(self.expected_periods, self.expected_periods)
-        return wall_time, k
-
-    def _report(self, progress: ProgressCallback | None, recorder: Recorder, k: int, t: int) -> None:
-        """Progress and the observer, a few hundred times per run (``k`` periods, ``t`` ticks done)."""
-        if progress is not None:
-            progress(min(k, self.expected_periods), self.expected_periods)
-        if self.observer is not None:
-            recorder.count = t
-            self.observer(self)
-
-    def _hung_period(self, dsp: DspTask, k: int, t: int) -> int:
-        """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
-        their last output; the encoder counters run on (recorded, so the trace shows the drift).
-        The watchdog disables the drives once the task has missed ``watchdog`` seconds of ticks."""
-        sc, plant, servo, injector = self.scenario, self.plant, self.servo, self.injector
-        timing = sc.timing
-        n = servo.n_axes
-        frame = servo.frame
-        watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
-        for _ in range(timing.ticks_per_period):
-            plant.step(timing.substeps_per_tick)
-            if injector.hang_ticks:  # once it is over, the task runs again from the next period
-                injector.hang_ticks -= 1
-                self.missed_ticks += 1
-                if watchdog_ticks and self.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
-                    # the watchdog resets the card; the amplifiers lose their enable at once
-                    self._drives_off()
-                    dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
-                                    k, stop=STOP_DISABLE)
-                    injector.hang_ticks = 0
-            positions = plant.axis_positions()
-            for i, encoder in enumerate(servo.encoders):
-                frame[n + i] = encoder.sample(positions[i])
-            self.recorder.record_tick(t, frame)
-            t += 1
-        if not injector.hang_ticks:
-            self.missed_ticks = 0
-        return t
-
-    def _drives_off(self) -> None:
+    def drives_off(self) -> None:
         """The amplifiers disabled (brakes on) and the card's outputs and loops cleared; once."""
         if self.plant.drives_enabled:
             self.plant.disable_drives()
             self.servo.disable()
 
     def partial_trace(self, *, copy: bool = True) -> Trace:
-        """The signals recorded so far, as a :class:`~cnc_twin.trace.record.Trace` (a copy, unless
+        """The signals recorded so far, as a :class:`~cnc_twin.trace.trace.Trace` (a copy, unless
         ``copy=False`` once the run is over)."""
         sc = self.scenario
         return self.recorder.trace(servo_period=sc.timing.servo_period, copy=copy,
                                    counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
-
-    def _pace(self, deadline: float, period_s: float) -> None:
-        """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
-        now = time.perf_counter()
-        if now > deadline + period_s:
-            self.late_periods += 1
-            return
-        if deadline - now > 0.0005:
-            time.sleep(deadline - now - 0.0003)
-        while time.perf_counter() < deadline:
-            pass
 
     def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
         sc = self.scenario
@@ -501,36 +234,7 @@ class Twin:
         }
         if sc.timing.mode == "realtime":
             metrics["late_periods"] = self.late_periods
-        if isinstance(sc.program, NurbsProgram):
-            metrics["path"] = path_metrics(trace, sc, interpolator_ns=np.asarray(dsp.interpolator_ns),
-                                           plan_us=self.plan_us, plan_blocks=self.plan_blocks)
-        if dsp.event_log:
-            from cnc_twin.dsp.chip import EVENT_NAMES
-
-            def shown(axis: int, count: int) -> float:  # [mm | deg]
-                cfg = sc.axes[axis]
-                return (count / cfg.counts_per_unit + sc.home[axis]) * cfg.display_factor
-
-            metrics["events"] = [
-                {"time_s": t, "axis": AXES[axis], "event": EVENT_NAMES[code], "count": value,
-                 "position": shown(axis, value)}
-                for t, axis, code, value in dsp.event_log]
-        if isinstance(sc.program, ContourProgram):
-            from cnc_twin.run.contour_metrics import contour_metrics
-
-            metrics["contour"] = contour_metrics(trace, sc)
-        if isinstance(sc.program, SurfaceProgram):
-            from cnc_twin.polishing.polish import force_metrics, preston_by_hand, removal_metrics
-
-            metrics["polish"] = {
-                "force": force_metrics(trace, sc.program),
-                "removal": {**removal_metrics(self.removal, sc.program, wall_time),
-                            "preston_by_hand_mm3": preston_by_hand(trace, sc.program) * 1e9},
-                "collision_tiles": list(self.tiling.tiles),
-                "tile_hull_gap_mm": self.tiling.hull_gap * 1e3,
-                "path_length_mm": sc.program.path_length * 1e3,
-                "sections": len(sc.program.sections),
-            }
+        metrics.update(self.kind.metrics(self, trace, dsp, wall_time))
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason
@@ -539,22 +243,6 @@ class Twin:
         latency = (np.asarray(port.latency_period, dtype=np.int64), np.asarray(port.latency_ns, dtype=np.float64) / 1e3)
         return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency,
                          removal=None if self.removal is None else self.removal.model_removal)
-
-
-def _lookahead_periods(scenario: Scenario) -> int:
-    """The planner's look-ahead [periods]; 0 = no limit.
-
-    On a curve the card must always hold enough path to stop in, so a look-ahead is never less
-    than twice the time to stop from the programmed feed (jerk-limited).
-    """
-    period = scenario.timing.interpolation_period
-    periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
-    if periods and isinstance(scenario.program, (NurbsProgram, SurfaceProgram, ContourProgram)):
-        lim = scenario.program.limits
-        a, j = lim.tangential_acceleration, lim.tangential_jerk
-        stop_time = lim.feed / a + a / j
-        periods = max(periods, math.ceil(2.0 * stop_time / period))
-    return periods
 
 
 def _release(planner: PlannerProcess | None, planners: PlannerPool | None) -> None:

@@ -27,7 +27,10 @@ from cnc_twin.core.config import AxisConfig, ContourProgram, LatticeElement
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.geometry.contour import Arc, Line, check_contour, element_length, element_nurbs
 from cnc_twin.legacy.quadrants import end_is_on_circle
+from cnc_twin.scenario.curve import NurbsCurveProgram
+from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import KeyedValueError, PathLimitsSpec, Strict
+from cnc_twin.scenario.validation import validate
 
 Method = Literal["nurbs", "point_by_point", "dda"]
 
@@ -131,7 +134,6 @@ def _lattice(el: Line | Arc, zero, cpu, label: Path, key: str) -> LatticeElement
 def convert(spec: ContourProgramSpec, axes: tuple[AxisConfig, ...], model, home, label: Path) -> ContourProgram:
     """Check and convert a contour program (mm, mm/min) to SI, in axis space."""
     from cnc_twin.geometry.kinematics import HeadGeometry
-    from cnc_twin.scenario.load import NurbsCurveProgram, _convert_nurbs, _validate
 
     elements_mm = _elements_mm(spec)
     try:
@@ -157,13 +159,13 @@ def convert(spec: ContourProgramSpec, axes: tuple[AxisConfig, ...], model, home,
     for i, (el_mm, el) in enumerate(zip(elements_mm, elements)):
         key = f"program.elements[{i}].{'line' if isinstance(el, Line) else 'arc'}.to"
         degree, knots, weights, points = element_nurbs(el_mm)
-        curve_spec = _validate(NurbsCurveProgram, {
+        curve_spec = validate(NurbsCurveProgram, {
             "type": "nurbs_curve", "degree": degree, "knots": knots, "weights": weights,
             "control_points": [[x, y, spec.z] for x, y in points], "feed": spec.feed,
             "chord_tolerance": spec.chord_tolerance, "limits": limits_spec.model_dump(), "C": spec.C,
             "settle": 0.0}, label, ("program",))
         try:
-            curves.append(_convert_nurbs(curve_spec, axes, model, label))
+            curves.append(convert_curve(curve_spec, axes, model, label))
         except ScenarioError as exc:
             raise ScenarioError(label, key, exc.message) from None
         lattice.append(_lattice(el, home[:2], (cx.counts_per_unit, cy.counts_per_unit), label, key))

@@ -188,7 +188,8 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
 
 def _check_fits_one_record(program: SurfaceProgram, label: Path) -> None:
     """The card takes the surface in one record (up to 2048 words: about 120 control points)."""
-    from cnc_twin.whiteboard.records import SurfaceGeometry, encode
+    from cnc_twin.whiteboard.codec import encode
+    from cnc_twin.whiteboard.records import SurfaceGeometry
 
     try:
         encode(SurfaceGeometry(surface=program.surface, lead=0.0, tilt=0.0, pivot=(0.0, 0.0, 0.0),

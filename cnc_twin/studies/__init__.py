@@ -1,1 +1,10 @@
-"""studies: (docstring to come)"""
+"""What users do with the twin beyond one run: measure it, sweep it, tune it, stress it.
+
+- :mod:`~cnc_twin.studies.bench`, :mod:`~cnc_twin.studies.bench_whiteboard`  speed figures (``cnc-twin bench``)
+- :mod:`~cnc_twin.studies.sweep`          grids and random draws of overrides, local processes or Dask
+- :mod:`~cnc_twin.studies.linearize`, :mod:`~cnc_twin.studies.tuning`  the linear loop (python-control) and gain proposals checked on the twin
+- :mod:`~cnc_twin.studies.fault_catalog`  one run per fault kind -> docs/faults.md
+- :mod:`~cnc_twin.studies.soak`           the long soak run
+
+May import: every part below it. Imported by: cli.
+"""

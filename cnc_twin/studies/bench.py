@@ -21,7 +21,7 @@ the run's clock with that process feeding beside it over the clock without (both
 progress as the CLI does).
 
 ``trace_held_over_raw``: memory the run's trace keeps alive over the raw bytes of the recorded
-signals (each at its natural width, :data:`cnc_twin.trace.record.TICK_BYTES` per tick plus the
+signals (each at its natural width, :data:`cnc_twin.trace.layout.TICK_BYTES` per tick plus the
 per-period signals).
 """
 

@@ -22,10 +22,11 @@ import numpy as np
 
 from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.codec import decode, encode
 from cnc_twin.whiteboard.doorbell import SPIN_POLLS, Doorbell, Doorbells
 from cnc_twin.whiteboard.layout import Layout, PcState
 from cnc_twin.whiteboard.ports import DspPort, PcPort, signal_shutdown
-from cnc_twin.whiteboard.records import DataBlock, EndOfProgram, Move, decode, encode
+from cnc_twin.whiteboard.records import DataBlock, EndOfProgram, Move
 from cnc_twin.whiteboard.status import STATUS_DTYPE
 
 PCI_BURST_MB_S = 132.0

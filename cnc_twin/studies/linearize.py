@@ -25,7 +25,8 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES, actuator_name, joint_name
 from cnc_twin.core.config import AxisConfig, Scenario
-from cnc_twin.machine.plant import HOME_KEYFRAME, load_model
+from cnc_twin.core.axes import HOME_KEYFRAME
+from cnc_twin.machine.plant import load_model
 
 
 def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:

@@ -57,7 +57,7 @@ def _rss_bytes() -> int:
 
 def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=None) -> dict[str, Any]:
     """Run the soak; returns the figures (see the module docstring)."""
-    from cnc_twin.trace.record import PERIOD_DTYPE, TICK_BYTES
+    from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES
     from cnc_twin.scenario.load import scenario_from_dict
     from cnc_twin.run.twin import Twin
 

@@ -22,7 +22,7 @@ Series that share a plot share an entity (``Scalars`` with one value per series 
 by a static ``SeriesLines``): rerun's cost is mostly per ``send_columns`` call, so 12 calls per
 stretch instead of 39 halve the export. Everything time-varying goes in bulk through
 ``send_columns`` (one call per entity and stretch). Series are sampled at the last tick of each
-interpolation period (:class:`~cnc_twin.trace.record.PeriodSamples`: all an export reads of a run),
+interpolation period (:class:`~cnc_twin.trace.trace.PeriodSamples`: all an export reads of a run),
 body poses every ``POSE_INTERVAL``.
 :func:`export_run` sends a finished run in one stretch; :mod:`cnc_twin.view.rerun_stream` streams a
 run in progress to a recording process, stretch by stretch, with the same result.
@@ -42,8 +42,9 @@ import rerun.blueprint as rrb
 
 from cnc_twin.core.axes import AXES, joint_name
 from cnc_twin.core.config import Scenario
-from cnc_twin.machine.plant import HOME_KEYFRAME, load_model
-from cnc_twin.trace.record import PeriodSamples, Trace
+from cnc_twin.core.axes import HOME_KEYFRAME
+from cnc_twin.machine.plant import load_model
+from cnc_twin.trace.trace import PeriodSamples, Trace
 from cnc_twin.whiteboard.status import DspState
 
 PLANNED = object()
@@ -106,7 +107,7 @@ class _Kinematics:
 
     def __init__(self, model: mujoco.MjModel, *, compiled: bool = True):
         if compiled:
-            from cnc_twin import mujoco_c  # imports numba: only where compiled replay is wanted
+            from cnc_twin.machine import mujoco_c  # imports numba: only where compiled replay is wanted
 
             compiled = mujoco_c.available()
         self.compiled = compiled
@@ -187,7 +188,7 @@ def log_paths(rec: rr.RecordingStream, command_tips: np.ndarray, actual_tips: np
 
 
 def log_planned_path(rec: rr.RecordingStream, points: np.ndarray | None) -> None:
-    """``points`` from :func:`~cnc_twin.run.path_metrics.planned_path`, if any."""
+    """``points`` from :func:`~cnc_twin.geometry.tip_path.planned_path`, if any."""
     if points is not None:
         rec.log("/paths/planned", rr.LineStrips3D([points], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
 
@@ -291,7 +292,7 @@ class RunExporter:
     def start(self, *, rrd: Path | None = None, spawn: bool = False, planned=PLANNED) -> None:
         """Open the sinks (a file, a spawned viewer, or both), log the blueprint, axes convention
         and static geometry. ``planned``: the planned path if already computed (see
-        :func:`~cnc_twin.run.path_metrics.planned_path`; a recording process gets it so that it needs
+        :func:`~cnc_twin.geometry.tip_path.planned_path`; a recording process gets it so that it needs
         no scipy)."""
         blueprint = default_blueprint()
         if spawn:
@@ -307,7 +308,7 @@ class RunExporter:
         self.rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         log_geometry(self.rec, self.model)
         if planned is PLANNED:
-            from cnc_twin.run.path_metrics import planned_path
+            from cnc_twin.geometry.tip_path import planned_path
 
             planned = planned_path(self.scenario)
         log_planned_path(self.rec, planned)

@@ -4,7 +4,7 @@ Exporting a finished run to rerun takes about a fifth of the run's own time on t
 curve (rerun's Arrow encoding, the blueprint, the geometry, the close) plus half a second to
 import rerun. A
 :class:`RecordingProcess` does that work in a process of its own, on another core, while the
-twin runs: the twin's process sends it each stretch of :class:`~cnc_twin.trace.record.PeriodSamples`
+twin runs: the twin's process sends it each stretch of :class:`~cnc_twin.trace.trace.PeriodSamples`
 (167 bytes per period) as the run records them, and when the run is over only the last stretch,
 the paths, the events and the close remain. The recording is the same as
 :func:`~cnc_twin.view.rerun_export.export_run` makes after the run (``tests/test_rerun_stream.py``).
@@ -12,7 +12,7 @@ the paths, the events and the close remain. The recording is the same as
 The process is ``python -m cnc_twin.view.rerun_stream``. Its stdin carries length-prefixed pickles:
 
 - ``("open", scenario, rrd, spawn, planned)``: the recording's sinks (a file path or None, a
-  viewer) and the planned path (:func:`~cnc_twin.run.path_metrics.planned_path`, computed by the
+  viewer) and the planned path (:func:`~cnc_twin.geometry.tip_path.planned_path`, computed by the
   twin's process, which has scipy loaded already);
 - ``("samples", PeriodSamples)``: the next stretch;
 - ``("finish", n_ticks, metrics, exchange_latency)``: the rest, then flush and close.
@@ -39,7 +39,7 @@ from pathlib import Path
 
 from cnc_twin.core.child_process import end_process
 from cnc_twin.core.errors import one_line
-from cnc_twin.trace.record import PeriodSamples
+from cnc_twin.trace.trace import PeriodSamples
 
 _HEADER = struct.Struct("<Q")
 """a message: its pickle's length, then the pickle"""
@@ -100,7 +100,7 @@ class RecordingProcess:
         """Start the recording of a run of ``scenario`` into the file ``rrd`` and/or a spawned viewer."""
         self.rrd = None if rrd is None else Path(rrd)
         self._ticks_per_period = scenario.timing.ticks_per_period
-        from cnc_twin.run.path_metrics import planned_path  # scipy's splines: a curve scenario loaded them already
+        from cnc_twin.geometry.tip_path import planned_path  # scipy's splines: a curve scenario loaded them already
 
         self._send(("open", scenario, None if rrd is None else str(rrd), spawn, planned_path(scenario)))
 

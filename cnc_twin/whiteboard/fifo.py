@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnc_twin.whiteboard.records import HEADER_WORDS, RecordError, record_length
+from cnc_twin.whiteboard.codec import HEADER_WORDS, RecordError, record_length
 
 _U32 = 1 << 32
 

@@ -1,0 +1,145 @@
+"""What the interpolator runs on curve and surface paths: one class per record kind, built when the
+record is accepted (the card decodes ahead) and run when it reaches the head of the queue
+(:class:`~cnc_twin.dsp.interpolator.SegmentInterpolator`); and the rule the running segment's
+time scale follows.
+
+- :class:`Curve` (from a CurveGeometry record): ``stepper``, the curve's arc-length stepper
+  (:class:`~cnc_twin.dsp.curve_kernel.CompiledCurveStepper` or
+  :class:`~cnc_twin.dsp.curve_stepper.CurveStepper`; its ``point`` [m], shape ``(3,)``, and
+  parameter ``u``); ``hold``, the held A, B, C [rad], shape ``(3,)``; ``axis``, the tool-axis
+  curve's span evaluator (None when A and B are held), with ``pivot`` and ``offset``, the head
+  geometry [m], shape ``(3,)`` each; ``end``, the machine position at the curve's end
+  (X, Y, Z [m], A, B, C [rad]), shape ``(6,)``. ``pose(point, u)`` is the machine position
+  for the tip at ``point``: X, Y, Z = ``point`` and the held A, B, C, or the head's inverse
+  kinematics for the tool axis at ``u`` (C held).
+- :class:`Surface` (from a SurfaceGeometry record): ``evaluator``, the surface's span evaluator;
+  ``lead`` and ``tilt`` of the tool axis [rad]; ``pivot`` and ``offset``, the head geometry [m],
+  shape ``(3,)`` each. Shared by the sections that follow it.
+- :class:`SurfaceRun` (from a SurfaceCurve record, one section of a surface path): ``surface``
+  (the :class:`Surface`); ``evaluator``, the surface-path evaluator of the (u, v) curve on it
+  (:mod:`cnc_twin.geometry.surface_path`); ``stepper``, a
+  :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` on it; ``c_hold``, the held C [rad];
+  ``start`` and ``end``, the machine positions at the section's ends, shape ``(6,)``, with
+  ``start_axis`` and ``end_axis``, the tool axis there (world frame, unit), shape ``(3,)``;
+  ``axis``, the tool axis of the last pose, shape ``(3,)``. ``pose(point, u)``: the tool
+  axis is the surface normal at the last evaluated point with lead and tilt, and the head's
+  inverse kinematics solve X, Y, Z [m], A, B [rad]; C is held.
+- :class:`ForceWait` (from a ForceControlRecord): force control switching on (seek, ramp up) at
+  the following section's start or off (ramp down, retract) at the last section's end.
+  ``record``; ``on``; ``base``, the section's pose there, shape ``(6,)``; ``axis``, the tool
+  axis there, shape ``(3,)``; ``clear_pose``, ``base`` moved ``standoff`` [m] up the tool axis
+  (where the tool is while force control is off), shape ``(6,)``.
+- :class:`Block` (from a CurveBlock record): ``profile``, the block's S-curve
+  (:class:`~cnc_twin.motion.scurve.SCurve`: duration [s], length [m], speeds [m/s]);
+  ``curve``, the :class:`Curve` or :class:`SurfaceRun` it runs on; ``periods``, its duration
+  in interpolation periods (rounded up).
+
+:func:`slew` moves the time scale ``lambda`` (the running segment's clock rate, 1 = as
+programmed) toward its target as fast as the acceleration limit allows, with the margin
+:data:`SLEW_MARGIN` for the discrete step (see :mod:`cnc_twin.dsp.interpolator`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
+from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.geometry.kinematics import pose_to_axes
+from cnc_twin.geometry.nurbs import NurbsCurve
+from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
+from cnc_twin.geometry.surface_path import SurfacePathEvaluator
+from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, ForceControlRecord, SurfaceCurve, SurfaceGeometry
+
+SLEW_MARGIN = 0.9
+"""fraction of the acceleration limit the time-scale slew (and the stops it plans for) may use"""
+
+
+class Curve:
+    """A curve ready to run: its stepper, and either the held A, B, C or the tool-axis curve with
+    the head geometry for the per-period kinematics (tip + axis -> X, Y, Z, A, B)."""
+
+    def __init__(self, record: CurveGeometry, compiled: bool = True):
+        curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
+        stepper = CompiledCurveStepper if compiled else CurveStepper
+        self.stepper = stepper(curve.span_evaluator(), curve.domain[0])
+        self.hold = tuple(record.hold)
+        self.axis = None
+        if record.axis is not None:
+            ac = record.axis
+            self.axis = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree).span_evaluator()
+            self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
+        end = curve.point(curve.domain[1])[0].tolist()
+        self.end = self.pose(end, curve.domain[1])
+
+    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
+        """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""
+        if self.axis is None:
+            return (point[0], point[1], point[2], *self.hold)
+        x, y, z, a, b = pose_to_axes(point, self.axis.evaluate(u)[0], self.pivot, self.offset)
+        return (x, y, z, a, b, self.hold[2])
+
+
+class Surface:
+    """The surface of the following path sections, ready for per-period evaluation."""
+
+    def __init__(self, record: SurfaceGeometry):
+        self.evaluator: SurfaceSpanEvaluator = NurbsSurface.from_def(record.surface).span_evaluator()
+        self.lead, self.tilt = record.lead, record.tilt
+        self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
+
+
+class SurfaceRun:
+    """One path section on a surface: its stepper, the tool axis along the surface normal (with
+    lead and tilt), the kinematics per period. ``axis`` is the tool axis of the last pose."""
+
+    def __init__(self, surface: Surface, section: SurfaceCurve, c_hold: float):
+        c = section.curve
+        uv = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
+        self.surface = surface
+        self.evaluator = SurfacePathEvaluator(surface.evaluator, uv.span_evaluator())
+        self.c_hold = c_hold
+        t0, t1 = uv.domain
+        self.end = self.pose(self.evaluator.evaluate(t1)[0], t1)
+        self.end_axis = self.axis
+        self.stepper = CurveStepper(self.evaluator, t0)  # evaluates t0 last: the kept tangents are the start's
+        self.start = self.pose(self.stepper.point, t0)
+        self.start_axis = self.axis
+
+    def pose(self, point: list[float], u: float) -> tuple[float, ...]:
+        """Machine position for the tip at ``point``, with the tool axis at the last evaluated point."""
+        sf = self.surface
+        self.axis = self.evaluator.tool_axis(sf.lead, sf.tilt)
+        return (*pose_to_axes(point, self.axis, sf.pivot, sf.offset), self.c_hold)
+
+
+class ForceWait:
+    """Force control switching on (seek, ramp) or off (ramp down, retract) at a section's start or
+    end pose; the queue waits until it is done."""
+
+    def __init__(self, record: ForceControlRecord, run: SurfaceRun):
+        self.record = record
+        self.on = record.on
+        self.base = run.start if record.on else run.end
+        self.axis = run.start_axis if record.on else run.end_axis
+        standoff = record.params.standoff
+        # where the tool is when force control is off: standoff above the section's pose
+        self.clear_pose = tuple(p + standoff * n for p, n in zip(self.base[:3], self.axis)) + self.base[3:]
+
+
+class Block:
+    """A queued curve block: the S-curve and the curve (or surface section) it runs on."""
+
+    def __init__(self, record: CurveBlock, curve: "Curve | SurfaceRun", period: float):
+        self.profile = record.profile
+        self.curve = curve
+        self.periods = math.ceil(self.profile.duration / period)
+
+
+def slew(lam: float, target: float, v: float, a: float, a_lim: float, dt: float) -> float:
+    """Move the time scale toward ``target`` as fast as ``|a lam^2 + v lam'| <= a_lim`` allows."""
+    if v <= 1e-12:
+        return target
+    if lam > target:
+        return max(target, lam - SLEW_MARGIN * (a_lim + a * lam * lam) / v * dt)
+    return min(target, lam + SLEW_MARGIN * (a_lim - a * lam * lam) / v * dt)

@@ -1,0 +1,151 @@
+"""Streaming records into the card's FIFO: planned chunks fed in (:class:`Feeder`) and written as
+FIFO space, chunk size and look-ahead allow, with go-back-N on rejects (:class:`Streamer`)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from cnc_twin.planner.job import PlannerJob, plan_for
+from cnc_twin.whiteboard.codec import encode
+from cnc_twin.whiteboard.ports import PcPort
+from cnc_twin.whiteboard.records import CurveBlock, Move, Record
+from cnc_twin.whiteboard.status import DspState
+
+
+class Feeder:
+    """Moves planned chunks into the streamer: in the exchange loop (lockstep) or from a thread.
+
+    Lockstep plans the next chunk only when fewer than ``BACKLOG`` records wait unsent, a decision
+    that depends on the exchange sequence alone, so the stream is the same on every run.
+    """
+
+    BACKLOG = 8
+
+    def __init__(self, job: PlannerJob, streamer: "Streamer"):
+        self.streamer = streamer
+        started = time.perf_counter()
+        self.program = plan_for(job)
+        self.plan_seconds = time.perf_counter() - started
+        self.chunks = self.program.chunks()
+        self.blocks = 0
+        self._lock = threading.Lock()
+        self._ready: list[tuple[list[Record], list[int]]] = []
+        self._done = False
+        self._error: BaseException | None = None
+        self.threaded = not job.lockstep
+        if self.threaded:
+            threading.Thread(target=self._run, name="planner-windows", daemon=True).start()
+
+    def _next(self) -> tuple[list[Record], list[int]] | None:
+        started = time.perf_counter()
+        try:
+            chunk = next(self.chunks)
+        except StopIteration:
+            return None
+        finally:
+            self.plan_seconds += time.perf_counter() - started
+        self.blocks += sum(isinstance(r, (Move, CurveBlock)) for r in chunk[0])
+        return chunk
+
+    def _run(self) -> None:
+        try:
+            while (chunk := self._next()) is not None:
+                with self._lock:
+                    self._ready.append(chunk)
+        except BaseException as exc:  # reported from the exchange loop
+            self._error = exc
+        self._done = True
+
+    def top_up(self) -> None:
+        """Hand planned records to the streamer (planning one chunk now, in lockstep mode)."""
+        if self.threaded:
+            if self._error is not None:
+                raise self._error
+            with self._lock:
+                ready, self._ready = self._ready, []
+            for chunk in ready:
+                self.streamer.add(*chunk)
+            if self._done and not self._ready:
+                self.streamer.complete = True
+            return
+        while not self.streamer.complete and self.streamer.backlog < self.BACKLOG:
+            chunk = self._next()
+            if chunk is None:
+                self.streamer.complete = True
+            else:
+                self.streamer.add(*chunk)
+
+
+class Streamer:
+    """Which records go out in answer to a status. Sequence numbers start at 1.
+
+    Records are added as they are planned (:meth:`add`); ``complete`` is set after the last.
+
+    Parameters
+    ----------
+    chunk_words, lookahead_periods : limits per exchange (0 look-ahead = none).
+    """
+
+    def __init__(self, *, chunk_words: int, lookahead_periods: int):
+        self.encoded: list[np.ndarray] = []
+        self.cumulative: list[int] = [0]
+        self.chunk_words = chunk_words
+        self.lookahead_periods = lookahead_periods
+        self.next_index = 0
+        self.complete = False
+        self._rejected_seen = 0
+        self.retransmitted = 0
+
+    def add(self, records: list[Record], periods: list[int]) -> None:
+        for record, n in zip(records, periods):
+            self.encoded.append(encode(record, len(self.encoded) + 1))
+            self.cumulative.append(self.cumulative[-1] + n)
+
+    @property
+    def backlog(self) -> int:
+        """Records planned and not yet sent."""
+        return len(self.encoded) - self.next_index
+
+    @property
+    def all_sent(self) -> bool:
+        return self.complete and self.next_index >= len(self.encoded)
+
+    def answer(self, status: np.ndarray, port: PcPort, *, corrupt=None) -> int:
+        """Write records for one exchange; returns how many were written."""
+        st = status[0]
+        rejected = int(st["records_rejected"])
+        if rejected != self._rejected_seen:
+            self._rejected_seen = rejected
+            resend_from = int(st["expected_seq"]) - 1
+            self.retransmitted += max(0, self.next_index - resend_from)
+            self.next_index = resend_from
+        # Motion queued on the card, as it reported, plus what is in flight (sent, not yet accepted).
+        # The record after the running one always goes, whatever the look-ahead: a card holding
+        # because it ran dry does not drain its queue, and must not wait for itself.
+        accepted = int(st["expected_seq"]) - 1
+        executed = int(st["last_seq_executed"])
+        on_card = int(st["queued_periods"])
+        budget = self.chunk_words
+        written = 0
+        fifo = port.fifo
+        free = fifo.free()
+        while self.next_index < len(self.encoded):
+            queued = on_card + (self.cumulative[self.next_index] - self.cumulative[accepted])
+            if (self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed + 1
+                    and int(st["state"]) != DspState.FEED_HOLD):  # a card holding for data gets data
+                break
+            words = self.encoded[self.next_index]
+            if len(words) > budget or len(words) > free:
+                break
+            if corrupt is not None:
+                words = corrupt(words)
+            fifo.write(words)
+            budget -= len(words)
+            free -= len(words)
+            self.next_index += 1
+            written += 1
+        return written
+

@@ -1,0 +1,242 @@
+"""The run's clock: interpolation periods on simulated time, until the program ends.
+
+One period, the path every period takes::
+
+    stop here? (time limit -> a controlled stop first; a stop request -> now)
+    real time: wait for the period's wall-clock start
+    injected faults due now (if any)
+    card's task:   dsp.begin_period(k)           # supervisor, exchange, records, state, setpoint
+    servo ticks:   ticks_per_period x (servo tick -> volts -> plant.step(substeps) -> record)
+    after:         removal map (polishing), progress and observer reports
+    program done? (finished; or a fault, then FAULT_LINGER of simulated time at rest)
+
+Where periods differ, the variants are named:
+
+- **hung card** (:meth:`Clock.hung_period`, fault ``dsp_hang``): no task, no servo interrupt;
+  the plant steps on with the DACs held and the watchdog counts the missed ticks;
+- **batch** (:class:`cnc_twin.run.period_kernel.PeriodBatch`): lockstep and solo, in the steady
+  middle of a curve block, a move or a dwell, up to 64 whole periods (task and ticks) in one
+  compiled call; it ends before any period that would do anything else, which then takes the
+  path above;
+- the servo ticks, one of (:meth:`Clock.servo_ticks` picks):
+  **compiled** (analog output, drives on, no injected card fault: the four ticks with their
+  physics and recording in one call, :mod:`cnc_twin.run.servo_kernel`), **drives off** (a stop
+  disabled the amplifiers), **analog** (the Python reference servo) or **pulse** (step pulses
+  into the amplifiers' position loops).
+
+The compiled variants give the same trace bit for bit as the Python reference
+(``tests/test_servo_kernel.py``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from cnc_twin.dsp.supervisor import STOP_DISABLE
+from cnc_twin.dsp.task import DspTask
+from cnc_twin.trace.recorder import Recorder
+from cnc_twin.whiteboard.status import DspState, FaultCode
+
+if TYPE_CHECKING:
+    from cnc_twin.run.twin import Twin
+
+ProgressCallback = Callable[[int, int], None]
+"""called as ``progress(periods_done, periods_expected)`` a few hundred times per run"""
+
+FAULT_LINGER = 0.05
+"""simulated time recorded after a fault brought the machine to rest [s]"""
+STOP_ALLOWANCE = 5.0
+"""simulated time a stop after the run's time limit may take to reach rest [s]"""
+REPORTS_PER_RUN = 200
+"""progress and observer reports per run (batches end at report periods when someone listens)"""
+
+
+class Clock:
+    """Runs ``twin``'s periods with the card's task ``dsp``; ``planned`` is the program's length
+    as the planner announced it [periods]. Sets ``twin.recorder`` (read by observers during the
+    run), ``twin.period_batch``, ``twin.expected_periods``, ``twin.late_periods`` and
+    ``twin.missed_ticks``."""
+
+    def __init__(self, twin: Twin, dsp: DspTask, planned: int, progress: ProgressCallback | None):
+        self.twin, self.dsp, self.progress = twin, dsp, progress
+        sc = twin.scenario
+        timing = sc.timing
+        self.period_s = timing.interpolation_period
+        self.max_time = sc.max_time if sc.max_time is not None else 2.0 * planned * self.period_s + 5.0
+        self.max_periods = max(1, round(self.max_time / self.period_s))
+        self.ticks_per_period = timing.ticks_per_period
+        self.substeps = timing.substeps_per_tick
+        self.realtime = timing.mode == "realtime"
+        twin.expected_periods = planned + 1
+        self.report_every = max(1, twin.expected_periods // REPORTS_PER_RUN)
+        twin.recorder = self.recorder = Recorder(planned + 2, self.ticks_per_period, scratch=not twin.record)
+        twin.late_periods = twin.missed_ticks = 0
+        # the steady middle of curve blocks, moves and dwells, many periods per compiled call
+        # (lockstep only: real time paces every period; not for surfaces: the removal map
+        # updates between periods)
+        twin.period_batch = self.batch = None
+        if twin.kernel is not None and twin.batch and not self.realtime and twin.removal is None:
+            from cnc_twin.run.period_kernel import PeriodBatch
+
+            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder)
+            self.batch.warm_up()
+
+    def run(self) -> tuple[float, int]:
+        """Run to the end; returns (wall time of the loop [s], periods run)."""
+        twin, dsp, recorder, batch = self.twin, self.dsp, self.recorder, self.batch
+        kernel, injector, removal = twin.kernel, twin.injector, twin.removal
+        frame, first_period_field = twin.servo.frame, twin.servo.period_slot
+        record_period = recorder.record_period
+        tpp, period_s, report_every = self.ticks_per_period, self.period_s, self.report_every
+        removal_every = removal.every if removal is not None else 0
+        reporting = self.progress is not None or twin.observer is not None  # batches stop at reports
+        linger = round(FAULT_LINGER / period_s)
+        room = recorder.room
+        timed_out = False
+        k = t = 0
+        wall_start = time.perf_counter()
+        while True:
+            if k >= self.max_periods:
+                if timed_out:  # the stop after the time limit did not come to rest either
+                    break
+                # A controlled stop, run to rest like any fault's (within STOP_ALLOWANCE).
+                dsp.raise_fault(FaultCode.RUN_TIMEOUT, f"program not finished after {self.max_time:g} s simulated", k)
+                timed_out = True
+                self.max_periods = k + round(STOP_ALLOWANCE / period_s)
+            if twin.stop_reason is not None:
+                break
+            if self.realtime:
+                self.pace(wall_start + k * period_s)
+            if t + tpp > room:
+                recorder.grow()
+                room = recorder.room
+            if injector is not None and k >= injector.next_period:
+                injector.begin_period(k)
+            if injector is not None and injector.hang_ticks:  # variant: hung card
+                if kernel is not None:
+                    kernel.store()
+                record_period(k, frame, first_period_field)
+                t = self.hung_period(k, t)
+                k += 1
+                continue
+            if batch is not None:  # variant: many whole periods in one compiled call
+                ran = batch.run(k, t, min(self.max_periods - k, (room - t) // tpp,
+                                          report_every - k % report_every if reporting else self.max_periods))
+                if ran:
+                    k += ran
+                    t += ran * tpp
+                    if k % report_every == 0:
+                        self.report(k, t)
+                    continue
+            dsp.begin_period(k)
+            record_period(k, frame, first_period_field)
+            t = self.servo_ticks(t)
+            k += 1
+            if removal_every and k % removal_every == 0:
+                removal.update()
+            if k % report_every == 0:
+                self.report(k, t)
+            if dsp.done:
+                if dsp.state == DspState.FINISHED:
+                    break
+                linger -= 1
+                if linger < 0:
+                    break
+        wall_time = time.perf_counter() - wall_start
+        recorder.count = t
+        if kernel is not None:
+            kernel.store()  # the metrics read the DACs' saturation counts
+        if self.progress is not None and twin.stop_reason is None:
+            self.progress(twin.expected_periods, twin.expected_periods)
+        return wall_time, k
+
+    def servo_ticks(self, t: int) -> int:
+        """The period's servo ticks from tick ``t``, each with its physics steps and recorded row,
+        by the variant that applies now; returns the next tick."""
+        twin = self.twin
+        kernel = twin.kernel
+        if kernel is not None and self.dsp.drives_enabled:  # variant: compiled
+            kernel.load()
+            kernel.run_period(self.recorder, t)
+            return t + self.ticks_per_period
+        if kernel is not None:
+            kernel.store()
+        plant, servo, record_tick, frame = twin.plant, twin.servo, self.recorder.record_tick, twin.servo.frame
+        axis_positions, pad_force, apply_volts, step = plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step
+        substeps = self.substeps
+        if not self.dsp.drives_enabled:  # variant: drives off
+            twin.drives_off()  # at the first such period: the stop just disabled them
+            tick = servo.tick_disabled
+            for j in range(self.ticks_per_period):
+                apply_volts(tick(j, axis_positions(), pad_force()))
+                step(substeps)
+                record_tick(t, frame)
+                t += 1
+        elif twin.drives is None:  # variant: analog, the Python reference servo
+            tick = servo.tick
+            for j in range(self.ticks_per_period):
+                apply_volts(tick(j, axis_positions(), pad_force()))
+                step(substeps)
+                record_tick(t, frame)
+                t += 1
+        else:  # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
+            tick_pulses, drive = servo.tick_pulses, twin.drives.update
+            for j in range(self.ticks_per_period):
+                positions = axis_positions()
+                apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
+                step(substeps)
+                record_tick(t, frame)
+                t += 1
+        return t
+
+    def hung_period(self, k: int, t: int) -> int:
+        """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
+        their last output; the encoder counters run on (recorded, so the trace shows the drift).
+        The watchdog disables the drives once the task has missed ``watchdog`` seconds of ticks."""
+        twin, dsp = self.twin, self.dsp
+        sc, plant, servo, injector = twin.scenario, twin.plant, twin.servo, twin.injector
+        timing = sc.timing
+        n = servo.n_axes
+        frame = servo.frame
+        watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
+        for _ in range(timing.ticks_per_period):
+            plant.step(timing.substeps_per_tick)
+            if injector.hang_ticks:  # once it is over, the task runs again from the next period
+                injector.hang_ticks -= 1
+                twin.missed_ticks += 1
+                if watchdog_ticks and twin.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
+                    # the watchdog resets the card; the amplifiers lose their enable at once
+                    twin.drives_off()
+                    dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
+                                    k, stop=STOP_DISABLE)
+                    injector.hang_ticks = 0
+            positions = plant.axis_positions()
+            for i, encoder in enumerate(servo.encoders):
+                frame[n + i] = encoder.sample(positions[i])
+            self.recorder.record_tick(t, frame)
+            t += 1
+        if not injector.hang_ticks:
+            twin.missed_ticks = 0
+        return t
+
+    def report(self, k: int, t: int) -> None:
+        """Progress and the observer, a few hundred times per run (``k`` periods, ``t`` ticks done)."""
+        twin = self.twin
+        if self.progress is not None:
+            self.progress(min(k, twin.expected_periods), twin.expected_periods)
+        if twin.observer is not None:
+            self.recorder.count = t
+            twin.observer(twin)
+
+    def pace(self, deadline: float) -> None:
+        """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
+        now = time.perf_counter()
+        if now > deadline + self.period_s:
+            self.twin.late_periods += 1
+            return
+        if deadline - now > 0.0005:
+            time.sleep(deadline - now - 0.0003)
+        while time.perf_counter() < deadline:
+            pass

@@ -1,0 +1,43 @@
+"""A run's summary figures from its trace: following errors, saturation, force, timing."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cnc_twin.core.axes import AXES
+from cnc_twin.core.config import Scenario
+from cnc_twin.trace.trace import Trace
+
+
+def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_saturations: list[int],
+                    warnings: dict[str, int], final_error_ticks: int = 1) -> dict[str, Any]:
+    """Summary figures of a run; following errors in counts and in mm / deg."""
+    sim_time = float(len(trace)) * scenario.timing.servo_period
+    ferr: dict[str, Any] = {}
+    final: dict[str, Any] = {}
+    for i, cfg in enumerate(scenario.axes):
+        e = trace.following_error[:, i]
+        to_user = cfg.display_factor / cfg.counts_per_unit
+        max_c = float(np.max(np.abs(e))) if len(e) else 0.0
+        rms_c = float(np.sqrt(np.mean(e * e))) if len(e) else 0.0
+        ferr[cfg.name] = {"max_counts": max_c, "rms_counts": rms_c, "max": max_c * to_user,
+                          "rms": rms_c * to_user, "unit": cfg.display_unit}
+        last = float(e[-final_error_ticks:].mean()) if len(e) else 0.0
+        final[cfg.name] = {"counts": last, "value": last * to_user, "unit": cfg.display_unit}
+    return {
+        "scenario": scenario.name,
+        "status": "complete",
+        "sim_time_s": sim_time,
+        "wall_time_s": wall_time,
+        "real_time_factor": sim_time / wall_time if wall_time > 0 else math.inf,
+        "servo_ticks": len(trace),
+        "physics_steps": len(trace) * scenario.timing.substeps_per_tick,
+        "following_error": ferr,
+        "final_following_error": final,
+        "dac_saturation_ticks": dict(zip(AXES, dac_saturations)),
+        "pad_force_max_n": float(np.max(trace.pad_force)) if len(trace) else 0.0,
+        "mujoco_warnings": warnings,
+    }

@@ -1,0 +1,203 @@
+"""What each kind of program brings to a run: its plant, its process models, its metrics.
+
+The twin's wiring asks :func:`kind_of` once and calls the kind's hooks; it never branches on the
+program's type itself. A new kind of program (say, G-code) plugs in here on the run side with one
+:class:`ProgramKind` subclass and one line in :data:`KINDS`, next to its schema
+(:func:`cnc_twin.scenario.load.convert_program`'s table) and its plan
+(:func:`cnc_twin.planner.job.plan_for`).
+
+Hooks, each with a default that serves a point-to-point program:
+
+- :meth:`ProgramKind.build_plant`: the MuJoCo plant (and, for a surface, the workpiece's collision
+  tiles and the removal map);
+- ``referenced``: whether the axes count as referenced at power-on (the motion chip homes them);
+- :meth:`ProgramKind.stop_time`: the time to stop from the programmed feed, which the planner's
+  look-ahead must always cover on a path program;
+- :meth:`ProgramKind.warm_up`: compile what the run will call, while the planner starts;
+- :meth:`ProgramKind.metrics`: the kind's own figures, added to ``metrics.json``;
+- :meth:`ProgramKind.describe`: one line on what the program does (``cnc-twin validate``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from cnc_twin.core.config import (
+    ContourProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
+)
+from cnc_twin.machine.plant import Plant, add_obstacles, load_model_with_obstacles
+
+if TYPE_CHECKING:  # the twin hands itself to the hooks; typing only, no import at run time
+    from cnc_twin.dsp.task import DspTask
+    from cnc_twin.run.twin import Twin
+    from cnc_twin.trace.trace import Trace
+
+
+class ProgramKind:
+    """The run-side set-up of one kind of program (the defaults serve point-to-point moves)."""
+
+    referenced = True
+    """the axes count as referenced at power-on (soft limits apply from the start)"""
+
+    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+        """The plant for ``twin.scenario`` with the injected collision ``obstacles`` (centre, half
+        sizes [m]) added; may set ``twin.removal`` and ``twin.tiling``."""
+        sc = twin.scenario
+        return Plant(load_model_with_obstacles(sc.model_file, obstacles), timestep=sc.timing.physics_timestep)
+
+    def stop_time(self, program) -> float | None:
+        """Time to stop from the programmed feed, jerk-limited [s]; None for programs without a
+        path feed (the look-ahead is then what the scenario says)."""
+        return None
+
+    def warm_up(self, twin: Twin) -> None:
+        """Compile (or load) what the run will call; runs while the planner starts."""
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        """The kind's own entries for ``metrics.json``."""
+        return {}
+
+    def describe(self, program) -> str:
+        """One line on what the program does."""
+        return f"{len(program.moves)} moves"
+
+
+class _PathKind(ProgramKind):
+    """A program with a programmed path feed: the look-ahead must cover a stop from it."""
+
+    def stop_time(self, program) -> float:
+        lim = program.limits
+        a, j = lim.tangential_acceleration, lim.tangential_jerk
+        return lim.feed / a + a / j
+
+
+class CurveKind(_PathKind):
+    """A NURBS curve: the compiled stepper, and the path metrics from the trace."""
+
+    def warm_up(self, twin: Twin) -> None:
+        if twin.interpolator.compiled:
+            from cnc_twin.dsp import curve_kernel
+
+            curve_kernel.warm_up()
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        from cnc_twin.run.path_metrics import path_metrics
+
+        return {"path": path_metrics(trace, twin.scenario, interpolator_ns=np.asarray(dsp.interpolator_ns),
+                                     plan_us=twin.plan_us, plan_blocks=twin.plan_blocks)}
+
+    def describe(self, program: NurbsProgram) -> str:
+        return f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points"
+
+
+class ContourKind(_PathKind):
+    """Lines and arcs, run pass by pass with each interpolation method: per-pass contour metrics."""
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        from cnc_twin.run.contour_metrics import contour_metrics
+
+        return {"contour": contour_metrics(trace, twin.scenario)}
+
+    def describe(self, program: ContourProgram) -> str:
+        return (f"contour of {len(program.elements)} element(s), {len(program.methods)} pass(es): "
+                f"{', '.join(program.methods)}")
+
+
+class SurfaceKind(_PathKind):
+    """Polishing a NURBS surface: the workpiece in the plant, the removal map, the force metrics."""
+
+    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+        from cnc_twin.machine.workpiece import build_model
+        from cnc_twin.planner.surface_program import build_surface
+        from cnc_twin.polishing.polish import RemovalTracker
+
+        sc = twin.scenario
+        surface = build_surface(sc.program)
+        model, twin.tiling = build_model(sc.model_file, surface, tile_size=sc.program.surface_tile_size,
+                                         edit=lambda spec: add_obstacles(spec, obstacles))
+        plant = Plant(model, timestep=sc.timing.physics_timestep)
+        twin.removal = RemovalTracker(sc.program, surface, plant.model, plant.data, sc.timing.interpolation_period)
+        return plant
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        from cnc_twin.polishing.polish import force_metrics, preston_by_hand, removal_metrics
+
+        prog = twin.scenario.program
+        return {"polish": {
+            "force": force_metrics(trace, prog),
+            "removal": {**removal_metrics(twin.removal, prog, wall_time),
+                        "preston_by_hand_mm3": preston_by_hand(trace, prog) * 1e9},
+            "collision_tiles": list(twin.tiling.tiles),
+            "tile_hull_gap_mm": twin.tiling.hull_gap * 1e3,
+            "path_length_mm": prog.path_length * 1e3,
+            "sections": len(prog.sections),
+        }}
+
+    def describe(self, program: SurfaceProgram) -> str:
+        s = program.surface
+        return (f"{program.pattern} on a {len(s.control_net)} x {len(s.control_net[0])} NURBS surface, "
+                f"{program.path_length * 1e3:.0f} mm of path in {len(program.sections)} section(s), "
+                f"{program.force.setpoint:g} N")
+
+
+class MotionChipKind(ProgramKind):
+    """Motion-chip commands: the axes are not referenced until the program homes them."""
+
+    referenced = False
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        """The chip's events (motion done, home found, limits) with where each axis was [mm | deg]."""
+        if not dsp.event_log:
+            return {}
+        from cnc_twin.core.axes import AXES
+        from cnc_twin.dsp.chip import EVENT_NAMES
+
+        sc = twin.scenario
+
+        def shown(axis: int, count: int) -> float:  # [mm | deg]
+            cfg = sc.axes[axis]
+            return (count / cfg.counts_per_unit + sc.home[axis]) * cfg.display_factor
+
+        return {"events": [
+            {"time_s": t, "axis": AXES[axis], "event": EVENT_NAMES[code], "count": value,
+             "position": shown(axis, value)}
+            for t, axis, code, value in dsp.event_log]}
+
+    def describe(self, program: MotionChipProgram) -> str:
+        return f"{len(program.commands)} motion-chip command(s), {program.profile} profiles"
+
+
+KINDS: dict[type, ProgramKind] = {
+    PointToPoint: ProgramKind(),
+    NurbsProgram: CurveKind(),
+    ContourProgram: ContourKind(),
+    SurfaceProgram: SurfaceKind(),
+    MotionChipProgram: MotionChipKind(),
+}
+"""the run side of every program kind, by the type of its validated program"""
+
+
+def kind_of(program) -> ProgramKind:
+    """The :class:`ProgramKind` of a validated program (:mod:`cnc_twin.core.config`)."""
+    try:
+        return KINDS[type(program)]
+    except KeyError:
+        raise TypeError(f"no program kind for {type(program).__name__}") from None
+
+
+def lookahead_periods(scenario: Scenario) -> int:
+    """The planner's look-ahead [periods]; 0 = no limit.
+
+    On a path program the card must always hold enough path to stop in, so a look-ahead is never
+    less than twice the time to stop from the programmed feed (jerk-limited).
+    """
+    import math
+
+    period = scenario.timing.interpolation_period
+    periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
+    stop_time = kind_of(scenario.program).stop_time(scenario.program)
+    if periods and stop_time is not None:
+        periods = max(periods, math.ceil(2.0 * stop_time / period))
+    return periods

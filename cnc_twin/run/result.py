@@ -1,0 +1,71 @@
+"""What a run produced (:class:`RunResult`): the trace, the metrics, and how to write them."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cnc_twin.core.config import Scenario
+from cnc_twin.run.run_dir import RECORDING_FILE, write_run_dir
+from cnc_twin.trace.trace import Trace
+
+
+@dataclass
+class RunResult:
+    """What a run produced. Nothing is written to disk unless :meth:`write` is called."""
+
+    scenario: Scenario
+    trace: Trace
+    metrics: dict[str, Any]
+    run_dir: Path | None = field(default=None)
+    model: Any = field(default=None, repr=False)
+    """the compiled MJCF the run used (for exports)"""
+    exchange_latency: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
+    removal: Any = field(default=None, repr=False)
+    """the removal map of a surface polishing run (:class:`cnc_twin.polishing.removal.PrestonModel`)"""
+
+    @property
+    def status(self) -> str:
+        """``complete``, ``fault`` or ``interrupted``."""
+        return self.metrics["status"]
+
+    def dataframe(self):
+        """The trace as a pandas DataFrame (columns as in trace.parquet); needs pandas installed."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
+        return pd.DataFrame(self.trace.columns())
+
+    def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
+        """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
+        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``, exported now.
+
+        ``recording`` may instead be a callable, called once the trace is written, that returns
+        the path of a finished recording of this run to move in (one a
+        :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
+        system), or None to export it now after all."""
+        def extra(folder: Path) -> None:
+            if self.removal is not None:
+                self.removal.save(folder)
+            finished = recording() if callable(recording) else None
+            if finished is not None:
+                os.replace(finished, folder / RECORDING_FILE)
+            elif recording:
+                self.export_rerun(rrd=folder / RECORDING_FILE)
+        self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
+                                     extra=extra)
+        return self.run_dir
+
+    def export_rerun(self, *, rrd: Path | None = None, spawn: bool = False) -> None:
+        """Write a rerun recording of the run and/or open it in a spawned viewer."""
+        from cnc_twin.view.rerun_export import export_run
+
+        export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model,
+                   exchange_latency=self.exchange_latency)

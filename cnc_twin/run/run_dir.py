@@ -1,0 +1,50 @@
+"""The run directory: ``scenario.yaml`` (the file as written), ``trace.parquet``, ``metrics.json``
+and whatever a run adds (the rerun recording, the removal map).
+
+It is written under a hidden temporary name and renamed when complete, so a directory with the
+final name is always whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from cnc_twin.core.config import Scenario
+from cnc_twin.trace.parquet import write_trace
+from cnc_twin.trace.trace import Trace
+
+TRACE_FILE = "trace.parquet"
+METRICS_FILE = "metrics.json"
+SCENARIO_FILE = "scenario.yaml"
+RECORDING_FILE = "recording.rrd"
+
+
+def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: dict[str, Any],
+                  extra=None) -> Path:
+    """Write the run directory atomically: a hidden temporary folder renamed when complete.
+
+    ``extra(folder)`` may add files (the rerun recording) before the rename.
+    """
+    run_dir = Path(run_dir)
+    run_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = run_dir.parent / f".{run_dir.name}.partial-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir()
+    try:
+        (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8")
+        write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+        if extra is not None:
+            extra(tmp)
+        (tmp / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        if run_dir.exists():
+            raise FileExistsError(f"run directory {run_dir} already exists")
+        os.replace(tmp, run_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return run_dir

@@ -1,0 +1,262 @@
+"""The machine's part of a scenario: axes (limits, encoders, servo gains, pulse output), the load
+cell, the three rates, the planner and whiteboard settings; their schema in machinist units and
+their conversion to SI (:mod:`cnc_twin.core.config`).
+
+A machine parameter file (``machine.parameters``, default ``polisher.yaml``) gives every axis's
+limits, encoder and servo gains; a scenario's own ``axes:`` / ``force_sensor:`` keys override any
+of them, key by key.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from cnc_twin.core import units
+from cnc_twin.core.axes import AXES, is_rotary
+from cnc_twin.core.config import AxisConfig, Timing
+from cnc_twin.core.errors import ScenarioError
+from cnc_twin.machine.plant import ModelInfo
+from cnc_twin.scenario.schema_base import KeyedValueError, Strict
+
+
+class EncoderSpec(Strict):
+    """Quadrature encoder on the motor shaft (semi-closed loop)."""
+
+    lines_per_rev: int = Field(gt=0, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
+    gear_ratio: float = Field(1.0, gt=0, description="motor revolutions per screw (linear) or axis (rotary) revolution")
+    pitch: float | None = Field(None, gt=0, description="ball-screw lead [mm per screw revolution]; linear axes only")
+    index_offset: float = Field(0.0, description="where one of the index pulses (one per motor revolution) is [mm | deg]")
+
+
+class ServoSpec(Strict):
+    """Position loop gains in machine terms; the DSP converts them to volts per count."""
+
+    kp: float = Field(ge=0, description="position loop gain [1/s]: commanded speed per unit of following error")
+    ki: float = Field(0.0, ge=0, description="integral gain [1/s^2]")
+    kd: float = Field(0.0, ge=0, description="derivative gain [-]: speed per unit error rate")
+    kvff: float = Field(1.0, ge=0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
+    kaff: float = Field(0.0, ge=0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
+    integrator_limit: float = Field(3.0, ge=0, description="clamp on the integrator's contribution [V]")
+
+
+class PulseSpec(Strict):
+    """Pulse-train output (``command_output: pulse``): the generator's limit and the amplifier
+    in position mode."""
+
+    max_rate: float = Field(500.0, gt=0, description="highest step rate of the card and the drive input [kHz]")
+    position_gain: float = Field(80.0, gt=0, description="the amplifier's position-loop gain [1/s]")
+    velocity_ff: float = Field(1.0, ge=0, le=1.0, description="the amplifier's velocity feed-forward [-]")
+    ff_filter: float = Field(1.0, ge=0, description="feed-forward filter time constant [ms]")
+
+
+class AxisSpec(Strict):
+    """One axis: limits (mm or deg based), encoder, servo gains."""
+
+    max_velocity: float = Field(gt=0, description="[mm/min] linear, [deg/min] rotary")
+    max_acceleration: float = Field(gt=0, description="[mm/s^2] linear, [deg/s^2] rotary")
+    max_jerk: float = Field(gt=0, description="[mm/s^3] linear, [deg/s^3] rotary")
+    encoder: EncoderSpec
+    servo: ServoSpec
+    pulse: PulseSpec = PulseSpec()
+    following_error_limit: float = Field(0.0, ge=0, description="the supervisor's following-error limit [mm | deg]; 0 = off")
+    soft_limits: list[float] | None = Field(None, min_length=2, max_length=2,
+                                            description="[low, high] the supervisor keeps the axis within [mm | deg]; "
+                                                        "default: the hard travel of the MJCF")
+
+    @model_validator(mode="after")
+    def _ordered_limits(self) -> "AxisSpec":
+        if self.soft_limits is not None and not self.soft_limits[0] < self.soft_limits[1]:
+            raise KeyedValueError(("soft_limits",), f"expected [low, high] with low < high, got {self.soft_limits}")
+        return self
+
+
+class AxesSpec(Strict):
+    X: AxisSpec
+    Y: AxisSpec
+    Z: AxisSpec
+    A: AxisSpec
+    B: AxisSpec
+    C: AxisSpec
+
+    @model_validator(mode="after")
+    def _pitch_only_on_linear_axes(self) -> "AxesSpec":
+        for axis in AXES:
+            enc = getattr(self, axis).encoder
+            if is_rotary(axis) and enc.pitch is not None:
+                raise KeyedValueError((axis, "encoder", "pitch"), "rotary axes have no screw pitch; remove the key")
+            if not is_rotary(axis) and enc.pitch is None:
+                raise KeyedValueError((axis, "encoder", "pitch"), "linear axes need the screw pitch [mm/rev]")
+        return self
+
+
+class ForceSensorSpec(Strict):
+    """Load cell between head and pad, read by the DSP's ADC."""
+
+    range: list[float] = Field(min_length=2, max_length=2, description="[N] force at ADC code 0 and at full scale")
+    bits: int = Field(12, ge=8, le=16, description="ADC resolution [bits]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "ForceSensorSpec":
+        if not self.range[0] < self.range[1]:
+            raise KeyedValueError(("range",), f"expected [low, high] with low < high, got {self.range}")
+        return self
+
+
+class MachineParameters(Strict):
+    """A machine parameter file (e.g. ``models/polisher.yaml``)."""
+
+    axes: AxesSpec
+    force_sensor: ForceSensorSpec
+
+
+class TimingSpec(Strict):
+    """The three rates; each period must be an integer multiple of the next."""
+
+    interpolation_period: float = Field(1.0, gt=0, description="PC <-> DSP exchange and interpolation period [ms]")
+    servo_period: float = Field(0.25, gt=0, description="DSP servo interrupt period [ms]")
+    physics_timestep: float = Field(0.25, gt=0, description="MuJoCo timestep [ms]")
+    mode: Literal["lockstep", "realtime"] = Field(
+        "lockstep",
+        description="lockstep: the DSP waits for every exchange (deterministic); "
+        "realtime: the DSP is paced to the wall clock and never waits (late answers are missed exchanges)",
+    )
+
+
+class MachineRef(Strict):
+    model: str = Field("scene.xml", description="MJCF file, relative to the scenario or bundled in models/")
+    parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
+
+
+HEARTBEAT_DEFAULT_MS = {"realtime": 1000.0, "lockstep": 10000.0}
+
+
+class PlannerSpec(Strict):
+    """The PC planner process."""
+
+    lookahead: float = Field(0.0, ge=0, description="motion kept queued on the card ahead of execution [ms]; 0 = no limit")
+    heartbeat_timeout: float | None = Field(
+        None, gt=0, description="wall-clock time without planner heartbeat before it counts as lost [ms]; "
+        "default 1000 in realtime mode, 10000 in lockstep (where the card waits anyway, and a busy machine "
+        "running a sweep must not pass for a hung planner)")
+    start_timeout: float = Field(60.0, gt=0, description="wall-clock time for the planner process to start [s]")
+
+
+class WhiteboardSpec(Strict):
+    """The emulated dual-port RAM."""
+
+    words: int = Field(8192, description="size [16-bit words]; a power of two from 2048 to 32768")
+    chunk: int = Field(4096, ge=64, description="most bytes of records the planner writes per exchange [bytes]")
+
+    @model_validator(mode="after")
+    def _power_of_two(self) -> "WhiteboardSpec":
+        if not (2048 <= self.words <= 32768 and self.words & (self.words - 1) == 0):
+            raise KeyedValueError(("words",), f"expected a power of two from 2048 to 32768, got {self.words}")
+        return self
+
+
+def _whole_multiple(spec: TimingSpec, longer: str, shorter: str, label: Path) -> int:
+    """How many ``shorter`` periods fit in ``longer``; an error unless a whole number >= 1."""
+    numerator, denominator = getattr(spec, longer), getattr(spec, shorter)
+    ratio = numerator / denominator
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= 1e-9 * ratio:
+        return int(nearest)
+    raise ScenarioError(
+        label,
+        f"timing.{shorter}",
+        f"{longer} {numerator} ms must be an integer multiple (>= 1) of {shorter} {denominator} ms",
+    )
+
+
+def convert_timing(spec: TimingSpec, label: Path) -> Timing:
+    ticks = _whole_multiple(spec, "interpolation_period", "servo_period", label)
+    substeps = _whole_multiple(spec, "servo_period", "physics_timestep", label)
+    return Timing(
+        interpolation_period=spec.interpolation_period * units.MS,
+        servo_period=spec.servo_period * units.MS,
+        physics_timestep=spec.physics_timestep * units.MS,
+        ticks_per_period=ticks,
+        substeps_per_tick=substeps,
+        mode=spec.mode,
+    )
+
+
+def _counts_per_unit(axis: str, enc: EncoderSpec) -> float:
+    counts_per_motor_rev = 4.0 * enc.lines_per_rev
+    if is_rotary(axis):
+        return counts_per_motor_rev * enc.gear_ratio / (2.0 * math.pi)
+    return counts_per_motor_rev * enc.gear_ratio / (enc.pitch * units.MM)
+
+
+def _index_period(axis: str, enc: EncoderSpec) -> float:
+    """One motor revolution at the axis [m | rad]: the distance between index pulses."""
+    if is_rotary(axis):
+        return 2.0 * math.pi / enc.gear_ratio
+    return enc.pitch * units.MM / enc.gear_ratio
+
+
+def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConfig, ...]:
+    out = []
+    for i, axis in enumerate(AXES):
+        a: AxisSpec = getattr(spec, axis)
+        rotary = is_rotary(axis)
+        out.append(
+            AxisConfig(
+                name=axis,
+                rotary=rotary,
+                max_velocity=a.max_velocity * units.velocity_factor(rotary),
+                max_acceleration=a.max_acceleration * units.position_factor(rotary),
+                max_jerk=a.max_jerk * units.position_factor(rotary),
+                counts_per_unit=_counts_per_unit(axis, a.encoder),
+                kp=a.servo.kp,
+                ki=a.servo.ki,
+                kd=a.servo.kd,
+                kvff=a.servo.kvff,
+                kaff=a.servo.kaff,
+                output_limit=a.servo.output_limit,
+                integrator_limit=a.servo.integrator_limit,
+                travel=info.travel[i],
+                speed_per_volt=info.speed_per_volt[i],
+                pulse_max_rate=a.pulse.max_rate * 1e3,
+                drive_position_gain=a.pulse.position_gain,
+                drive_velocity_ff=a.pulse.velocity_ff,
+                drive_ff_filter=a.pulse.ff_filter * units.MS,
+                index_period=_index_period(axis, a.encoder),
+                index_offset=a.encoder.index_offset * units.position_factor(rotary),
+                following_error_limit=a.following_error_limit * units.position_factor(rotary),
+                soft_limits=_soft_limits(axis, a, info.travel[i], label),
+            )
+        )
+    return tuple(out)
+
+
+def _soft_limits(axis: str, spec: AxisSpec, travel: tuple[float, float] | None, label: Path
+                 ) -> tuple[float, float] | None:
+    """The soft limits in SI, checked to lie within the hard travel."""
+    if spec.soft_limits is None:
+        return None
+    f = units.position_factor(is_rotary(axis))
+    lo, hi = spec.soft_limits[0] * f, spec.soft_limits[1] * f
+    if travel is not None and not (travel[0] <= lo and hi <= travel[1]):
+        unit = units.position_unit(is_rotary(axis))
+        raise ScenarioError(label, f"axes.{axis}.soft_limits",
+                            f"{spec.soft_limits[0]:g}..{spec.soft_limits[1]:g} {unit} must lie within the "
+                            f"{axis} travel {travel[0] / f:g}..{travel[1] / f:g} {unit}")
+    return lo, hi
+
+
+def check_pulse_rates(axes: tuple[AxisConfig, ...], label: Path) -> None:
+    """Pulse output: every axis's top speed must fit its pulse rate limit (the planner plans up to it)."""
+    for cfg in axes:
+        needed = cfg.max_velocity * cfg.counts_per_unit
+        if needed > cfg.pulse_max_rate * (1.0 + 1e-9):
+            speed = cfg.max_velocity * cfg.display_factor * 60.0
+            raise ScenarioError(label, f"axes.{cfg.name}.pulse.max_rate",
+                                f"{cfg.name}'s max_velocity {speed:g} {cfg.display_unit}/min needs "
+                                f"{needed / 1e3:g} kHz of step pulses; the limit is {cfg.pulse_max_rate / 1e3:g} kHz "
+                                f"(raise it or lower max_velocity)")

@@ -1,0 +1,102 @@
+"""The recorder: signals into preallocated typed columns, one row per servo tick and one per period.
+
+The servo loop writes each tick's signals into the columns and the per-period signals once per
+period; nothing else happens per tick (layout: :mod:`cnc_twin.trace.layout`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cnc_twin.core.axes import AXES
+from cnc_twin.trace.layout import PERIOD_DTYPE
+from cnc_twin.trace.trace import Trace
+
+
+class Recorder:
+    """Preallocated typed columns, one row per servo tick and one per interpolation period.
+
+    Sized for the planned run; :meth:`grow` adds half again when a run takes longer (feed holds,
+    missed exchanges), so a run never stops for lack of room. Every period has
+    ``ticks_per_period`` ticks, so tick ``t`` belongs to period ``t // ticks_per_period``.
+
+    Attributes
+    ----------
+    command : (capacity, 6) float64 [counts]; actual : (capacity, 6) int32 [counts]
+    dac : (capacity, 6) int16 [code]; pad_force : (capacity,) float64 [N]
+    periods : (capacity / ticks_per_period,) structured array of :data:`PERIOD_DTYPE`
+    count : ticks recorded so far
+
+    ``scratch=True`` keeps one period only, rewritten every period (:meth:`row` maps every tick
+    onto it): the same work per tick without the memory, to measure what recording costs
+    (``cnc-twin bench``). It never needs to grow (:attr:`room` is unlimited).
+    """
+
+    def __init__(self, n_periods: int, ticks_per_period: int, n_axes: int = len(AXES), *, scratch: bool = False):
+        self.ticks_per_period = ticks_per_period
+        self.n_axes = n_axes
+        self.count = 0
+        self.scratch = scratch
+        self._allocate(1 if scratch else max(1, n_periods))
+
+    def _allocate(self, n_periods: int) -> None:
+        n = n_periods * self.ticks_per_period
+        self.command = np.zeros((n, self.n_axes), dtype=np.float64)
+        self.actual = np.zeros((n, self.n_axes), dtype=np.int32)
+        self.dac = np.zeros((n, self.n_axes), dtype=np.int16)
+        self.pad_force = np.zeros(n, dtype=np.float64)
+        self.periods = np.zeros(n_periods, dtype=PERIOD_DTYPE)
+
+    @property
+    def capacity(self) -> int:
+        """Ticks the columns hold."""
+        return len(self.pad_force)
+
+    @property
+    def room(self) -> float:
+        """Ticks that can be recorded before :meth:`grow` is needed (unlimited for scratch)."""
+        return math.inf if self.scratch else self.capacity
+
+    def row(self, t: int) -> int:
+        """The row that tick ``t`` is written to."""
+        return t % self.ticks_per_period if self.scratch else t
+
+    def grow(self) -> None:
+        """Enlarge by half (at least 16 periods), keeping what was recorded."""
+        old = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        self._allocate(len(self.periods) + max(16, len(self.periods) // 2))
+        for new, kept in zip((self.command, self.actual, self.dac, self.pad_force, self.periods), old):
+            new[: len(kept)] = kept
+
+    def record_tick(self, t: int, frame: list) -> None:
+        """Row ``t`` from the servo task's ``frame`` (command x6, actual x6, DAC x6, force, ...)."""
+        n = self.n_axes
+        t = self.row(t)
+        self.command[t] = frame[0:n]
+        self.actual[t] = frame[n:2 * n]
+        self.dac[t] = frame[2 * n:3 * n]
+        self.pad_force[t] = frame[3 * n]
+
+    def record_period(self, k: int, frame: list, first: int) -> None:
+        """Period ``k``'s signals from ``frame[first:]`` (the per-period fields)."""
+        self.periods[0 if self.scratch else k] = tuple(frame[first:])
+
+    def trace(self, *, servo_period: float, counts_per_unit: np.ndarray, copy: bool) -> Trace:
+        """The ``count`` ticks recorded as a :class:`Trace`: copies (``copy=True``, for a run in
+        progress), else views, or copies when the run used less than :data:`KEEP_FRACTION` of the
+        room (so a trace never holds much more memory than its signals)."""
+        n = min(self.count, self.capacity)  # a scratch recorder holds the last period only
+        periods = -(-n // self.ticks_per_period)
+        copy = copy or n < KEEP_FRACTION * self.capacity
+        take = (lambda a, m: a[:m].copy()) if copy else (lambda a, m: a[:m])
+        return Trace(command=take(self.command, n), actual=take(self.actual, n), dac=take(self.dac, n),
+                     pad_force=take(self.pad_force, n), periods=take(self.periods, periods),
+                     servo_period=servo_period, ticks_per_period=self.ticks_per_period,
+                     counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64))
+
+
+KEEP_FRACTION = 0.9
+"""a finished run's trace keeps the recorder's columns (views) when it filled at least this
+fraction of them; otherwise it copies what was recorded and the recorder's room is freed"""

@@ -1,0 +1,160 @@
+"""A run's recorded signals as arrays (:class:`Trace`), and the per-period samples an export reads.
+
+Each signal is kept at its natural width and rate (:data:`~cnc_twin.trace.layout.TICK_BYTES`,
+:data:`~cnc_twin.trace.layout.PERIOD_DTYPE`), so a trace's memory is the raw bytes of what was
+recorded; ``time``, ``period``, ``ferr`` and the per-tick view of the per-period signals are
+computed when asked for.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.core.axes import AXES
+from cnc_twin.dsp.servo import PERIOD_FIELDS
+from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES
+
+
+class PeriodSignals(Mapping):
+    """The per-period signals, one value per servo tick on access (``signals["state"]``: (n,));
+    stored once per period. Integer fields come out as int64, the others as float64."""
+
+    def __init__(self, periods: np.ndarray, ticks_per_period: int, n_ticks: int):
+        self._periods = periods
+        self._tpp = ticks_per_period
+        self._n = n_ticks
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        values = self._periods[name]
+        dtype = np.float64 if name in FLOAT_PERIOD_FIELDS else np.int64
+        return np.repeat(values.astype(dtype), self._tpp)[: self._n]
+
+    def per_period(self, name: str) -> np.ndarray:
+        """``name`` once per period, shape ``(periods,)``, at its stored width (a view)."""
+        return self._periods[name]
+
+    def __iter__(self):
+        return iter(PERIOD_FIELDS)
+
+    def __len__(self) -> int:
+        return len(PERIOD_FIELDS)
+
+
+@dataclass
+class Trace:
+    """The recorded signals as arrays. ``n`` = number of servo ticks.
+
+    Stored (see :data:`TICK_BYTES`, :data:`PERIOD_DTYPE`):
+    command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 codes;
+    pad_force : (n,) [N]; periods : per-period signals, structured, one row per period;
+    counts_per_unit : (6,) counts per m or rad, to convert counts to SI.
+
+    Computed on access: ``time`` (n,) [s], ``period`` (n,) int64, ``following_error`` (n, 6)
+    [counts], ``period_signals`` (per tick, see :class:`PeriodSignals`).
+    """
+
+    command: np.ndarray
+    actual: np.ndarray
+    dac: np.ndarray
+    pad_force: np.ndarray
+    periods: np.ndarray
+    servo_period: float
+    ticks_per_period: int
+    counts_per_unit: np.ndarray
+
+    @property
+    def time(self) -> np.ndarray:
+        """Simulated time at which each tick sampled its inputs [s], shape ``(n,)``."""
+        return np.arange(len(self), dtype=np.int64) * self.servo_period
+
+    @property
+    def period(self) -> np.ndarray:
+        """Interpolation period of each tick, shape ``(n,)`` int64."""
+        return np.arange(len(self), dtype=np.int64) // self.ticks_per_period
+
+    @property
+    def following_error(self) -> np.ndarray:
+        """command - actual [counts], shape ``(n, 6)``."""
+        return self.command - self.actual
+
+    @property
+    def period_signals(self) -> PeriodSignals:
+        """The per-period signals, per tick on access."""
+        return PeriodSignals(self.periods, self.ticks_per_period, len(self))
+
+    def __len__(self) -> int:
+        return len(self.pad_force)
+
+    @property
+    def whole_periods(self) -> int:
+        """Periods recorded whole (every tick of them)."""
+        return len(self) // self.ticks_per_period
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Flat named columns (see the module table)."""
+        cols: dict[str, np.ndarray] = {"time": self.time, "period": self.period}
+        for prefix, array in (("command", self.command), ("actual", self.actual),
+                              ("ferr", self.following_error), ("dac", self.dac)):
+            for i, axis in enumerate(AXES):
+                cols[f"{prefix}_{axis}"] = array[:, i]
+        cols["pad_force"] = self.pad_force
+        cols.update(self.period_signals)
+        return cols
+
+    def nbytes(self) -> int:
+        """Bytes the stored signals take (views count their part of the recorder's columns)."""
+        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods))
+
+    def raw_nbytes(self) -> int:
+        """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick and one
+        :data:`PERIOD_DTYPE` per period."""
+        return len(self) * TICK_BYTES + len(self.periods) * PERIOD_DTYPE.itemsize
+
+    def held_nbytes(self) -> int:
+        """Bytes of memory the trace keeps alive (whole recorder columns when it holds views)."""
+        arrays = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        return sum((a.base if a.base is not None else a).nbytes for a in arrays)
+
+
+@dataclass
+class PeriodSamples:
+    """The recorded signals at the last tick of periods ``first .. first + n - 1``: all that an
+    export reads of a run (``n`` whole periods).
+
+    command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 [code];
+    pad_force : (n,) float64 [N]; periods : (n,) :data:`PERIOD_DTYPE`.
+    """
+
+    first: int
+    command: np.ndarray
+    actual: np.ndarray
+    dac: np.ndarray
+    pad_force: np.ndarray
+    periods: np.ndarray
+
+    @classmethod
+    def take(cls, source, first: int, stop: int) -> "PeriodSamples":
+        """Periods ``first .. stop - 1`` from a :class:`Trace` or a :class:`Recorder` (same
+        column names), copied."""
+        tpp = source.ticks_per_period
+        ticks = np.arange(first, stop) * tpp + (tpp - 1)
+        return cls(first=first, command=source.command[ticks], actual=source.actual[ticks],
+                   dac=source.dac[ticks], pad_force=source.pad_force[ticks],
+                   periods=source.periods[first:stop].copy())
+
+    @classmethod
+    def join(cls, parts: list["PeriodSamples"]) -> "PeriodSamples":
+        """Consecutive stretches as one."""
+        if len(parts) == 1:
+            return parts[0]
+        for a, b in zip(parts, parts[1:]):
+            if b.first != a.first + len(a):
+                raise ValueError(f"stretches not consecutive: periods {a.first}+{len(a)} then {b.first}")
+        return cls(first=parts[0].first, **{name: np.concatenate([getattr(p, name) for p in parts])
+                                            for name in ("command", "actual", "dac", "pad_force", "periods")})
+
+    def __len__(self) -> int:
+        return len(self.pad_force)
