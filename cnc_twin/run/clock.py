@@ -166,22 +166,8 @@ class Clock:
         plant, servo, record_tick, frame = twin.plant, twin.servo, self.recorder.record_tick, twin.servo.frame
         axis_positions, pad_force, apply_volts, step = plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step
         substeps = self.substeps
-        if not self.dsp.drives_enabled:  # variant: drives off
-            twin.drives_off()  # at the first such period: the stop just disabled them
-            tick = servo.tick_disabled
-            for j in range(self.ticks_per_period):
-                apply_volts(tick(j, axis_positions(), pad_force()))
-                step(substeps)
-                record_tick(t, frame)
-                t += 1
-        elif twin.drives is None:  # variant: analog, the Python reference servo
-            tick = servo.tick
-            for j in range(self.ticks_per_period):
-                apply_volts(tick(j, axis_positions(), pad_force()))
-                step(substeps)
-                record_tick(t, frame)
-                t += 1
-        else:  # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
+        if self.dsp.drives_enabled and twin.drives is not None:
+            # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
             tick_pulses, drive = servo.tick_pulses, twin.drives.update
             for j in range(self.ticks_per_period):
                 positions = axis_positions()
@@ -189,6 +175,17 @@ class Clock:
                 step(substeps)
                 record_tick(t, frame)
                 t += 1
+            return t
+        if self.dsp.drives_enabled:  # variant: analog, the Python reference servo
+            tick = servo.tick
+        else:  # variant: drives off
+            twin.drives_off()  # at the first such period: the stop just disabled them
+            tick = servo.tick_disabled
+        for j in range(self.ticks_per_period):
+            apply_volts(tick(j, axis_positions(), pad_force()))
+            step(substeps)
+            record_tick(t, frame)
+            t += 1
         return t
 
     def hung_period(self, k: int, t: int) -> int:
