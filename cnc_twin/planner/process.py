@@ -1,7 +1,8 @@
 """The PC planner as its own OS process: plan, encode, stream records through the whiteboard.
 
 ``planner_main`` does one run's work; :func:`serve` runs one run after another in the process
-that :mod:`cnc_twin.planner.launch` starts (``python -m cnc_twin.planner.process --serve``). Per DSP status it writes as many records as fit (:mod:`cnc_twin.planner.stream`), bounded by
+that :mod:`cnc_twin.planner.launch` starts (``python -m cnc_twin.planner.process --serve``).
+Per DSP status it writes as many records as fit (:mod:`cnc_twin.planner.stream`), bounded by
 
 - the free FIFO space,
 - the chunk size (the card takes 4 KB per mailbox interrupt),
