@@ -402,6 +402,9 @@ def summary_table(metrics: dict) -> str:
             f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
             f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
         )
+    for v in (path or {}).get("limit_violations", []):
+        lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
+                     f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
     if metrics.get("contour"):
         from cnc_twin.run.contour_metrics import format_passes
 

@@ -150,14 +150,21 @@ def _local_minima(limit: np.ndarray, feed: float) -> list[int]:
 
 
 def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_b: float,
-                limits: PathLimits, max_rounds: int, a_t: float, j_t: float) -> tuple[list[SCurve], list[int], list[float]]:
-    """Plan samples a..b from speed v_a to v_b: (blocks, critical indices, critical speeds)."""
+                limits: PathLimits, a_t: float, j_t: float) -> tuple[list[SCurve], list[int], list[float]]:
+    """Plan samples a..b from speed v_a to v_b: (blocks, critical indices, critical speeds).
+
+    Each round plans every block between critical points, then makes the sample where each block
+    most exceeds the limit curve a critical point too. A violation is never at a critical point
+    (each block starts and ends at or below the limit there), so the critical set grows every
+    round and the loop ends after at most ``b - a`` rounds: with every sample critical, no block
+    can exceed the limit at a sample.
+    """
     inner = [a + j for j in _local_minima(limit[a:b + 1], limits.feed)]
     critical = sorted({a, b, *inner})
     # A round re-plans every block, but a new critical point changes only the speeds near it:
     # blocks with the same ends and speeds as in an earlier round are taken from here.
     planned: dict[tuple, tuple[SCurve, int | None]] = {}
-    for _ in range(max_rounds):
+    while True:
         speeds = [v_a if j == a else v_b if j == b else float(limit[j]) for j in critical]
         lengths = [float(s[q] - s[p]) for p, q in zip(critical[:-1], critical[1:])]
         for i in range(len(lengths)):  # forward scan
@@ -165,7 +172,7 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
         for i in range(len(lengths) - 1, -1, -1):  # backward scan
             speeds[i] = min(speeds[i], reachable(speeds[i + 1], lengths[i], a_t, j_t, speeds[i]))
         blocks = []
-        violation = None
+        violations = set()
         for i, (p, q) in enumerate(zip(critical[:-1], critical[1:])):
             key = (p, q, speeds[i], speeds[i + 1])
             if key not in planned:
@@ -175,12 +182,19 @@ def _plan_range(s: np.ndarray, limit: np.ndarray, a: int, b: int, v_a: float, v_
                 planned[key] = (block, _worst_excess(block, s[p:q + 1] - s[p], limit[p:q + 1]))
             block, worst = planned[key]
             blocks.append(block)
-            if worst is not None and violation is None:
-                violation = p + worst
-        if violation is None:
+            if worst is not None:
+                violations.add(p + worst)
+        if not violations:
             return blocks, critical, speeds
-        critical = sorted(set(critical) | {violation})
-    raise RuntimeError(f"feed planning did not converge in {max_rounds} rounds")
+        grown = set(critical) | violations
+        if len(grown) == len(critical):  # cannot happen (see above); never loop for ever
+            raise FeedPlanningError(f"the feed plan exceeds the limit at a critical point "
+                                    f"(s = {s[min(violations)] * 1e3:.3f} mm)")
+        critical = sorted(grown)
+
+
+class FeedPlanningError(RuntimeError):
+    """The planner could not plan a feed that keeps the limits (a bug if it ever happens)."""
 
 
 @dataclass(frozen=True)
@@ -201,7 +215,7 @@ def _sample(curve: NurbsCurve, limits: PathLimits, period: float, axis_path, axi
     return _Samples(u, s, feed_limit(curve, u, s, limits, period, axis_q, axis_limits, a_t=a_t), a_t, j_t)
 
 
-def _windows(sm: _Samples, limits: PathLimits, window: float, max_rounds: int):
+def _windows(sm: _Samples, limits: PathLimits, window: float):
     s, limit, a_t, j_t = sm.s, sm.limit, sm.a_t, sm.j_t
     stop = ramp_distance(limits.feed, 0.0, a_t, j_t)
     last = len(s) - 1
@@ -209,7 +223,7 @@ def _windows(sm: _Samples, limits: PathLimits, window: float, max_rounds: int):
     span = max(window, 3.0 * stop)
     while True:
         b = min(last, int(np.searchsorted(s, s[a] + span)))
-        blocks, critical, speeds = _plan_range(s, limit, a, b, v_a, 0.0, limits, max_rounds, a_t, j_t)
+        blocks, critical, speeds = _plan_range(s, limit, a, b, v_a, 0.0, limits, a_t, j_t)
         if b == last:
             yield blocks
             return
@@ -223,7 +237,7 @@ def _windows(sm: _Samples, limits: PathLimits, window: float, max_rounds: int):
 
 
 def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
-                      max_rounds: int = 200, axis_path=None, axis_limits=None):
+                      axis_path=None, axis_limits=None):
     """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
 
     Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
@@ -231,11 +245,11 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     unaffected by that forced stop (the backward scan cannot reach them), so they are final and
     identical to a whole-curve plan's; the next window starts there at the committed speed.
     """
-    yield from _windows(_sample(curve, limits, period, axis_path, axis_limits), limits, window, max_rounds)
+    yield from _windows(_sample(curve, limits, period, axis_path, axis_limits), limits, window)
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
-              max_rounds: int = 200, axis_path=None, axis_limits=None) -> FeedPlan:
+              axis_path=None, axis_limits=None) -> FeedPlan:
     """Plan the whole curve from rest to rest (in windows when ``window`` is given [m]).
 
     ``axis_path(u) -> (N, k)`` and ``axis_limits`` plan against the machine axes after
@@ -243,9 +257,9 @@ def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: f
     """
     sm = _sample(curve, limits, period, axis_path, axis_limits)
     if window is None:
-        blocks = _plan_range(sm.s, sm.limit, 0, len(sm.s) - 1, 0.0, 0.0, limits, max_rounds, sm.a_t, sm.j_t)[0]
+        blocks = _plan_range(sm.s, sm.limit, 0, len(sm.s) - 1, 0.0, 0.0, limits, sm.a_t, sm.j_t)[0]
     else:
-        blocks = [b for chunk in _windows(sm, limits, window, max_rounds) for b in chunk]
+        blocks = [b for chunk in _windows(sm, limits, window) for b in chunk]
     return FeedPlan(blocks=tuple(blocks), s=sm.s, u=sm.u, limit=sm.limit)
 
 

@@ -9,7 +9,8 @@ length commanded ``ds_k``; positions come from the commanded and encoder counts.
 - chord error: largest distance of the curve between ``u_{k-1}`` and ``u_k`` from the chord
   between the commanded points, by dense sampling;
 - axis velocity / acceleration / jerk: finite differences of the commanded X/Y/Z per period,
-  against each axis's limits;
+  against each axis's limits (peak, limit, ratio); any ratio above :data:`LIMIT_TOLERANCE` is
+  listed in ``limit_violations`` with the axis and the time;
 - contour error: distance of the actual tool tip (encoders, through the kinematics) from the
   ideal curve, per period: nearest of dense curve samples (KD-tree), refined on the segment to its
   neighbours.
@@ -32,6 +33,9 @@ from cnc_twin.geometry.tip_path import tip_curve
 from cnc_twin.trace.trace import Trace
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+
+LIMIT_TOLERANCE = 1.01
+"""a commanded axis peak above this multiple of its limit is reported as a violation"""
 
 
 def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarray:
@@ -110,12 +114,25 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     v = np.diff(pos, axis=0) / T
     acc = np.diff(v, axis=0) / T
     jerk = np.diff(acc, axis=0) / T
-    out["axis_peaks"] = {
-        name: {"velocity": float(np.abs(v[:, i]).max()), "velocity_limit": limits[i][0],
-               "acceleration": float(np.abs(acc[:, i]).max()), "acceleration_limit": limits[i][1],
-               "jerk": float(np.abs(jerk[:, i]).max()), "jerk_limit": limits[i][2]}
-        for i, name in enumerate(names)
-    }
+    # the period a difference belongs to: v[k] spans periods first+k .. first+k+1 (and so on)
+    first = seg[0] - 1
+    out["axis_peaks"] = {}
+    violations = []
+    for i, name in enumerate(names):
+        peaks = {}
+        for quantity, series, limit, lag in (("velocity", v, limits[i][0], 1), ("acceleration", acc, limits[i][1], 1),
+                                             ("jerk", jerk, limits[i][2], 2)):
+            k = int(np.argmax(np.abs(series[:, i])))
+            peak = float(abs(series[k, i]))
+            ratio = peak / limit if limit > 0 else 0.0
+            peaks.update({quantity: peak, f"{quantity}_limit": limit, f"{quantity}_ratio": ratio})
+            if ratio > LIMIT_TOLERANCE:
+                violations.append({"axis": name, "quantity": quantity, "peak": peak, "limit": limit, "ratio": ratio,
+                                   "time_s": (first + k + lag) * T})
+        out["axis_peaks"][name] = peaks
+    out["axis_peaks_units"] = {"velocity": "m/s | rad/s", "acceleration": "m/s^2 | rad/s^2",
+                               "jerk": "m/s^3 | rad/s^3"}
+    out["limit_violations"] = violations
     poly = curve.point(np.linspace(*curve.domain, 20001))
     contour = _point_to_polyline(actual[on], poly)
     out["contour_error_um"] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}

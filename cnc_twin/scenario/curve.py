@@ -106,7 +106,7 @@ def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label:
         axis_jerk=tuple(c.max_jerk for c in axes[:3]),
     )
     shift = np.asarray(head.pivot_home) + rotation_ab(a, b) @ np.asarray(head.tool_offset)
-    return NurbsProgram(
+    program = NurbsProgram(
         degree=spec.degree,
         knots=tuple(float(k) for k in spec.knots),
         weights=tuple(float(w) for w in curve.weights),
@@ -123,6 +123,8 @@ def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label:
             tuple(c.max_velocity for c in axes[3:5]), tuple(c.max_acceleration for c in axes[3:5]),
             tuple(c.max_jerk for c in axes[3:5])),
     )
+    _check_fits_one_record(program, label)
+    return program
 
 
 def _oriented_path(spec: NurbsCurveProgram, tip_world, head, label: Path):
@@ -158,3 +160,16 @@ def _oriented_path(spec: NurbsCurveProgram, tip_world, head, label: Path):
                            weights=tuple(float(w) for w in directions.weights),
                            control_points=tuple(tuple(float(x) for x in p) for p in ac.control_points))
     return axis_curve, curve, poses
+
+
+def _check_fits_one_record(program: NurbsProgram, label: Path) -> None:
+    """The card takes a curve's geometry in one record (up to 2048 words: about 110 control points
+    of a 3D curve with their weights and knots); refuse a larger one here, before any motion."""
+    from cnc_twin.planner.curve_program import curve_setup
+    from cnc_twin.whiteboard.codec import encode
+
+    try:
+        encode(curve_setup(program)[4], 1)
+    except ValueError as exc:
+        raise ScenarioError(label, "program.control_points",
+                            f"{exc}: the card takes a curve's geometry in one record; split the curve") from None
