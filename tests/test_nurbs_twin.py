@@ -68,11 +68,12 @@ def test_curve_lockstep_runs_are_bit_identical():
 
 
 def test_starved_curve_holds_within_limits_and_resumes():
-    """Real time, 20 ms look-ahead, planner stalled 500 ms mid-curve: the card runs dry at speed,
+    """Real time, 20 ms look-ahead, planner stalled 500 ms early in the curve (0.14 s after it
+    starts, while the card holds one short block): the card runs dry at speed,
     decelerates along the path within its limits, waits, and finishes the curve."""
     raw = yaml.safe_load((scenarios_dir() / "nurbs_freeform.yaml").read_text())
     raw.update(timing={"mode": "realtime"}, planner={"lookahead": 20.0},
-               faults=[{"type": "planner_stall", "at": 2.5, "duration": 500.0}])
+               faults=[{"type": "planner_stall", "at": 2.1, "duration": 500.0}])
     scenario = scenario_from_dict(raw)
     result = run_scenario(scenario)
     assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"

@@ -203,8 +203,7 @@ class SegmentInterpolator:
             self._queued_path += block.profile.length
             self._path_open = block.profile.v1 > 0.0
             self._arrivals += 1
-            vp, a_stop = block.profile.vp, SLEW_MARGIN * block.profile.a_max
-            self._stop_reserve = 2.0 * (vp * vp / (2.0 * a_stop) * STOP_MARGIN + 2.0 * vp * self.period)
+            self._stop_reserve = _stop_reserve(block.profile, self.period)
         else:
             self._queue.append((seq, record))
             self._path_open = False
@@ -228,9 +227,14 @@ class SegmentInterpolator:
         enough blocks to cover twice a full-speed stop (the rest stay in the FIFO)."""
         if len(self._queue) < ahead:
             return True
-        # Holding for data always wants more: the reserve follows the last block's speed, the hold
-        # the running block's, and a slow block queued behind a fast one must not starve the card.
-        return self._path_open and (self._queued_path < self._stop_reserve or self._starved_hold)
+        # Holding for data always wants more. The reserve covers a stop from the fastest of the
+        # last queued block and the running one: the hold checks the running block's speed, so a
+        # reserve sized from a slow block queued behind a fast one would hold the card with
+        # records still waiting in the FIFO.
+        reserve = self._stop_reserve
+        if self._current is not None and isinstance(self._current[1], Block):
+            reserve = max(reserve, _stop_reserve(self._current[1].profile, self.period))
+        return self._path_open and (self._queued_path < reserve or self._starved_hold)
 
     @property
     def holding_for_data(self) -> bool:
@@ -481,16 +485,23 @@ class SegmentInterpolator:
             ds = s_new - self._s
             self._s = s_new
             self._tau = tau
-        else:  # block done within this period: finish it, continue into the next block if queued
+        else:  # block done within this period: finish it, continue into the next blocks if queued
             ds = prof.length - self._s
             self._block_state = None
             self._complete(seq)
-            nxt = self._queue[0][1] if self._queue else None
-            if isinstance(nxt, Block):
+            rest = tau - prof.duration  # [s] of this period's path time left after the block
+            while self._queue and isinstance(self._queue[0][1], Block):
                 seq_next, nxt = self._queue.popleft()
                 self._queued_periods -= nxt.periods
-                self._begin_block(seq_next, nxt, tau - prof.duration)
-                ds += self._s
+                self._begin_block(seq_next, nxt, rest)
+                if rest < nxt.profile.duration:
+                    ds += self._s
+                    break
+                # a block shorter than what is left of the period runs whole within it (blocks
+                # between close critical points at a short period): on to the next one
+                ds += nxt.profile.length
+                self._complete(seq_next)
+                rest -= nxt.profile.duration
         curve = block.curve
         stepper = curve.stepper
         point = stepper.step(ds) if ds > 0.0 else stepper.point
@@ -512,3 +523,11 @@ class SegmentInterpolator:
     def _complete(self, seq: int) -> None:
         self._current = None
         self.last_seq_executed = seq
+
+
+def _stop_reserve(profile, period: float) -> float:
+    """Queued path [m] the card keeps on an open curve: twice the distance a starved hold needs to
+    stop from the block's peak speed ``vp`` (with its margins), so the hold never latches while
+    records still wait in the FIFO."""
+    vp, a_stop = profile.vp, SLEW_MARGIN * profile.a_max
+    return 2.0 * (vp * vp / (2.0 * a_stop) * STOP_MARGIN + 2.0 * vp * period)

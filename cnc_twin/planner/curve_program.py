@@ -1,6 +1,6 @@
-"""The NURBS curve program's plan: the approach move, the curve's geometry record, then its
-S-curve feed blocks window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`), and the
-settle dwell."""
+"""The NURBS curve program's plan: the approach move and a settle dwell, the curve's geometry
+record, then its S-curve feed blocks window by window (:func:`cnc_twin.planner.feed.plan_feed_windows`),
+and the settle dwell after the curve."""
 
 from __future__ import annotations
 
@@ -61,7 +61,8 @@ class CurvePlan:
         """Program length [periods], estimated: the approach, 1.2x the curve at feed, the settle."""
         prog, period = self.prog, self.period
         curve_time = 1.2 * self.curve.arc_length() / prog.limits.feed
-        return (self.approach.periods if self.approach else 0) + math.ceil((curve_time + prog.settle) / period)
+        approach = self.approach.periods + math.ceil(prog.settle / period) if self.approach else 0
+        return approach + math.ceil((curve_time + prog.settle) / period)
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
@@ -71,8 +72,13 @@ class CurvePlan:
         records: list[Record] = []
         periods: list[int] = []
         if approach is not None:
+            # the approach, then the settle: the curve starts with the axes at rest on its start
+            # (the approach's following error decays first), not one period after a long move
             records.append(Move(end=approach.end, profile=approach.profile, periods=approach.periods))
             periods.append(approach.periods)
+            settle, settle_periods = dwell_chunk(prog.settle, period)
+            records += settle
+            periods += settle_periods
         records.append(self.geometry)
         periods.append(0)
         yield records, periods

@@ -46,7 +46,8 @@ class NurbsCurveProgram(Strict):
     tool_axis_curve: AxisCurveSpec | None = Field(None, description="tool axis varying along the path (replaces tool_axis)")
     C: float = Field(0.0, description="spindle angle held along the curve [deg]")
     approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
-    settle: float = Field(0.3, ge=0, description="time simulated after the curve [s]")
+    settle: float = Field(0.3, ge=0, description="dwell after the approach move, before the curve starts, "
+                                                 "and time simulated after the curve [s]")
 
 
 def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label: Path) -> NurbsProgram:
