@@ -21,7 +21,7 @@ scaled profile stays within the velocity and acceleration limits (override above
 
 Curves (CurveGeometry + CurveBlock records): the block clock runs the same way; each period the
 path advances ``ds = s(tau_new) - s(tau)`` of the block's S-curve (continuing into the next queued
-block within the period), and :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` turns that arc
+blocks within the period), and :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` turns that arc
 length into the next point on the NURBS curve. The hold slew uses the block's own speed ``v``,
 acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. When the queued path
 (the rest of the running block plus every queued block) ends at speed and is no longer than the
@@ -29,14 +29,7 @@ stopping distance (the FIFO is running dry), the card holds, across block bounda
 inside what it has; it resumes once new blocks have made the queued path longer than a full-speed
 stop again.
 
-Surfaces (SurfaceGeometry, then SurfaceCurve sections with their CurveBlocks): each section is a
-(u, v) curve on the surface, stepped like a curve (:mod:`cnc_twin.geometry.surface_path`); the
-pose's tool axis is the surface normal with lead and tilt, and the kinematics solve X/Y/Z/A/B.
-ForceControl records wait at the head of the queue until the force loop
-(:mod:`cnc_twin.dsp.force`) has made contact and ramped up (on) or ramped down and retracted
-(off); in between the loop's ``depth`` is added along the tool axis every period and its feed
-factor scales the path's speed. Spindle records put C in speed mode: its angle advances by the
-ramped speed each period, on top of every C setpoint.
+Surfaces, the force loop's records and the spindle: see :mod:`cnc_twin.dsp.path_blocks`.
 Curve, surface, force-control and block records are queued as :mod:`cnc_twin.dsp.path_blocks` items.
 
 Step contours (StepContour records, the older cards' point-by-point and DDA interpolation):
@@ -60,17 +53,15 @@ from collections.abc import Sequence
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
-from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew
+from cnc_twin.dsp.path_blocks import (
+    SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_distance, stop_reserve,
+)
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
     ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
-
-STOP_MARGIN = 1.5
-"""a starved curve block starts holding when its remaining length is within 1.5x the stopping distance"""
-
 
 class SegmentInterpolator:
     """Executes the queue of accepted records, one interpolation period at a time.
@@ -203,7 +194,7 @@ class SegmentInterpolator:
             self._queued_path += block.profile.length
             self._path_open = block.profile.v1 > 0.0
             self._arrivals += 1
-            self._stop_reserve = _stop_reserve(block.profile, self.period)
+            self._stop_reserve = stop_reserve(block.profile, self.period)
         else:
             self._queue.append((seq, record))
             self._path_open = False
@@ -233,7 +224,7 @@ class SegmentInterpolator:
         # records still waiting in the FIFO.
         reserve = self._stop_reserve
         if self._current is not None and isinstance(self._current[1], Block):
-            reserve = max(reserve, _stop_reserve(self._current[1].profile, self.period))
+            reserve = max(reserve, stop_reserve(self._current[1].profile, self.period))
         return self._path_open and (self._queued_path < reserve or self._starved_hold)
 
     @property
@@ -459,12 +450,12 @@ class SegmentInterpolator:
             self._starved_hold = False
         elif not self._starved_hold:
             speed = self.override * v
-            if remaining <= speed * speed / (2.0 * a_stop) * STOP_MARGIN + 2.0 * speed * self.period:
+            if remaining <= stop_distance(speed, a_stop, self.period):
                 self._starved_hold = True
                 self._arrivals_at_latch = self._arrivals
         elif self._arrivals != self._arrivals_at_latch:  # new blocks came: resume if a full stop fits
             full = max(v, prof.vp)
-            if remaining > full * full / (2.0 * a_stop) * STOP_MARGIN + 2.0 * full * self.period:
+            if remaining > stop_distance(full, a_stop, self.period):
                 self._starved_hold = False
             else:
                 self._arrivals_at_latch = self._arrivals
@@ -523,11 +514,3 @@ class SegmentInterpolator:
     def _complete(self, seq: int) -> None:
         self._current = None
         self.last_seq_executed = seq
-
-
-def _stop_reserve(profile, period: float) -> float:
-    """Queued path [m] the card keeps on an open curve: twice the distance a starved hold needs to
-    stop from the block's peak speed ``vp`` (with its margins), so the hold never latches while
-    records still wait in the FIFO."""
-    vp, a_stop = profile.vp, SLEW_MARGIN * profile.a_max
-    return 2.0 * (vp * vp / (2.0 * a_stop) * STOP_MARGIN + 2.0 * vp * period)

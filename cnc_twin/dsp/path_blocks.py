@@ -37,6 +37,15 @@ time scale follows.
 :func:`slew` moves the time scale ``lambda`` (the running segment's clock rate, 1 = as
 programmed) toward its target as fast as the acceleration limit allows, with the margin
 :data:`SLEW_MARGIN` for the discrete step (see :mod:`cnc_twin.dsp.interpolator`).
+
+How the interpolator runs them. Surfaces (SurfaceGeometry, then SurfaceCurve sections with their CurveBlocks): each section is a
+(u, v) curve on the surface, stepped like a curve (:mod:`cnc_twin.geometry.surface_path`); the
+pose's tool axis is the surface normal with lead and tilt, and the kinematics solve X/Y/Z/A/B.
+ForceControl records wait at the head of the queue until the force loop
+(:mod:`cnc_twin.dsp.force`) has made contact and ramped up (on) or ramped down and retracted
+(off); in between the loop's ``depth`` is added along the tool axis every period and its feed
+factor scales the path's speed. Spindle records put C in speed mode: its angle advances by the
+ramped speed each period, on top of every C setpoint.
 """
 
 from __future__ import annotations
@@ -143,3 +152,20 @@ def slew(lam: float, target: float, v: float, a: float, a_lim: float, dt: float)
     if lam > target:
         return max(target, lam - SLEW_MARGIN * (a_lim + a * lam * lam) / v * dt)
     return min(target, lam + SLEW_MARGIN * (a_lim - a * lam * lam) / v * dt)
+
+
+STOP_MARGIN = 1.5
+"""a starved curve block starts holding when its remaining length is within 1.5x the stopping distance"""
+
+
+def stop_distance(speed: float, a_stop: float, period: float) -> float:
+    """Path [m] a starved hold needs to stop from ``speed`` [m/s] at ``a_stop`` [m/s^2], with its
+    margins: :data:`STOP_MARGIN` on the braking distance and two periods of travel."""
+    return speed * speed / (2.0 * a_stop) * STOP_MARGIN + 2.0 * speed * period
+
+
+def stop_reserve(profile, period: float) -> float:
+    """Queued path [m] the card keeps on an open curve: twice the distance a starved hold needs to
+    stop from the block's peak speed ``vp``, so the hold never latches while records still wait
+    in the FIFO."""
+    return 2.0 * stop_distance(profile.vp, SLEW_MARGIN * profile.a_max, period)
