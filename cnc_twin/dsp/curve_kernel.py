@@ -141,10 +141,14 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
                       + (u_p - knot) / 6.0 * (speed_k + 4.0 * mid2 + speed_p))
         else:
             length = du / 6.0 * (speed + 4.0 * _speed(starts, blocks, lo, hi, d, u + 0.5 * du, h) + speed_p)
-        delta = -(length - ds) / speed_p
-        state[U] = u_p + delta
+        u_new = min(u_p - (length - ds) / speed_p, hi)
+        state[U] = u_new
+        evaluate_span(starts, blocks, lo, hi, d, u_new, h, point, c1, c2)
+        sq = 0.0
         for k in range(d):
-            point[k] = cp[k] + c1p[k] * delta
+            sq += c1[k] * c1[k]
+        state[SPEED] = math.sqrt(sq)
+        return
     else:
         state[U] = u_p
         for k in range(d):

@@ -13,11 +13,11 @@ Algorithm (``C1 = C'(u)``, ``C2 = C''(u)`` kept from the previous period)::
                                                                       inside [u, u_p] (|C'| may
                                                                       have a kink there)
         u_new = u_p - (L - ds) / |C'(u_p)|
-        point = C(u_p) + C'(u_p) (u_new - u_p)
+        point, C1, C2 = C(u_new), C'(u_new), C''(u_new)     # the next step starts from here
 
 The Taylor predictor alone leaves a relative feed error of order (ds kappa)^2; one Newton step
 squares it. Simpson's error over a step of 0.1-1 mm is ~(h/L)^4 / 2880 of the step, far below
-1e-6. Two span evaluations per period (midpoint, predicted point).
+1e-6. Three span evaluations per period (midpoint, predicted point, corrected point).
 """
 
 from __future__ import annotations
@@ -78,9 +78,15 @@ class CurveStepper:
                           + (u_p - knot) / 6.0 * (speed_k + 4.0 * self.ev.speed(0.5 * (knot + u_p)) + speed_p))
             else:
                 length = du / 6.0 * (speed + 4.0 * self.ev.speed(u + 0.5 * du) + speed_p)
-            delta = -(length - ds) / speed_p
-            u_new = u_p + delta
-            point = [a + b * delta for a, b in zip(cp, c1p)]
+            u_new = min(u_p - (length - ds) / speed_p, self.u_end)
+            # the point and the next step's derivatives at the corrected parameter itself: kept
+            # from u_p instead, the next step's predictor and Simpson rule start from the wrong
+            # place (a relative feed error up to 3e-4 after a knot where C'' jumps, degree 2)
+            point, c1p, c2p = self.ev.evaluate(u_new)
+            sq = 0.0
+            for x in c1p:
+                sq += x * x
+            speed_p = math.sqrt(sq)
         else:
             u_new, point = u_p, cp
         self.u = u_new

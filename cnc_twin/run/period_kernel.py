@@ -37,19 +37,22 @@ import math
 import numpy as np
 from numba import njit
 
-from cnc_twin.run import c_clock
 from cnc_twin.dsp import curve_kernel
-from cnc_twin.run import servo_kernel
+from cnc_twin.run import c_clock, servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.path_blocks import Curve
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
+from cnc_twin.run.kernel_cache import purge_stale
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
+
+# the batch kernel calls the curve stepper, the servo ticks and the clock: recompile when they change
+purge_stale(__file__, [curve_kernel.__file__, servo_kernel.__file__, c_clock.__file__])
 
 MAX_BATCH = SOLO_LIVENESS_PERIODS
 """periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from cnc_twin.machine import mujoco_c
+from cnc_twin.run.kernel_cache import purge_stale
 
 # rows of the per-axis parameter matrix (float64, shape (N_FPARAMS, 6))
 CPU, KP, KI_DT, KD_OVER_DT, KVFF, KAFF, OUT_LIMIT, INT_LIMIT, CODES_PER_VOLT, VOLTS_PER_CODE = range(10)
@@ -52,6 +53,9 @@ def available() -> bool:
     """Whether the compiled servo can run here (numba, and MuJoCo's shared library)."""
     return mujoco_c.available()
 
+
+# the kernel calls MuJoCo through mujoco_c's bindings: recompile when they change
+purge_stale(__file__, [mujoco_c.__file__])
 
 if mujoco_c.IMPORT_ERROR is None:
     from numba import njit
