@@ -74,3 +74,58 @@ def test_the_summary_warns_on_a_limit_broken_in_the_trace():
     assert "WARNING: commanded Y jerk 17.62x its limit" in text and "13.028 s" in text
     metrics["path"]["limit_violations"] = []
     assert "WARNING" not in summary_table(metrics)
+
+
+def _curve_part_ratios(result) -> dict[str, float]:
+    """The largest commanded X/Y/Z velocity, acceleration and jerk over their limits, from the
+    trace alone: finite differences of the commanded positions at period ends, over every period
+    of the curve (and the three before it, at rest after the settle)."""
+    sc, trace = result.scenario, result.trace
+    tpp, T = sc.timing.ticks_per_period, sc.timing.interpolation_period
+    on = np.flatnonzero(trace.periods["path_u"] >= 0.0)
+    first, last = on[0] - 3, on[-1] + 1
+    ticks = np.arange(first, last + 1) * tpp + (tpp - 1)
+    q = trace.command[ticks, :3] / trace.counts_per_unit[:3]
+    lim = sc.program.limits
+    return {name: float((np.abs(np.diff(q, n=n, axis=0)) / T**n / np.asarray(limit)).max())
+            for n, name, limit in ((1, "velocity", lim.axis_velocity), (2, "acceleration", lim.axis_acceleration),
+                                   (3, "jerk", lim.axis_jerk))}
+
+
+def _chord_error(result) -> float:
+    """Largest distance [m] of the curve between consecutive periods' parameters from the chord of
+    the commanded tool tips, sampled at 7 inner points per period (tool axis held)."""
+    from cnc_twin.geometry.tip_path import tip_curve
+
+    sc, trace = result.scenario, result.trace
+    tpp = sc.timing.ticks_per_period
+    u = trace.periods["path_u"]
+    k = np.flatnonzero((u[1:] >= 0.0) & (u[:-1] >= 0.0)) + 1
+    curve = tip_curve(sc.program)
+    shift = np.asarray(sc.home[:3]) + np.asarray(sc.program.tip_shift)  # tip = axes + tip_shift, A/B held
+    tips = trace.command[k * tpp + tpp - 1, :3] / trace.counts_per_unit[:3] + shift
+    before = trace.command[(k - 1) * tpp + tpp - 1, :3] / trace.counts_per_unit[:3] + shift
+    frac = np.linspace(0, 1, 9)[1:-1]
+    inner = curve.point((u[k - 1][:, None] + (u[k] - u[k - 1])[:, None] * frac[None, :]).ravel()).reshape(len(k), -1, 3)
+    d = tips - before
+    t = np.clip(np.einsum("kij,kj->ki", inner - before[:, None, :], d) / np.maximum((d * d).sum(1), 1e-300)[:, None], 0, 1)
+    return float(np.linalg.norm(inner - (before[:, None, :] + t[..., None] * d[:, None, :]), axis=2).max())
+
+
+@pytest.mark.parametrize("name, feed, period_ms", [("farfalla", 6000, 0.25), ("stella", 6000, 1.0)])
+def test_a_published_curve_keeps_every_limit_in_the_trace(name, feed, period_ms):
+    """The butterfly at 6 m/min and 0.25 ms (it broke the axis jerk limits 26-31x and the planner),
+    the star (a quadratic: its curvature jumps at every knot) at 1 ms: the run completes, and the
+    trace shows no axis over 1.01x its velocity, acceleration or jerk limit, the chord error
+    within the tolerance, the feed within 1e-6 of the plan."""
+    from cnc_twin import run_scenario
+
+    overrides = {"planner.feed": feed, "timing.interpolation_period": period_ms,
+                 "timing.servo_period": min(0.25, period_ms), "timing.physics_timestep": min(0.25, period_ms)}
+    result = run_scenario(load_scenario(scenarios_dir() / "published" / f"{name}.yaml", overrides=overrides))
+    assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"
+    ratios = _curve_part_ratios(result)
+    assert max(ratios.values()) <= 1.01, ratios
+    assert _chord_error(result) <= result.scenario.program.limits.chord_tolerance * 1.001
+    assert result.metrics["path"]["feed_fluctuation"]["max"] <= 1e-6
+    assert result.metrics["path"]["limit_violations"] == []

@@ -10,6 +10,8 @@
        axis velocity    v_i / |t_i|                      t = dC/ds (unit tangent)
        axis accel       sqrt(0.5 a_i / |C_ss,i|)         C_ss = d2C/ds2 (half the budget: normal)
        axis jerk        (j_i / 3 / |C_sss,i|)^(1/3)  and  j_i / (9 A_t |C_ss,i|)
+       curvature jump   sqrt(j_i T / |dC_ss,i|)   at a knot where C_ss jumps (a quadratic, a
+                        repeated knot): the axis acceleration steps there within one period
 
    with the tangential limits ``A_t = min(A_path, 0.5 min_i a_i)`` and
    ``J_t = min(J_path, min_i j_i / 3)``, so the tangential and normal parts of every axis's
@@ -133,12 +135,43 @@ def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimi
         v_lim, a_lim, j_lim = axis_limits
     if a_t is None:
         a_t = tangential_budget(limits, axis_q, s, axis_limits)[0]
+    if axis_q is None:
+        f = np.minimum(f, knot_jerk_limit(curve, u, j_lim, period))
     for i in range(q1.shape[1]):
         f = np.minimum(f, v_lim[i] / np.maximum(np.abs(q1[:, i]), tiny))
         f = np.minimum(f, np.sqrt(0.5 * a_lim[i] / np.maximum(np.abs(q2[:, i]), tiny)))
         f = np.minimum(f, np.cbrt(j_lim[i] / 3.0 / np.maximum(np.abs(q3[:, i]), tiny)))
         f = np.minimum(f, j_lim[i] / (9.0 * a_t * np.maximum(np.abs(q2[:, i]), tiny)))
     return f
+
+
+def knot_jerk_limit(curve: NurbsCurve, u: np.ndarray, j_lim, period: float) -> np.ndarray:
+    """The feed limit [m/s] at the samples that are knots where the curve's curvature jumps (a
+    quadratic, or a knot repeated to C1): there each axis's acceleration changes by
+    ``v^2 |dC_ss,i|`` within one period, a jerk of about ``v^2 |dC_ss,i| / T`` in the commanded
+    positions, so ``v <= sqrt(j_i T / |dC_ss,i|)``. Infinite elsewhere (and where the jump is
+    round-off: a C2 knot)."""
+    out = np.full(len(u), np.inf)
+    a, b = curve.domain
+    inner = [k for k in np.unique(curve.knots) if a < k < b]
+    if not inner:
+        return out
+    eps = 1e-9 * (b - a)
+    knots = np.asarray(inner)
+    sides = []
+    for side in (knots - eps, knots + eps):
+        _, d1, d2 = curve.derivatives(side, 2)
+        sigma = np.linalg.norm(d1, axis=1)
+        t = d1 / sigma[:, None]
+        sides.append((d2 - np.sum(t * d2, axis=1)[:, None] * t) / (sigma**2)[:, None])
+    jump = np.abs(sides[1] - sides[0])  # (knots, 3) [1/m]
+    scale = np.max(np.abs(np.concatenate(sides)), axis=0) + 1.0  # round-off is relative to C_ss itself
+    jump = np.where(jump > 1e-6 * scale, jump, 0.0)
+    with np.errstate(divide="ignore"):
+        limit = np.min(np.sqrt(np.asarray(j_lim)[:3][None, :] * period / jump), axis=1)
+    at = np.clip(np.searchsorted(u, knots), 0, len(u) - 1)
+    np.minimum.at(out, at, limit)
+    return out
 
 
 def _local_minima(limit: np.ndarray, feed: float) -> list[int]:
