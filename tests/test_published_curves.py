@@ -4,6 +4,8 @@ limit the trace shows broken is reported, not passed over."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -129,3 +131,25 @@ def test_a_published_curve_keeps_every_limit_in_the_trace(name, feed, period_ms)
     assert _chord_error(result) <= result.scenario.program.limits.chord_tolerance * 1.001
     assert result.metrics["path"]["feed_fluctuation"]["max"] <= 1e-6
     assert result.metrics["path"]["limit_violations"] == []
+
+
+def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
+    """A program the planner cannot send (300 control points, more than one record holds; the loader
+    refuses it, so it is built here past the loader) ends the run as a planner fault whose message
+    carries the planner's own exception, not only "the planner process exited"."""
+    from dataclasses import replace
+
+    from cnc_twin import run_scenario
+
+    scenario = load_scenario(scenarios_dir() / "published" / "stella.yaml")
+    prog = scenario.program
+    x0, y0, z0 = prog.control_points[0]
+    n = 300
+    points = tuple((x0 + 1e-4 * i, y0 + 1e-3 * math.sin(i / 20), z0) for i in range(n))
+    knots = (0.0,) * 3 + tuple(float(k) for k in range(1, n - 2)) + (float(n - 2),) * 3
+    too_long = replace(prog, control_points=points, weights=(1.0,) * n, knots=knots)
+    result = run_scenario(replace(scenario, program=too_long))
+    fault = result.metrics["fault"]
+    assert result.status == "fault" and fault["code"] in ("PLANNER_START", "PLANNER_LOST")
+    assert "ValueError: curve of 300 control points exceeds one record" in fault["message"], fault["message"]
+    assert "\n" not in fault["message"]

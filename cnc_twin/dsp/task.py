@@ -197,6 +197,15 @@ class DspTask:
         if self.state != DspState.FAULT:
             self.state = DspState.STOPPING
 
+    def explain_planner_fault(self, reason: str) -> None:
+        """Add the planner's own reason to its PLANNER_LOST / PLANNER_START fault (the card saw only
+        that the process went away)."""
+        planner = (FaultCode.PLANNER_LOST, FaultCode.PLANNER_START)
+        self.fault_log = [(t, code, axis, f"{message}: {reason}" if code in planner else message, stop)
+                          for t, code, axis, message, stop in self.fault_log]
+        if self.fault in planner:
+            self.fault_message = f"{self.fault_message}: {reason}"
+
     def _start_retract(self) -> None:
         """Freeze the force loop and move the tool up its axis (from the commanded A, B)."""
         interp, config = self.interpolator, self.supervisor.config

@@ -98,6 +98,19 @@ class PlannerProcess:
             self.reusable = False
         return self.reusable and self.alive()
 
+    def failure(self, timeout: float = 2.0) -> str | None:
+        """Why the planner's run failed, as it reported it (the exception's type and message, one
+        line), or None if it did not say within ``timeout`` [s] (killed, hung, or not failed).
+        Call after a planner fault only: it reads the run's status byte, so the process is not
+        kept for another run."""
+        self.reusable = False
+        out = self.popen.stdout
+        ready, _, _ = select.select([out], [], [], timeout)
+        if not ready or os.read(out.fileno(), 1) != b"\x01":
+            return None
+        size = int.from_bytes(_read_exactly(out.fileno(), 2), "little")
+        return _read_exactly(out.fileno(), size).decode("utf-8", "replace") or None
+
     def close(self) -> None:
         """End the process: EOF on its stdin, then SIGTERM, then SIGKILL; release the pipes."""
         end_process(self.popen, grace=2.0, term_grace=1.0)
@@ -164,3 +177,15 @@ class PlannerPool:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _read_exactly(fd: int, n: int, timeout: float = 1.0) -> bytes:
+    """Up to ``n`` bytes from ``fd``, fewer if it ends or stays silent for ``timeout`` [s]."""
+    data = b""
+    while len(data) < n:
+        ready, _, _ = select.select([fd], [], [], timeout)
+        chunk = os.read(fd, n - len(data)) if ready else b""
+        if not chunk:
+            break
+        data += chunk
+    return data

@@ -26,6 +26,7 @@ import sys
 import traceback
 from multiprocessing.connection import Connection
 
+from cnc_twin.core.errors import one_line
 from cnc_twin.planner.faults import FaultSchedule
 from cnc_twin.planner.job import PlannerJob
 from cnc_twin.planner.stream import Feeder, Streamer
@@ -34,6 +35,9 @@ from cnc_twin.whiteboard.block import Whiteboard
 from cnc_twin.whiteboard.doorbell import Doorbell
 from cnc_twin.whiteboard.ports import PcPort
 from cnc_twin.whiteboard.status import DspState
+
+FAILURE_BYTES = 400
+"""the longest failure reason the planner reports [bytes]"""
 
 
 def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, ring_dsp: Connection | int) -> None:
@@ -86,7 +90,9 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
 
 def serve(wait_fd: int, ring_fd: int) -> int:
     """Serve runs until EOF on stdin: read ``(shm name, job)`` (a 4-byte little-endian length,
-    then the pickle), run it, write one status byte (0 done, 1 failed) to the original stdout.
+    then the pickle), run it, write one status byte to the original stdout: 0 done, or 1 failed
+    followed by the reason (2-byte little-endian length, then the exception's type and message in
+    UTF-8, one line, at most :data:`FAILURE_BYTES`).
     A failed run ends the process (its traceback is on stderr). See :mod:`cnc_twin.planner.launch`."""
     import pickle
     import struct
@@ -105,8 +111,10 @@ def serve(wait_fd: int, ring_fd: int) -> int:
         Doorbell(wait_fd).drain()  # rings left over from the last run
         try:
             planner_main(shm_name, job, wait_fd, ring_fd)
-        except BaseException:
-            os.write(status_fd, b"\x01")
+        except BaseException as exc:
+            # the reason, for the run's metrics and the one-line error (the traceback is on stderr)
+            reason = one_line(f"{type(exc).__name__}: {exc}").encode("utf-8", "replace")[:FAILURE_BYTES]
+            os.write(status_fd, b"\x01" + len(reason).to_bytes(2, "little") + reason)
             return 1
         os.write(status_fd, b"\x00")
 

@@ -163,6 +163,10 @@ class Twin:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
             wall_time, periods = Clock(self, dsp, planned, progress).run()
+            if dsp.planner_lost or dsp.fault == FaultCode.PLANNER_START:
+                reason = planner.failure()
+                if reason is not None:
+                    dsp.explain_planner_fault(reason)
             retransmits = int(wb.retransmits[0])
             self.plan_us, self.plan_blocks = int(wb.plan_us[0]), int(wb.plan_blocks[0])
         finally:
