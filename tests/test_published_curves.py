@@ -12,7 +12,7 @@ import pytest
 from cnc_twin import ScenarioError, load_scenario
 from cnc_twin.cli import summary_table
 from cnc_twin.planner.curve_program import curve_setup
-from cnc_twin.planner.feed import plan_feed
+from cnc_twin.planner.feed import plan_feed, plan_feed_windows
 from cnc_twin.scenario.load import scenario_from_text
 from cnc_twin.scenario.resources import scenarios_dir
 
@@ -153,3 +153,16 @@ def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
     assert result.status == "fault" and fault["code"] in ("PLANNER_START", "PLANNER_LOST")
     assert "ValueError: curve of 300 control points exceeds one record" in fault["message"], fault["message"]
     assert "\n" not in fault["message"]
+
+
+@pytest.mark.parametrize("name", ["farfalla", "delfino"])
+def test_planning_windows_join_without_a_step_in_speed(name):
+    """Each window starts at the speed the last committed block of the previous one ends at (and
+    S-curve blocks begin and end at zero acceleration): no speed or acceleration step at a join."""
+    scenario = load_scenario(scenarios_dir() / "published" / f"{name}.yaml", overrides={"planner.feed": 6000})
+    curve = curve_setup(scenario.program)[0]
+    chunks = list(plan_feed_windows(curve, scenario.program.limits, period=1e-3, window=0.05))
+    assert len(chunks) >= 4
+    blocks = [b for chunk in chunks for b in chunk]
+    assert all(a.v1 == b.v0 for a, b in zip(blocks, blocks[1:]))
+    assert all(b.state(0.0)[2] == 0.0 and b.state(b.duration)[2] == 0.0 for b in blocks)
