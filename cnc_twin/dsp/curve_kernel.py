@@ -22,6 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
+from cnc_twin.dsp.curve_stepper import MAX_NEWTON, MAX_PANELS, SECOND_STEP
 from cnc_twin.geometry.nurbs import SpanEvaluator
 
 U, SPEED = 0, 1
@@ -96,6 +97,49 @@ def _next_break(starts, hi, u):
 
 
 @njit(cache=True)
+def _simpson_panels(starts, blocks, lo, hi, d, a, b, speed_a, speed_b, n, h):
+    """As :func:`cnc_twin.dsp.curve_stepper.simpson_panels`."""
+    w = (b - a) / n
+    total = 0.0
+    left, speed_left = a, speed_a
+    for i in range(n):
+        right = b if i == n - 1 else a + (i + 1) * w
+        speed_right = speed_b if i == n - 1 else _speed(starts, blocks, lo, hi, d, right, h)
+        total += (right - left) / 6.0 * (speed_left + 4.0 * _speed(starts, blocks, lo, hi, d, 0.5 * (left + right), h)
+                                         + speed_right)
+        left, speed_left = right, speed_right
+    return total
+
+
+@njit(cache=True)
+def _refined_length(starts, blocks, lo, hi, d, u, u1, speed_u, speed_u1, h):
+    """As :func:`cnc_twin.dsp.curve_stepper.refined_length`."""
+    knot = _next_break(starts, hi, u)
+    total = 0.0
+    for side in range(2):
+        if knot < u1:
+            if side == 0:
+                a, b, speed_a, speed_b = u, knot, speed_u, _speed(starts, blocks, lo, hi, d, knot, h)
+            else:
+                a, b, speed_a, speed_b = knot, u1, _speed(starts, blocks, lo, hi, d, knot, h), speed_u1
+        elif side == 0:
+            a, b, speed_a, speed_b = u, u1, speed_u, speed_u1
+        else:
+            break
+        n = 1
+        length = _simpson_panels(starts, blocks, lo, hi, d, a, b, speed_a, speed_b, n, h)
+        while n < MAX_PANELS:
+            n *= 2
+            finer = _simpson_panels(starts, blocks, lo, hi, d, a, b, speed_a, speed_b, n, h)
+            done = abs(finer - length) <= 1e-12 * abs(finer)
+            length = finer
+            if done:
+                break
+        total += length
+    return total
+
+
+@njit(cache=True)
 def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
     """Advance ``state`` by arc length ``ds`` [m] (``ds > 0``), as :meth:`CurveStepper.step`.
     ``scratch``: float64 work space of at least ``3 (d + 1) + 3 d``."""
@@ -142,6 +186,13 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
         else:
             length = du / 6.0 * (speed + 4.0 * _speed(starts, blocks, lo, hi, d, u + 0.5 * du, h) + speed_p)
         u_new = min(u_p - (length - ds) / speed_p, hi)
+        correction = u_new - u_p
+        for _ in range(MAX_NEWTON):  # a poor prediction: Newton on, with a refined length
+            if abs(correction) <= SECOND_STEP * abs(du):
+                break
+            speed_n = _speed(starts, blocks, lo, hi, d, u_new, h)
+            correction = -(_refined_length(starts, blocks, lo, hi, d, u, u_new, speed, speed_n, h) - ds) / speed_n
+            u_new = min(u_new + correction, hi)
         state[U] = u_new
         evaluate_span(starts, blocks, lo, hi, d, u_new, h, point, c1, c2)
         sq = 0.0
