@@ -20,6 +20,8 @@ import bisect
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 
 def ramp_times(dv: float, a_max: float, j_max: float) -> tuple[float, float]:
     """``(Tj, Ta)`` of a velocity change ``|dv|`` [s]."""
@@ -109,6 +111,22 @@ class SCurve:
         object.__setattr__(self, "_times", [st[0] for st in starts])
         object.__setattr__(self, "duration", t)
         object.__setattr__(self, "_end", (s, v, a))
+
+    def positions_and_speeds(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(s, v)`` at the times ``t`` (shape (n,), sorted or not), as :meth:`state` gives them
+        one by one, bit for bit (the same arithmetic, element-wise): the planner checks blocks
+        against the limit curve with it."""
+        t = np.asarray(t, dtype=np.float64)
+        starts = np.array(self._starts)  # (7, 5): t0, s0, v0, a0, jerk
+        phase = np.searchsorted(np.asarray(self._times), t, side="right") - 1
+        t0, s0, v0, a0, jk = (starts[np.clip(phase, 0, 6), i] for i in range(5))
+        dt = t - t0
+        s = s0 + dt * (v0 + dt * (0.5 * a0 + dt * jk / 6.0))
+        v = v0 + dt * (a0 + 0.5 * jk * dt)
+        end, start = t >= self.duration, t <= 0.0
+        s = np.where(end, self.length, np.where(start, 0.0, s))
+        v = np.where(end, self.v1, np.where(start, self.v0, v))
+        return s, v
 
     def state(self, t: float) -> tuple[float, float, float]:
         """``(s, v, a)`` at time ``t`` into the block; clamped to the block's end."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 from cnc_twin.core.config import AxisConfig, NurbsProgram
+from cnc_twin.planner.feed import plan_feed_windows, sample_limits
 from cnc_twin.planner.ptp import dwell_chunk, plan_move
 from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, EndOfProgram, Move, Record
 
@@ -55,6 +56,10 @@ class CurvePlan:
         self.prog, self.period, self.window = prog, period, window
         self.curve, start, self.axis_path, self.axis_limits, self.geometry = curve_setup(prog)
         self.approach = plan_move(tuple(home), start, axes, feed=prog.approach_feed, period=period)
+        # sampled here, before the planner reports ready: the windows then plan on the samples in
+        # the planning thread, which never holds the interpreter long while the card waits for an answer
+        self.samples = sample_limits(self.curve, prog.limits, period=period, axis_path=self.axis_path,
+                                     axis_limits=self.axis_limits)
 
     @property
     def estimated_periods(self) -> int:
@@ -66,8 +71,6 @@ class CurvePlan:
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
-        from cnc_twin.planner.feed import plan_feed_windows
-
         prog, period, approach = self.prog, self.period, self.approach
         records: list[Record] = []
         periods: list[int] = []
@@ -83,7 +86,7 @@ class CurvePlan:
         periods.append(0)
         yield records, periods
         for blocks in plan_feed_windows(self.curve, prog.limits, period=period, window=self.window,
-                                        axis_path=self.axis_path, axis_limits=self.axis_limits):
+                                        axis_path=self.axis_path, axis_limits=self.axis_limits, samples=self.samples):
             yield ([CurveBlock(b) for b in blocks], [math.ceil(b.duration / period) for b in blocks])
         tail, tail_periods = dwell_chunk(prog.settle, period)
         yield tail + [EndOfProgram()], tail_periods + [0]

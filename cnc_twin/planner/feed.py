@@ -269,16 +269,26 @@ def _windows(sm: _Samples, limits: PathLimits, window: float):
         a, v_a = critical[k], speeds[k]
 
 
+def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_path=None,
+                  axis_limits=None) -> _Samples:
+    """The curve sampled for planning with its feed limit: the bulk of the work before the first
+    window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`)."""
+    return _sample(curve, limits, period, axis_path, axis_limits)
+
+
 def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
-                      axis_path=None, axis_limits=None):
+                      axis_path=None, axis_limits=None, samples: _Samples | None = None):
     """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
 
     Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
     critical point farther from the window's end than the stopping distance from full feed are
     unaffected by that forced stop (the backward scan cannot reach them), so they are final and
     identical to a whole-curve plan's; the next window starts there at the committed speed.
+    ``samples``: from :func:`sample_limits`, if already taken.
     """
-    yield from _windows(_sample(curve, limits, period, axis_path, axis_limits), limits, window)
+    if samples is None:
+        samples = _sample(curve, limits, period, axis_path, axis_limits)
+    yield from _windows(samples, limits, window)
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
@@ -299,8 +309,8 @@ def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: f
 def _worst_excess(block: SCurve, s_local: np.ndarray, limit: np.ndarray) -> int | None:
     """Index (into the block's samples) where the block's speed most exceeds the limit, or None."""
     t = np.linspace(0.0, block.duration, max(64, 4 * len(s_local)))
-    states = np.array([block.state(x)[:2] for x in t])
-    v_at = np.interp(s_local, states[:, 0], states[:, 1])
+    s, v = block.positions_and_speeds(t)
+    v_at = np.interp(s_local, s, v)
     excess = v_at - limit * (1.0 + 1e-9)
     j = int(np.argmax(excess))
     return j if excess[j] > 0 else None

@@ -36,6 +36,9 @@ from cnc_twin.whiteboard.doorbell import Doorbell
 from cnc_twin.whiteboard.ports import PcPort
 from cnc_twin.whiteboard.status import DspState
 
+PLAN_AHEAD_CHUNKS = 4
+"""chunks planned beyond the first ones before the planner reports ready (the rest are planned
+by its thread while the card runs)"""
 FAILURE_BYTES = 400
 """the longest failure reason the planner reports [bytes]"""
 
@@ -57,6 +60,7 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
         # the card's buffer before cycle start: the run's clock does not wait for them. Lockstep
         # plans the same chunks as at the first status (the backlog rule sees the same counts).
         feeder.top_up()
+        feeder.plan_ahead(PLAN_AHEAD_CHUNKS)
         port.announce(program_periods=feeder.program.estimated_periods)
         while True:
             status = port.wait_status()

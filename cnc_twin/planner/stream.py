@@ -3,6 +3,7 @@ FIFO space, chunk size and look-ahead allow, with go-back-N on rejects (:class:`
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 
@@ -16,13 +17,19 @@ from cnc_twin.whiteboard.status import DspState
 
 
 class Feeder:
-    """Moves planned chunks into the streamer: in the exchange loop (lockstep) or from a thread.
+    """Moves planned chunks into the streamer; the planning itself runs ahead in a thread.
 
-    Lockstep plans the next chunk only when fewer than ``BACKLOG`` records wait unsent, a decision
-    that depends on the exchange sequence alone, so the stream is the same on every run.
+    Lockstep takes the next chunk only when fewer than ``BACKLOG`` records wait unsent, a decision
+    that depends on the exchange sequence alone, so the stream is the same on every run; the
+    thread has usually planned that chunk already (the planner's process has a core of its own
+    while the card simulates), and the exchange waits for it only when planning falls behind.
+    Real time hands over whatever is planned at each exchange.
     """
 
     BACKLOG = 8
+    SWITCH_INTERVAL = 1e-4
+    """[s] how long the planning thread may hold the GIL while an exchange waits to be answered
+    (Python's default, 5 ms, would delay answers by up to that)"""
 
     def __init__(self, job: PlannerJob, streamer: "Streamer"):
         self.streamer = streamer
@@ -31,13 +38,13 @@ class Feeder:
         self.plan_seconds = time.perf_counter() - started
         self.chunks = self.program.chunks()
         self.blocks = 0
-        self._lock = threading.Lock()
         self._ready: list[tuple[list[Record], list[int]]] = []
+        self._planned = threading.Condition()
         self._done = False
         self._error: BaseException | None = None
         self.threaded = not job.lockstep
-        if self.threaded:
-            threading.Thread(target=self._run, name="planner-windows", daemon=True).start()
+        sys.setswitchinterval(self.SWITCH_INTERVAL)
+        threading.Thread(target=self._run, name="planner-windows", daemon=True).start()
 
     def _next(self) -> tuple[list[Record], list[int]] | None:
         started = time.perf_counter()
@@ -53,26 +60,48 @@ class Feeder:
     def _run(self) -> None:
         try:
             while (chunk := self._next()) is not None:
-                with self._lock:
+                with self._planned:
                     self._ready.append(chunk)
+                    self._planned.notify()
         except BaseException as exc:  # reported from the exchange loop
             self._error = exc
-        self._done = True
+        with self._planned:
+            self._done = True
+            self._planned.notify()
+
+    def _take(self) -> tuple[list[Record], list[int]] | None:
+        """The next planned chunk, waiting for the thread if it has not planned it yet; None at the end."""
+        with self._planned:
+            while not self._ready and not self._done:
+                self._planned.wait()
+            if self._ready:
+                return self._ready.pop(0)
+        if self._error is not None:
+            raise self._error
+        return None
+
+    def plan_ahead(self, chunks: int) -> None:
+        """Wait until the thread has ``chunks`` planned chunks waiting (or planned them all): before
+        the planner reports ready, so the card's first exchanges never wait for a window."""
+        with self._planned:
+            while len(self._ready) < chunks and not self._done:
+                self._planned.wait()
 
     def top_up(self) -> None:
-        """Hand planned records to the streamer (planning one chunk now, in lockstep mode)."""
+        """Hand planned records to the streamer: lockstep by the backlog rule, real time all there is."""
         if self.threaded:
             if self._error is not None:
                 raise self._error
-            with self._lock:
+            with self._planned:
                 ready, self._ready = self._ready, []
+                done = self._done
             for chunk in ready:
                 self.streamer.add(*chunk)
-            if self._done and not self._ready:
+            if done:
                 self.streamer.complete = True
             return
         while not self.streamer.complete and self.streamer.backlog < self.BACKLOG:
-            chunk = self._next()
+            chunk = self._take()
             if chunk is None:
                 self.streamer.complete = True
             else:
