@@ -94,3 +94,20 @@ def test_rerun_recording_after_the_run(benchmark):
           f"{ratio:.1%} of the run (target 10 %); the run "
           f"{figures['rerun_streamed_run_slowdown']:+.1%} with the recording process; in-process "
           f"export after the run {export_s * 1e3:.1f} ms")
+
+
+@pytest.mark.parametrize("period_ms", [1.0, 0.25])
+def test_card_waits_for_the_planner_on_the_butterfly(benchmark, period_ms):
+    """The published butterfly at 2.4 m/min, lockstep: the card's longest wait for a planner answer
+    (the planner plans its windows in a thread of its own, ahead of the card) and the real-time
+    factor. Target: the wait under one interpolation period."""
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    overrides = {"timing.interpolation_period": period_ms, "timing.servo_period": min(0.25, period_ms),
+                 "timing.physics_timestep": min(0.25, period_ms)}
+    scenario = load_scenario(scenarios_dir() / "published" / "farfalla.yaml", overrides=overrides)
+    result = benchmark.pedantic(lambda: Twin(scenario).run(), rounds=1)
+    wait_ms = result.metrics["whiteboard"]["exchange_latency_us"]["max"] / 1e3
+    benchmark.extra_info.update(longest_wait_ms=wait_ms, real_time_factor=result.metrics["real_time_factor"])
+    print(f"\nbutterfly at {period_ms:g} ms: longest wait for the planner {wait_ms:.2f} ms, "
+          f"real-time factor {result.metrics['real_time_factor']:.1f}")
