@@ -123,7 +123,9 @@ def test_realtime_stall_enters_feed_hold_and_finishes_the_program():
     state = result.trace.period_signals["state"]
     assert DspState.FEED_HOLD in state         # ... held ...
     assert state[-1] == DspState.FINISHED      # ... and finished the program
-    assert result.trace.actual[-1, 0] == pytest.approx(8000, abs=3)  # X at 8 mm
+    # X at 8 mm, within the stiction band: the axis stops where the Coulomb friction holds it, up to
+    # friction / kp = 6.7 mV / 0.8 mV per count = 8 counts off (the integrator takes it in afterwards)
+    assert result.trace.actual[-1, 0] == pytest.approx(8000, abs=8)
 
 
 def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_scenario):

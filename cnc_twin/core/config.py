@@ -67,6 +67,10 @@ class AxisConfig:
     """pulse output: the amplifier's velocity feed-forward [-]"""
     drive_ff_filter: float = 1e-3
     """pulse output: time constant of the amplifier's feed-forward filter [s]"""
+    friction_ff: float = 0.0
+    """friction feed-forward [V] with the sign of the commanded speed; 0 = off"""
+    friction_ff_band: float = 1e-3
+    """commanded speed over which the friction feed-forward ramps from 0 to full [m/s | rad/s]"""
     index_period: float = 0.0
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0

@@ -22,6 +22,8 @@ ki       1/s^2       speed per unit of integrated error     count*s:    ki g
 kd       -           speed per unit of error rate           count/s:    kd g
 kvff     -           fraction of the commanded speed        count/s:    kvff g
 kaff     s           speed per unit commanded acceleration  count/s^2:  kaff g
+fff      V           friction feed-forward, full beyond     (volts):    fff
+                     ``friction_ff_band`` [unit/s]
 =======  ==========  =====================================  ==================
 
 0 for any gain means that term is off.
@@ -30,7 +32,8 @@ Algorithm (dt = servo period)::
 
     e = command - feedback
     i_try = clamp(i + ki_c * e * dt, -integrator_limit, +integrator_limit)
-    u = kp_c*e + i_try + kd_c*(e - e_prev)/dt + kvff_c*velocity + kaff_c*acceleration
+    ramp = clamp(velocity / (friction_ff_band * counts_per_unit), -1, +1)   # the friction's sign, softened
+    u = kp_c*e + i_try + kd_c*(e - e_prev)/dt + kvff_c*velocity + kaff_c*acceleration + fff*ramp
     if |u| > output_limit and e has the sign of u:  keep i (conditional integration)
     else:                                           i = i_try
     output = clamp(kp_c*e + i + kd_c*(e - e_prev)/dt + ff, -output_limit, +output_limit)
@@ -45,6 +48,8 @@ class PidFF:
     Parameters
     ----------
     kp, ki, kd, kvff, kaff : gains in machine terms (1/s, 1/s^2, -, -, s).
+    friction_ff : friction feed-forward [V]; friction_ff_band : commanded speed [m/s | rad/s] over
+        which it ramps in, so that it does not chatter at rest.
     speed_per_volt : drive scaling [m/s/V | rad/s/V].
     counts_per_unit : encoder resolution [counts/m | counts/rad].
     dt : servo period [s].
@@ -52,7 +57,7 @@ class PidFF:
     """
 
     __slots__ = (
-        "dt", "kp", "ki_dt", "kd_over_dt", "kvff", "kaff",
+        "dt", "kp", "ki_dt", "kd_over_dt", "kvff", "kaff", "friction_ff", "friction_rate",
         "output_limit", "integrator_limit", "integrator", "previous_error",
     )
 
@@ -64,6 +69,8 @@ class PidFF:
         kd: float = 0.0,
         kvff: float = 0.0,
         kaff: float = 0.0,
+        friction_ff: float = 0.0,
+        friction_ff_band: float = 1e-3,
         speed_per_volt: float,
         counts_per_unit: float,
         dt: float,
@@ -79,6 +86,8 @@ class PidFF:
         self.kd_over_dt = kd * volts_per_count_rate / dt
         self.kvff = kvff * volts_per_count_rate
         self.kaff = kaff * volts_per_count_rate
+        self.friction_ff = friction_ff
+        self.friction_rate = 1.0 / (friction_ff_band * counts_per_unit)  # [1/(count/s)]
         self.output_limit = output_limit
         self.integrator_limit = integrator_limit
         self.integrator = 0.0
@@ -87,11 +96,17 @@ class PidFF:
     def update(self, command: float, feedback: float, velocity: float, acceleration: float) -> float:
         """One servo tick; returns the clamped drive voltage [V]."""
         error = command - feedback
+        ramp = velocity * self.friction_rate
+        if ramp > 1.0:
+            ramp = 1.0
+        elif ramp < -1.0:
+            ramp = -1.0
         fixed = (
             self.kp * error
             + self.kd_over_dt * (error - self.previous_error)
             + self.kvff * velocity
             + self.kaff * acceleration
+            + self.friction_ff * ramp
         )
         self.previous_error = error
         limit = self.integrator_limit

@@ -80,6 +80,7 @@ class ServoTask:
         self.loops = [
             PidFF(
                 kp=cfg.kp, ki=cfg.ki, kd=cfg.kd, kvff=cfg.kvff, kaff=cfg.kaff,
+                friction_ff=cfg.friction_ff, friction_ff_band=cfg.friction_ff_band,
                 speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                 dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit,
             )

@@ -33,8 +33,9 @@ from cnc_twin.machine import mujoco_c
 from cnc_twin.run.kernel_cache import purge_stale
 
 # rows of the per-axis parameter matrix (float64, shape (N_FPARAMS, 6))
-CPU, KP, KI_DT, KD_OVER_DT, KVFF, KAFF, OUT_LIMIT, INT_LIMIT, CODES_PER_VOLT, VOLTS_PER_CODE = range(10)
-N_FPARAMS = 10
+CPU, KP, KI_DT, KD_OVER_DT, KVFF, KAFF, OUT_LIMIT, INT_LIMIT, CODES_PER_VOLT, VOLTS_PER_CODE, FRICTION_FF, \
+    FRICTION_RATE = range(12)
+N_FPARAMS = 12
 # rows of the per-axis float state (float64, shape (N_FSTATE, 6))
 P_PREV, P_NEXT, VELOCITY, ACCELERATION, INTEGRATOR, PREV_ERROR = range(6)
 N_FSTATE = 6
@@ -86,10 +87,16 @@ if mujoco_c.IMPORT_ERROR is None:
                 istate[POSITION32, i] = position32
                 # PID + feed-forward (pid.py), same operations in the same order
                 error = command - position32
+                ramp = fstate[VELOCITY, i] * fparams[FRICTION_RATE, i]
+                if ramp > 1.0:
+                    ramp = 1.0
+                elif ramp < -1.0:
+                    ramp = -1.0
                 fixed = (fparams[KP, i] * error
                          + fparams[KD_OVER_DT, i] * (error - fstate[PREV_ERROR, i])
                          + fparams[KVFF, i] * fstate[VELOCITY, i]
-                         + fparams[KAFF, i] * fstate[ACCELERATION, i])
+                         + fparams[KAFF, i] * fstate[ACCELERATION, i]
+                         + fparams[FRICTION_FF, i] * ramp)
                 fstate[PREV_ERROR, i] = error
                 limit = fparams[INT_LIMIT, i]
                 integrator = fstate[INTEGRATOR, i] + fparams[KI_DT, i] * error
@@ -165,7 +172,7 @@ class CompiledServo:
         for i, (encoder, loop, dac) in enumerate(zip(servo.encoders, servo.loops, servo.dacs)):
             self.fparams[:, i] = (encoder.counts_per_unit, loop.kp, loop.ki_dt, loop.kd_over_dt, loop.kvff,
                                   loop.kaff, loop.output_limit, loop.integrator_limit, dac._codes_per_volt,
-                                  dac._volts_per_code)
+                                  dac._volts_per_code, loop.friction_ff, loop.friction_rate)
         self.fstate = np.zeros((N_FSTATE, n))
         self.istate = np.zeros((N_ISTATE, n), dtype=np.int64)
         self.istate[ZERO_EDGES] = [e._zero_edges for e in servo.encoders]

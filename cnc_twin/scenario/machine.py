@@ -40,6 +40,10 @@ class ServoSpec(Strict):
     kd: float = Field(0.0, ge=0, description="derivative gain [-]: speed per unit error rate")
     kvff: float = Field(1.0, ge=0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
     kaff: float = Field(0.0, ge=0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    friction_ff: float = Field(0.0, ge=0, le=10.0, description="friction feed-forward [V]: added with the sign of the "
+                               "commanded speed to cancel the axis's Coulomb friction; 0 = off")
+    friction_ff_band: float = Field(1.0, gt=0, description="commanded speed over which the friction feed-forward "
+                                    "ramps from 0 to full [mm/s | deg/s]")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
     integrator_limit: float = Field(3.0, ge=0, description="clamp on the integrator's contribution [V]")
 
@@ -218,6 +222,8 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
                 kd=a.servo.kd,
                 kvff=a.servo.kvff,
                 kaff=a.servo.kaff,
+                friction_ff=a.servo.friction_ff,
+                friction_ff_band=a.servo.friction_ff_band * units.position_factor(rotary),
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],
