@@ -20,6 +20,7 @@ Hooks, each with a default that serves a point-to-point program:
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -193,8 +194,6 @@ def lookahead_periods(scenario: Scenario) -> int:
     On a path program the card must always hold enough path to stop in, so a look-ahead is never
     less than twice the time to stop from the programmed feed (jerk-limited).
     """
-    import math
-
     period = scenario.timing.interpolation_period
     periods = math.ceil(scenario.planner.lookahead / period - 1e-9)
     stop_time = kind_of(scenario.program).stop_time(scenario.program)
