@@ -90,13 +90,13 @@ class Feeder:
     def top_up(self) -> None:
         """Hand planned records to the streamer: lockstep by the backlog rule, real time all there is."""
         if self.threaded:
-            if self._error is not None:
-                raise self._error
             with self._planned:
                 ready, self._ready = self._ready, []
                 done = self._done
             for chunk in ready:
                 self.streamer.add(*chunk)
+            if self._error is not None:  # the thread failed: the run cannot go on
+                raise self._error
             if done:
                 self.streamer.complete = True
             return
