@@ -114,9 +114,7 @@ def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimi
     ``a_t``: the tangential acceleration budget, if already known (:func:`tangential_budget`).
     """
     _, d1, d2 = curve.derivatives(u, 2)
-    sigma = np.linalg.norm(d1, axis=1)
-    tangent = d1 / sigma[:, None]
-    c_ss = (d2 - np.sum(tangent * d2, axis=1)[:, None] * tangent) / (sigma**2)[:, None]
+    tangent, c_ss = _arc_length_derivatives(d1, d2)
     kappa = np.linalg.norm(c_ss, axis=1)
     c_sss = np.gradient(c_ss, s, axis=0)
     tiny = 1e-300
@@ -145,6 +143,13 @@ def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimi
     return f
 
 
+def _arc_length_derivatives(d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(unit tangent ``C_s``, ``C_ss``) from the parametric derivatives ``C'``, ``C''`` (each (N, 3))."""
+    sigma = np.linalg.norm(d1, axis=1)
+    tangent = d1 / sigma[:, None]
+    return tangent, (d2 - np.sum(tangent * d2, axis=1)[:, None] * tangent) / (sigma**2)[:, None]
+
+
 def knot_jerk_limit(curve: NurbsCurve, u: np.ndarray, j_lim, period: float) -> np.ndarray:
     """The feed limit [m/s] at the samples that are knots where the curve's curvature jumps (a
     quadratic, or a knot repeated to C1): there each axis's acceleration changes by
@@ -161,9 +166,7 @@ def knot_jerk_limit(curve: NurbsCurve, u: np.ndarray, j_lim, period: float) -> n
     sides = []
     for side in (knots - eps, knots + eps):
         _, d1, d2 = curve.derivatives(side, 2)
-        sigma = np.linalg.norm(d1, axis=1)
-        t = d1 / sigma[:, None]
-        sides.append((d2 - np.sum(t * d2, axis=1)[:, None] * t) / (sigma**2)[:, None])
+        sides.append(_arc_length_derivatives(d1, d2)[1])
     jump = np.abs(sides[1] - sides[0])  # (knots, 3) [1/m]
     scale = np.max(np.abs(np.concatenate(sides)), axis=0) + 1.0  # round-off is relative to C_ss itself
     jump = np.where(jump > 1e-6 * scale, jump, 0.0)

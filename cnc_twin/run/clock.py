@@ -72,6 +72,10 @@ class Clock:
         twin.expected_periods = planned + 1
         self.report_every = max(1, twin.expected_periods // REPORTS_PER_RUN)
         twin.recorder = self.recorder = Recorder(planned + 2, self.ticks_per_period, scratch=not twin.record)
+        # what the Python servo-tick variants call every tick, looked up once
+        plant = twin.plant
+        self._plant_calls = (plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
+                             self.recorder.record_tick)
         twin.late_periods = twin.missed_ticks = 0
         # the steady middle of curve blocks, moves and dwells, many periods per compiled call
         # (lockstep only: real time paces every period; not for surfaces: the removal map
@@ -163,8 +167,8 @@ class Clock:
             return t + self.ticks_per_period
         if kernel is not None:
             kernel.store()
-        plant, servo, record_tick, frame = twin.plant, twin.servo, self.recorder.record_tick, twin.servo.frame
-        axis_positions, pad_force, apply_volts, step = plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step
+        servo, frame = twin.servo, twin.servo.frame
+        axis_positions, pad_force, apply_volts, step, record_tick = self._plant_calls
         substeps = self.substeps
         if self.dsp.drives_enabled and twin.drives is not None:
             # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
