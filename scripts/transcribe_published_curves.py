@@ -28,15 +28,13 @@ CURVES = {
     "chitarra": ("Curva_Chitarra #1=1.ngc", "Chitarra (guitar)"),
     "stella": ("Curva_Stella #1=1.ngc", "Stella (star)"),
     "mazatrol": ("Curva_Mazatrol #1=1-xy.ngc", "Mazatrol"),
-}
-TOO_LONG_FOR_ONE_RECORD = {
-    # the card takes a curve's geometry in one record (2048 words, about 110 control points):
-    # these wait until a curve can be sent in pieces; UNIPA and homer hold many curves each and
-    # wait for the G-code reader
+    # longer than one record (2048 words): the card receives their geometry in parts
     "scroll_m": ("Curva_Scrool_M #1=1.ngc", "Scrool M (scroll)"),          # 221 control points
     "scroll_f": ("Curva_Scrool_F #1=1.ngc", "Scrool F (scroll)"),          # 666
     "ruota_dentata": ("Ruota_dentata #1=1.ngc", "Ruota dentata (gear)"),   # 589
 }
+# UNIPA and homer hold many curves each, with moves between: they run as the .ngc programs
+# themselves once the G-code reader reads them.
 LIFT = 10.0
 """height of the curve's plane above the workpiece top [mm]"""
 CITATION = ("Lo Valvo, E. and Drago, S., \"An Efficient NURBS Path Generator for a Open Source CNC\"; "

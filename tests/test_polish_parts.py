@@ -267,14 +267,14 @@ def test_a_face_tilted_beyond_the_head_is_refused_before_motion():
     assert info.value.key_path == "program.path"
 
 
-def test_a_surface_too_large_for_one_record_is_refused():
+def test_a_surface_too_large_for_the_cards_geometry_memory_is_refused():
     from cnc_twin.core.errors import ScenarioError
     from cnc_twin.scenario.load import scenario_from_dict
 
-    n = 14
+    n = 40
     net = [[[-80 + 160 * i / (n - 1), -60 + 120 * j / (n - 1), 0] for j in range(n)] for i in range(n)]
     knots = [0, 0] + [k / (n - 1) for k in range(1, n - 1)] + [1, 1]
     change = {"surface.control_net": net, "surface.knots_u": knots, "surface.knots_v": knots}
-    with pytest.raises(ScenarioError, match="exceeds one record") as info:
+    with pytest.raises(ScenarioError, match="exceeds the card's geometry memory") as info:
         scenario_from_dict(_surface_scenario(**change))
     assert info.value.key_path == "program.surface.control_net"

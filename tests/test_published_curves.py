@@ -54,15 +54,15 @@ def test_the_planner_converges_on_the_butterfly_at_a_quarter_millisecond():
         start += block.length
 
 
-def test_a_curve_too_long_for_one_record_is_refused_at_load():
-    n = 300
-    points = "\n".join(f"    - [{i * 0.5}, {10 * np.sin(i / 10):.4f}, 10]" for i in range(n))
+def test_a_curve_beyond_the_cards_geometry_memory_is_refused_at_load():
+    n = 1500  # 4 x 1500 values and 1504 knots: 30 000 words, the card holds 16 384
+    points = "\n".join(f"    - [{i * 0.1:.1f}, {10 * np.sin(i / 100):.4f}, 10]" for i in range(n))
     knots = [0] * 4 + list(range(1, n - 3)) + [n - 3] * 4
     text = (f"name: long\nprogram:\n  type: nurbs_curve\n  degree: 3\n  control_points:\n{points}\n"
             f"  knots: {knots}\n  feed: 2400\n")
     with pytest.raises(ScenarioError) as err:
         scenario_from_text(text)
-    assert "program.control_points" in str(err.value) and "one record" in str(err.value)
+    assert "program.control_points" in str(err.value) and "geometry memory" in str(err.value)
 
 
 def test_the_summary_warns_on_a_limit_broken_in_the_trace():
@@ -134,7 +134,7 @@ def test_a_published_curve_keeps_every_limit_in_the_trace(name, feed, period_ms)
 
 
 def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
-    """A program the planner cannot send (300 control points, more than one record holds; the loader
+    """A program the planner cannot send (1500 control points, more than the card's geometry memory holds; the loader
     refuses it, so it is built here past the loader) ends the run as a planner fault whose message
     carries the planner's own exception, not only "the planner process exited"."""
     from dataclasses import replace
@@ -144,14 +144,14 @@ def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
     scenario = load_scenario(scenarios_dir() / "published" / "stella.yaml")
     prog = scenario.program
     x0, y0, z0 = prog.control_points[0]
-    n = 300
-    points = tuple((x0 + 1e-4 * i, y0 + 1e-3 * math.sin(i / 20), z0) for i in range(n))
+    n = 1500  # beyond the card's geometry memory (16384 words), even in parts
+    points = tuple((x0 + 1e-5 * i, y0 + 1e-3 * math.sin(i / 200), z0) for i in range(n))
     knots = (0.0,) * 3 + tuple(float(k) for k in range(1, n - 2)) + (float(n - 2),) * 3
     too_long = replace(prog, control_points=points, weights=(1.0,) * n, knots=knots)
     result = run_scenario(replace(scenario, program=too_long))
     fault = result.metrics["fault"]
     assert result.status == "fault" and fault["code"] in ("PLANNER_START", "PLANNER_LOST")
-    assert "ValueError: curve of 300 control points exceeds one record" in fault["message"], fault["message"]
+    assert "ValueError: curve of 1500 control points exceeds the card's geometry memory" in fault["message"], fault["message"]
     assert "\n" not in fault["message"]
 
 
@@ -181,3 +181,38 @@ def test_friction_feed_forward_takes_out_the_reversal_glitches():
     with_ff = run_scenario(load_scenario(path)).metrics["path"]["contour_error_um"]
     assert with_ff["max"] < 0.5 * without["max"] and with_ff["rms"] < 0.5 * without["rms"], (with_ff, without)
     assert with_ff["max"] < 10.0 and with_ff["rms"] < 2.5
+
+
+def test_a_curve_longer_than_one_record_runs_and_a_flipped_part_is_resent():
+    """The scroll (221 control points, 4436 payload words) goes to the card in GeometryPart
+    records, one per exchange. A bit flipped in one of them is rejected and resent, and the
+    machine does exactly what it does without the flip."""
+    from cnc_twin import run_scenario
+
+    path = scenarios_dir() / "published" / "scroll_m.yaml"
+    clean = run_scenario(load_scenario(path))
+    assert clean.status == "complete" and clean.metrics["final_state"] == "FINISHED"
+    assert max(_curve_part_ratios(clean).values()) <= 1.01
+    assert clean.metrics["path"]["periods_on_curve"] > 0
+    # what the planner writes in the first exchange (at 0 s): the approach move and the settle
+    # dwell; a 2048-word part does not fit beside them, so the record written at 1 ms is part 1
+    from cnc_twin.planner.curve_program import CurvePlan
+    from cnc_twin.whiteboard.codec import encode, split
+    from cnc_twin.whiteboard.records import GeometryPart
+
+    sc = clean.scenario
+    plan = CurvePlan(sc.program, sc.axes, sc.home, sc.timing.interpolation_period, window=0.1)
+    first, _ = next(plan.chunks())
+    chunk = sc.whiteboard.chunk_words
+    parts = split(first[-1], chunk)
+    assert len(parts) == 3 and isinstance(parts[0], GeometryPart)
+    assert sum(len(encode(r, 1)) for r in first[:-1]) + len(encode(parts[0], 1)) > chunk
+    flipped = run_scenario(load_scenario(path, overrides={
+        "faults": [{"type": "record_bitflip", "at": 0.001, "bit": 901}]}))
+    wb = flipped.metrics["whiteboard"]
+    assert wb["records_rejected"] == 1 and wb["records_retransmitted"] >= 1
+    assert flipped.status == "complete"
+    # the FIFO's fill differs for the exchanges of the resend; what the machine did does not
+    for name, column in clean.trace.columns().items():
+        if name not in ("records_rejected", "fifo_fill"):
+            assert np.array_equal(column, flipped.trace.columns()[name]), name

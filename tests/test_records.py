@@ -214,3 +214,53 @@ def test_curve_geometry_with_a_tool_axis_curve_round_trips():
     assert got.pivot == (0.0, 0.0, 0.6) and got.offset == (0.0, 0.0, -0.25) and got.hold == (0.0, 0.0, 0.5)
     for bit in range(0, 16 * len(words), 5):
         assert_flip_caught(words, bit)
+
+
+def _long_curve(n: int):
+    from cnc_twin.whiteboard.records import CurveGeometry
+
+    points = tuple((1e-4 * i, 1e-3 * math.sin(i / 7), -0.2) for i in range(n))
+    knots = (0.0,) * 4 + tuple(float(k) for k in range(1, n - 3)) + (float(n - 3),) * 4
+    return CurveGeometry(degree=3, knots=knots, weights=tuple(1.0 + (i % 3) / 10 for i in range(n)),
+                         control_points=points, hold=(0.0, 0.1, 0.0))
+
+
+def test_a_curve_longer_than_one_record_goes_in_parts_and_is_joined_whole():
+    from cnc_twin.whiteboard.codec import GeometryJoiner, split
+    from cnc_twin.whiteboard.records import GeometryPart
+
+    curve = _long_curve(666)  # the scroll's size: 13 340 payload words
+    with pytest.raises(ValueError, match="exceeds one record"):
+        encode(curve, 1)
+    parts = split(curve, 2048)  # the default chunk per exchange: 2048 words
+    assert len(parts) == 7 and all(isinstance(p, GeometryPart) for p in parts)
+    joiner = GeometryJoiner()
+    got = None
+    for seq, part in enumerate(parts, start=5):
+        words = encode(part, seq)
+        assert len(words) <= 2048
+        for bit in range(0, 16 * len(words), 97):
+            assert_flip_caught(words, bit)
+        assert got is None
+        decoded_seq, decoded = decode(words)
+        assert decoded_seq == seq and decoded == part
+        got = joiner.add(decoded)
+        assert joiner.joining == (got is None)
+    assert got == curve
+    small = _long_curve(20)
+    assert split(small) == [small]
+
+
+def test_geometry_parts_out_of_order_or_beyond_the_cards_memory_are_rejected():
+    from cnc_twin.whiteboard.codec import MAX_GEOMETRY_WORDS, GeometryJoiner, payload_words, split
+
+    parts = split(_long_curve(300))
+    joiner = GeometryJoiner()
+    assert joiner.add(parts[0]) is None
+    with pytest.raises(RecordError, match="out of order"):
+        joiner.add(parts[2])
+    assert joiner.add(parts[1]) is None  # what was joined stays: the resent part goes on from there
+    assert joiner.add(parts[2]) == _long_curve(300)
+    with pytest.raises(ValueError, match="geometry memory"):
+        payload_words(_long_curve(850))
+    assert payload_words(_long_curve(800)) <= MAX_GEOMETRY_WORDS

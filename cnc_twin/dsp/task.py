@@ -6,7 +6,8 @@ Once per interpolation period, before the servo ticks::
                                               # FIFO's write index while the DSP owns the bus.
     top up: while fewer than QUEUE_AHEAD records wait behind the running one, pop one from
             the FIFO (up to the snapshot):
-        seq, record = decode(words)           # CRC, framing
+        seq, record = decode(words)           # CRC, framing; geometry parts are joined and
+                                              # the whole curve or surface pushed with the last
         if bad or seq != expected_seq:        # reject, count, flush the FIFO: the PC goes back
             reject; stop                      # to expected_seq (it sees records_rejected grow)
         interpolator.push(seq, record); expected_seq += 1
@@ -37,8 +38,9 @@ from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import PERIOD_FIELDS, ServoTask
 from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
 from cnc_twin.geometry.kinematics import rotation_ab
-from cnc_twin.whiteboard.codec import RecordError, decode
+from cnc_twin.whiteboard.codec import GeometryJoiner, RecordError, decode
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
+from cnc_twin.whiteboard.records import GeometryPart
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 SOLO_LIVENESS_PERIODS = 64
@@ -78,6 +80,7 @@ class DspTask:
         self.fault_message = ""
         self.fault_time: float | None = None
         self.expected_seq = 1
+        self.geometry_joiner = GeometryJoiner()
         self.records_accepted = 0
         self.records_rejected = 0
         self.underrun_periods = 0
@@ -226,6 +229,8 @@ class DspTask:
                 if words is None:
                     return
                 seq, record = decode(words)
+                if seq == self.expected_seq and isinstance(record, GeometryPart):
+                    record = self.geometry_joiner.add(record)
             except RecordError:
                 seq, record = None, None
             if seq != self.expected_seq:
@@ -235,7 +240,8 @@ class DspTask:
                 fifo.flush()
                 self.port.solo = False
                 return
-            interp.push(seq, record)
+            if record is not None:  # None: a geometry part joined, the whole record not yet complete
+                interp.push(seq, record)
             self.expected_seq += 1
             self.records_accepted += 1
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 from cnc_twin.core.config import AxisConfig, NurbsProgram
-from cnc_twin.planner.feed import plan_feed_windows, sample_limits
+from cnc_twin.planner.feed import plan_feed_windows, sample_limits, traverse_time
 from cnc_twin.planner.ptp import dwell_chunk, plan_move
 from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, EndOfProgram, Move, Record
 
@@ -63,9 +63,11 @@ class CurvePlan:
 
     @property
     def estimated_periods(self) -> int:
-        """Program length [periods], estimated: the approach, 1.2x the curve at feed, the settle."""
+        """Program length [periods], estimated: the approach, 1.2x the curve's time at its feed
+        limit with the acceleration budget (a curve with many sharp corners takes several times its
+        length at feed), the settle."""
         prog, period = self.prog, self.period
-        curve_time = 1.2 * self.curve.arc_length() / prog.limits.feed
+        curve_time = 1.2 * traverse_time(self.samples)
         approach = self.approach.periods + math.ceil(prog.settle / period) if self.approach else 0
         return approach + math.ceil((curve_time + prog.settle) / period)
 

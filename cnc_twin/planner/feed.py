@@ -279,6 +279,22 @@ def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_
     return _sample(curve, limits, period, axis_path, axis_limits)
 
 
+def traverse_time(samples: _Samples) -> float:
+    """The curve's time at its feed limit with the tangential acceleration budget, from rest to
+    rest [s]: a forward and a backward pass over the samples (no jerk limit, so a lower bound of
+    the planned time; the program's length estimate is taken from it)."""
+    s, limit, a = samples.s, samples.limit, samples.a_t
+    ds = np.diff(s)
+    w = np.minimum(limit, 1e150) ** 2  # v^2, which grows by at most 2 a ds a sample: with
+    w[0] = w[-1] = 0.0                  # c = 2 a s, w_i = min over k <= i of (w_k - c_k) + c_i
+    c = 2.0 * a * s
+    w = np.minimum(w, np.minimum.accumulate(w - c) + c)
+    w = np.minimum(w, (np.minimum.accumulate((w + c)[::-1]) - c[::-1])[::-1])
+    v = np.sqrt(np.maximum(w, 0.0))
+    mean = 0.5 * (v[1:] + v[:-1])
+    return float(np.sum(ds / np.maximum(mean, 1e-9)))
+
+
 def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
                       axis_path=None, axis_limits=None, samples: _Samples | None = None):
     """Plan the curve window by window; yields lists of committed S-curve blocks in path order.

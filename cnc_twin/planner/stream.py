@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from cnc_twin.planner.job import PlannerJob, plan_for
-from cnc_twin.whiteboard.codec import encode
+from cnc_twin.whiteboard.codec import encode, split
 from cnc_twin.whiteboard.ports import PcPort
 from cnc_twin.whiteboard.records import CurveBlock, Move, Record
 from cnc_twin.whiteboard.status import DspState
@@ -129,9 +129,13 @@ class Streamer:
         self.retransmitted = 0
 
     def add(self, records: list[Record], periods: list[int]) -> None:
+        """Encode ``records`` (``periods`` each) in order; a curve or surface longer than one
+        exchange's chunk goes as GeometryPart records, the periods counted on the last part."""
         for record, n in zip(records, periods):
-            self.encoded.append(encode(record, len(self.encoded) + 1))
-            self.cumulative.append(self.cumulative[-1] + n)
+            pieces = split(record, self.chunk_words)
+            for i, piece in enumerate(pieces):
+                self.encoded.append(encode(piece, len(self.encoded) + 1))
+                self.cumulative.append(self.cumulative[-1] + (n if i == len(pieces) - 1 else 0))
 
     @property
     def backlog(self) -> int:

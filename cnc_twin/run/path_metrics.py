@@ -50,13 +50,18 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
     return out
 
 
-def _point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance of each of ``points`` (shape (n, 3)) to the polyline ``poly`` (shape (m, 3)), same
+    units; shape (n,)."""
     from scipy.spatial import cKDTree  # here: only curve and contour runs need it
 
     tree = cKDTree(poly)
-    _, idx = tree.query(points)
+    # the segments next to the 4 nearest vertices: the nearest vertex alone can belong to another
+    # part of the curve than the nearest segment (a closed curve's end beside its start, a long
+    # first span's far vertex)
+    _, nearest = tree.query(points, k=min(4, len(poly)))
     best = np.full(len(points), np.inf)
-    for offset in (-1, 0):
+    for idx, offset in ((nearest[:, j], o) for j in range(nearest.shape[1]) for o in (-1, 0)):
         i0 = np.clip(idx + offset, 0, len(poly) - 2)
         a, b = poly[i0], poly[i0 + 1]
         d = b - a
@@ -134,7 +139,7 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
                                "jerk": "m/s^3 | rad/s^3"}
     out["limit_violations"] = violations
     poly = curve.point(np.linspace(*curve.domain, 20001))
-    contour = _point_to_polyline(actual[on], poly)
+    contour = point_to_polyline(actual[on], poly)
     out["contour_error_um"] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}
     if interpolator_ns is not None and len(interpolator_ns):
         out["interpolator_us_per_period"] = {"median": float(np.median(interpolator_ns) / 1e3),

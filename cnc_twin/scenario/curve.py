@@ -124,7 +124,7 @@ def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label:
             tuple(c.max_velocity for c in axes[3:5]), tuple(c.max_acceleration for c in axes[3:5]),
             tuple(c.max_jerk for c in axes[3:5])),
     )
-    _check_fits_one_record(program, label)
+    _check_fits_the_card(program, label)
     return program
 
 
@@ -163,14 +163,14 @@ def _oriented_path(spec: NurbsCurveProgram, tip_world, head, label: Path):
     return axis_curve, curve, poses
 
 
-def _check_fits_one_record(program: NurbsProgram, label: Path) -> None:
-    """The card takes a curve's geometry in one record (up to 2048 words: about 110 control points
-    of a 3D curve with their weights and knots); refuse a larger one here, before any motion."""
+def _check_fits_the_card(program: NurbsProgram, label: Path) -> None:
+    """The card keeps a curve's geometry in its geometry memory (16384 words: about 800 control
+    points of a 3D curve with their weights and knots; a curve longer than one record goes in
+    parts); refuse a larger one here, before any motion."""
     from cnc_twin.planner.curve_program import curve_setup
-    from cnc_twin.whiteboard.codec import encode
+    from cnc_twin.whiteboard.codec import payload_words
 
     try:
-        encode(curve_setup(program)[4], 1)
+        payload_words(curve_setup(program)[4])
     except ValueError as exc:
-        raise ScenarioError(label, "program.control_points",
-                            f"{exc}: the card takes a curve's geometry in one record; split the curve") from None
+        raise ScenarioError(label, "program.control_points", f"{exc}: split the curve") from None

@@ -179,23 +179,24 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
     if program.spindle_speed > c_axis.max_velocity:
         raise ScenarioError(label, "program.spindle", f"{spec.spindle:g} rpm exceeds the C axis's "
                             f"{c_axis.max_velocity / units.RPM:g} rpm")
-    _check_fits_one_record(program, label)
+    _check_fits_the_card(program, label)
     length = check_reach(program, axes, head, label)
     from dataclasses import replace
 
     return replace(program, path_length=length)
 
 
-def _check_fits_one_record(program: SurfaceProgram, label: Path) -> None:
-    """The card takes the surface in one record (up to 2048 words: about 120 control points)."""
-    from cnc_twin.whiteboard.codec import encode
+def _check_fits_the_card(program: SurfaceProgram, label: Path) -> None:
+    """The card keeps the surface in its geometry memory (16384 words: about 1000 control points;
+    a surface longer than one record goes in parts); refuse a larger one here."""
+    from cnc_twin.whiteboard.codec import payload_words
     from cnc_twin.whiteboard.records import SurfaceGeometry
 
     try:
-        encode(SurfaceGeometry(surface=program.surface, lead=0.0, tilt=0.0, pivot=(0.0, 0.0, 0.0),
-                               offset=(0.0, 0.0, 0.0)), 1)
+        payload_words(SurfaceGeometry(surface=program.surface, lead=0.0, tilt=0.0, pivot=(0.0, 0.0, 0.0),
+                                      offset=(0.0, 0.0, 0.0)))
     except ValueError as exc:
-        raise ScenarioError(label, "program.surface.control_net", f"{exc}: the card takes a surface in one record") from None
+        raise ScenarioError(label, "program.surface.control_net", str(exc)) from None
 
 
 def check_reach(program: SurfaceProgram, axes: tuple[AxisConfig, ...], head, label: Path) -> float:

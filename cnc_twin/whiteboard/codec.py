@@ -50,10 +50,19 @@ type   record           payload                                                 
 15     ChipCommand      op, axis, profile, pad u16 x4; deltas X Y Z, distance i32 x4 32
                         [counts]; speed, creep [counts/s], accel [counts/s^2],
                         jerk [counts/s^3], time [s] f64 x5
+16     GeometryPart     whole record's type, part index, part count, pad u16 x4;   5..2048
+                        the part's payload words
 =====  ===============  =========================================================  ======
 
-DataBlock, CurveGeometry and the surface records have variable length: their span is fixed by the length and its
-complement (a single flipped bit in either makes them disagree), so the CRC-16 guarantee holds.
+DataBlock, CurveGeometry, GeometryPart and the surface records have variable length: their span is fixed by the
+length and its complement (a single flipped bit in either makes them disagree), so the CRC-16 guarantee holds.
+
+A curve or surface whose payload exceeds one record (``MAX_BLOCK_WORDS``) goes in parts
+(:func:`split`): consecutive GeometryPart records, each checked by its own CRC, whose payloads
+joined are the whole record's payload. The card joins them in sequence order
+(:class:`GeometryJoiner`) up to its geometry memory, ``MAX_GEOMETRY_WORDS``, and decodes the whole
+record when the last part arrives. Parts are accepted one by one like any record, so a rejected
+part is resent from where it failed and the parts already joined stay.
 """
 
 from __future__ import annotations
@@ -68,7 +77,7 @@ from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.whiteboard.records import (
     MAX_BLOCK_WORDS, ChipCommand, CurveBlock, CurveGeometry, DataBlock, Dwell, EndOfProgram, FeedOverride,
-    ForceControlRecord, ForceSetpoint, Mark, Move, Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
+    ForceControlRecord, ForceSetpoint, GeometryPart, Mark, Move, Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
 SYNC = 0xA5
@@ -90,7 +99,7 @@ _HEADER = struct.Struct("<HHHI")
 
 _TYPE_OF = {Move: 1, Dwell: 2, FeedOverride: 3, ForceSetpoint: 4, Spindle: 5, EndOfProgram: 6, DataBlock: 7,
             CurveGeometry: 8, CurveBlock: 9, SurfaceGeometry: 10, SurfaceCurve: 11, ForceControlRecord: 12,
-            StepContour: 13, Mark: 14, ChipCommand: 15}
+            StepContour: 13, Mark: 14, ChipCommand: 15, GeometryPart: 16}
 _CHIP = struct.Struct("<4H4i5d")
 _STEP_CONTOUR = struct.Struct("<6H6i6d")
 _MARK = struct.Struct("<I")
@@ -102,13 +111,18 @@ _PAYLOAD_WORDS = {1: _MOVE.size // 2, 2: _DWELL.size // 2, 3: 4, 4: 4, 5: _SPIND
 _DATA_BLOCK = 7
 _CURVE_GEOMETRY = 8
 _SURFACE, _SURFACE_CURVE, _FORCE = 10, 11, 12
-_VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY, _SURFACE, _SURFACE_CURVE, _FORCE}
+_GEOMETRY_PART = 16
+_VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY, _SURFACE, _SURFACE_CURVE, _FORCE, _GEOMETRY_PART}
+_PART_HEAD = struct.Struct("<HHHH")
 _SURFACE_HEAD = struct.Struct("<HHHH8d")
 _UV_HEAD = struct.Struct("<HH")
 _FORCE_HEAD = struct.Struct("<HH12d")
 _FORCE_FIELDS = ("setpoint", "ramp_time", "seek_speed", "standoff", "contact_threshold", "kp", "ki", "max_depth",
                  "retract_speed", "adapt_threshold", "adapt_feed", "adapt_hold")
 MAX_RECORD_WORDS = OVERHEAD_WORDS + MAX_BLOCK_WORDS
+MAX_GEOMETRY_WORDS = 16384
+"""the card's geometry memory [16-bit words, 32 KB]: the longest curve or surface payload it joins
+from parts (about 800 control points of a 3D curve with weights and knots)"""
 
 
 class RecordError(ValueError):
@@ -145,7 +159,7 @@ def _payload(record: Record) -> bytes:
                       np.asarray(ac.knots, "<f8"), np.asarray(ac.weights, "<f8"),
                       np.asarray(ac.control_points, "<f8").ravel()]
         body = _CURVE_HEAD.pack(record.degree, n, degree2, n2, *record.hold) + np.concatenate(parts).tobytes()
-        return _checked_size(body, f"curve of {n} control points")
+        return _checked_size(body, f"curve of {n} control points", MAX_GEOMETRY_WORDS)
     if isinstance(record, CurveBlock):
         p = record.profile
         return _CURVE_BLOCK.pack(p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
@@ -156,7 +170,7 @@ def _payload(record: Record) -> bytes:
                                   *record.pivot, *record.offset) + np.concatenate([
             np.asarray(s.knots_u, "<f8"), np.asarray(s.knots_v, "<f8"),
             np.asarray(s.weights, "<f8").ravel(), np.asarray(s.control_net, "<f8").ravel()]).tobytes()
-        return _checked_size(body, f"surface of {nu} x {nv} control points")
+        return _checked_size(body, f"surface of {nu} x {nv} control points", MAX_GEOMETRY_WORDS)
     if isinstance(record, SurfaceCurve):
         c = record.curve
         body = _UV_HEAD.pack(c.degree, len(c.control_points)) + np.concatenate([
@@ -176,22 +190,92 @@ def _payload(record: Record) -> bytes:
                                   p.length, p.v0, p.vp, p.v1, p.a_max, p.j_max)
     if isinstance(record, Mark):
         return _MARK.pack(record.number)
+    if isinstance(record, GeometryPart):
+        return _PART_HEAD.pack(record.kind, record.index, record.count, 0) + np.ascontiguousarray(
+            record.words, dtype="<u2").tobytes()
     if isinstance(record, ChipCommand):
         return _CHIP.pack(record.op, record.axis, record.profile, 0, *record.deltas, record.distance,
                           record.speed, record.creep, record.accel, record.jerk, record.time)
     raise TypeError(f"not a record: {record!r}")
 
 
-def _checked_size(body: bytes, what: str) -> bytes:
-    if len(body) // 2 > MAX_BLOCK_WORDS:
-        raise ValueError(f"{what} exceeds one record ({len(body) // 2} of {MAX_BLOCK_WORDS} words)")
+def _checked_size(body: bytes, what: str, limit: int = MAX_BLOCK_WORDS) -> bytes:
+    if len(body) // 2 > limit:
+        where = "one record" if limit == MAX_BLOCK_WORDS else "the card's geometry memory"
+        raise ValueError(f"{what} exceeds {where} ({len(body) // 2} of {limit} words)")
     return body
 
 
+def payload_words(record: Record) -> int:
+    """Length of the record's payload [words]; for a curve or surface, checked against the card's
+    geometry memory (ValueError beyond it)."""
+    return len(_payload(record)) // 2
+
+
+def split(record: Record, record_words: int = MAX_RECORD_WORDS) -> list[Record]:
+    """``[record]`` when it fits one record of ``record_words`` words (header and CRC included),
+    else the GeometryPart records that carry it, in order. Only a CurveGeometry or SurfaceGeometry
+    is split; ValueError if it exceeds the card's geometry memory."""
+    payload = _payload(record)
+    capacity = min(record_words, MAX_RECORD_WORDS) - OVERHEAD_WORDS
+    if len(payload) // 2 <= capacity or not isinstance(record, (CurveGeometry, SurfaceGeometry)):
+        return [record]
+    words = np.frombuffer(payload, dtype="<u2")
+    piece = capacity - _PART_HEAD.size // 2
+    if piece < 1:
+        raise ValueError(f"records of {record_words} words cannot carry a geometry part")
+    count = -(-len(words) // piece)
+    if count > 0xFFFF:
+        raise ValueError(f"{len(words)} words need more than 65535 parts")
+    kind = _TYPE_OF[type(record)]
+    return [GeometryPart(kind=kind, index=i, count=count, words=words[i * piece:(i + 1) * piece].copy())
+            for i in range(count)]
+
+
+class GeometryJoiner:
+    """The card's side of :func:`split`: joins GeometryPart records in order.
+
+    :meth:`add` returns the whole record when its last part arrives, else None. A part out of
+    order, of another record, or one that would overflow ``MAX_GEOMETRY_WORDS`` raises RecordError
+    (the card rejects it like a record with a bad CRC) and the parts joined so far stay.
+    """
+
+    def __init__(self) -> None:
+        self._parts: list[np.ndarray] = []
+        self._words = 0
+        self._kind = self._count = 0
+
+    @property
+    def joining(self) -> bool:
+        """Parts received, the last one not yet."""
+        return bool(self._parts)
+
+    def add(self, part: GeometryPart) -> CurveGeometry | SurfaceGeometry | None:
+        if part.kind not in (_CURVE_GEOMETRY, _SURFACE):
+            raise RecordError(f"geometry part of record type {part.kind}")
+        if part.index != len(self._parts) or (self._parts and (part.kind, part.count) != (self._kind, self._count)):
+            raise RecordError(f"geometry part {part.index + 1} of {part.count} out of order "
+                              f"({len(self._parts)} of {self._count or part.count} joined)")
+        if self._words + len(part.words) > MAX_GEOMETRY_WORDS:
+            raise RecordError(f"geometry beyond the card's memory of {MAX_GEOMETRY_WORDS} words")
+        self._parts.append(np.ascontiguousarray(part.words, dtype="<u2"))
+        self._words += len(part.words)
+        self._kind, self._count = part.kind, part.count
+        if len(self._parts) < part.count:
+            return None
+        payload = np.concatenate(self._parts).tobytes()
+        self._parts, self._words, self._kind, self._count = [], 0, 0, 0
+        return _decode_curve(payload) if part.kind == _CURVE_GEOMETRY else _decode_surface(payload)
+
+
 def encode(record: Record, seq: int) -> np.ndarray:
-    """The record's words, shape ``(OVERHEAD_WORDS + n,)``, dtype uint16."""
+    """The record's words, shape ``(OVERHEAD_WORDS + n,)``, dtype uint16. ValueError when the
+    payload exceeds one record (a long curve or surface goes in parts: :func:`split`)."""
     payload = _payload(record)
     n = len(payload) // 2
+    if n > MAX_BLOCK_WORDS:
+        raise ValueError(f"{type(record).__name__} of {n} words exceeds one record ({MAX_BLOCK_WORDS} words): "
+                         "send it in parts (codec.split)")
     body = _HEADER.pack(SYNC << 8 | _TYPE_OF[type(record)], n, ~n & 0xFFFF, seq & 0xFFFFFFFF) + payload
     return np.frombuffer(body + struct.pack("<H", crc16(body)), dtype="<u2").copy()
 
@@ -341,6 +425,11 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
         record = _decode_surface_curve(bytes(payload))
     elif kind == _FORCE:
         record = _decode_force(bytes(payload))
+    elif kind == _GEOMETRY_PART:
+        head, index, count, _pad = _head(_PART_HEAD, payload, "geometry part")
+        if not index < count or len(payload) == _PART_HEAD.size:
+            raise RecordError(f"geometry part {index} of {count} with {len(payload) // 2 - 4} words")
+        record = GeometryPart(kind=head, index=index, count=count, words=words[HEADER_WORDS + 4:-1].copy())
     else:
         record = EndOfProgram()
     return seq, record

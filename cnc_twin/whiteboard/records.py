@@ -28,6 +28,8 @@ StepContour         a line or arc in X/Y for the step interpolators [counts from
 Mark                a program mark number (0 = none) the trace records
 ChipCommand         a motion-chip command (``CHIP_*``): deltas, distance [counts]; speed, creep
                     [counts/s], accel [counts/s^2], jerk [counts/s^3], time [s]
+GeometryPart        one piece of a CurveGeometry or SurfaceGeometry too long for one record: the
+                    whole record's type, the piece's index and count, its payload words
 ==================  ===========================================================================
 """
 
@@ -200,9 +202,29 @@ class ChipCommand:
     time: float = 0.0
 
 
+@dataclass(frozen=True, eq=False)
+class GeometryPart:
+    """Piece ``index`` of ``count`` of a geometry record's payload (``kind`` = that record's wire
+    type). A curve or surface longer than one record goes as consecutive parts; the card joins
+    them (:class:`cnc_twin.whiteboard.codec.GeometryJoiner`) and acts on the whole record when the
+    last part arrives."""
+
+    kind: int
+    index: int
+    count: int
+    words: np.ndarray
+    """uint16, this piece of the whole record's payload"""
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, GeometryPart) and (self.kind, self.index, self.count) == (other.kind, other.index, other.count)
+                and np.array_equal(self.words, other.words))
+
+    __hash__ = None  # type: ignore[assignment]
+
+
 CHIP_INDEX, CHIP_LINEAR, CHIP_JOG, CHIP_HOME = 1, 2, 3, 4
 CHIP_CONSTANT, CHIP_TRAPEZOID, CHIP_S_CURVE = 0, 1, 2
 
 
 Record = (Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
-          | SurfaceCurve | ForceControlRecord | StepContour | Mark | ChipCommand)
+          | SurfaceCurve | ForceControlRecord | StepContour | Mark | ChipCommand | GeometryPart)
