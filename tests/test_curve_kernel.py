@@ -66,3 +66,37 @@ def test_a_poor_prediction_gets_a_second_newton_step_in_both_steppers():
         assert (python.u, a) == (compiled.u, b)
         errors.append(abs(curve.arc_length(u0, python.u) - ds) / ds)
     assert max(errors) <= 1e-6, max(errors)
+
+
+# two periods of the scroll (Scrool F) at 2400 mm/min, 1 ms, as the run stepped them: start
+# parameter, arc length; one Simpson panel left relative feed errors of 1.03e-6 and 1.39e-6
+SCROLL_STEPS = [(493.6431642628107, 1.3569259715560346e-05), (494.66062523814486, 1.356383184602088e-05)]
+
+
+@pytest.mark.parametrize("rough", [2e-3, math.inf], ids=["refined", "one-panel"])
+def test_a_slow_tight_bend_gets_a_refined_length_in_both_steppers(rough, monkeypatch):
+    """The degree-5 scroll near u = 494, at the 13.6 mm/s the planner slows to there: the
+    prediction is good (the first Newton correction is small) but one Simpson panel misjudges the
+    length by up to 1.4e-6 of the step, because |C'| bends over it. Measured by how much |C'|
+    bends, the step gets one refined Newton step; without it (ROUGH_SIMPSON = inf) the error is back."""
+    from cnc_twin import load_scenario
+    from cnc_twin.dsp import curve_kernel, curve_stepper
+    from cnc_twin.geometry.tip_path import tip_curve
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    monkeypatch.setattr(curve_stepper, "ROUGH_SIMPSON", rough)
+    curve = tip_curve(load_scenario(scenarios_dir() / "published" / "scroll_f.yaml").program)
+    ev = curve.span_evaluator()
+    errors = []
+    for u0, ds in SCROLL_STEPS:
+        python = CurveStepper(ev, u0)
+        python.step(ds)
+        errors.append(abs(curve.arc_length(u0, python.u) - ds) / ds)
+        if rough != math.inf:  # the compiled stepper has the constant compiled in
+            assert curve_kernel.ROUGH_SIMPSON == rough
+            compiled = CompiledCurveStepper(ev, u0)
+            assert (compiled.step(ds), compiled.u) == (python.point, python.u)
+    if rough == math.inf:
+        assert max(errors) > 1e-6, errors
+    else:
+        assert max(errors) <= 2e-7, errors

@@ -3,7 +3,7 @@ kernel's own file)."""
 
 from __future__ import annotations
 
-from cnc_twin.run.kernel_cache import purge_stale
+from cnc_twin.core.kernel_cache import purge_stale
 
 
 def test_cached_kernels_are_removed_when_a_dependency_changes(tmp_path):

@@ -5,6 +5,7 @@
 - :mod:`~cnc_twin.core.units`          the unit conversion factors (scenario units -> SI)
 - :mod:`~cnc_twin.core.errors`         :class:`ScenarioError`, one line naming file, key path and problem
 - :mod:`~cnc_twin.core.child_process`  ending a helper process (planner, recorder): EOF, SIGTERM, SIGKILL
+- :mod:`~cnc_twin.core.kernel_cache`   numba's on-disk cache purged when a compiled kernel's other sources change
 
 May import: nothing of cnc_twin. Imported by: every other part.
 """

@@ -22,8 +22,13 @@ import math
 import numpy as np
 from numba import njit
 
-from cnc_twin.dsp.curve_stepper import MAX_NEWTON, MAX_PANELS, SECOND_STEP
+from cnc_twin.core.kernel_cache import purge_stale
+from cnc_twin.dsp import curve_stepper
+from cnc_twin.dsp.curve_stepper import MAX_NEWTON, MAX_PANELS, ROUGH_SIMPSON, SECOND_STEP
 from cnc_twin.geometry.nurbs import SpanEvaluator
+
+# the stepper's constants are compiled in as constants: a change there must recompile these kernels
+purge_stale(__file__, [curve_stepper.__file__])
 
 U, SPEED = 0, 1
 """indices of the parameter and the speed ``|C'(u)|`` in the state vector"""
@@ -183,12 +188,16 @@ def step(starts, blocks, lo, hi, d, correct, ds, state, scratch):
             mid2 = _speed(starts, blocks, lo, hi, d, 0.5 * (knot + u_p), h)
             length = ((knot - u) / 6.0 * (speed + 4.0 * mid1 + speed_k)
                       + (u_p - knot) / 6.0 * (speed_k + 4.0 * mid2 + speed_p))
+            rough = (abs(speed + speed_k - 2.0 * mid1) > ROUGH_SIMPSON * mid1
+                     or abs(speed_k + speed_p - 2.0 * mid2) > ROUGH_SIMPSON * mid2)
         else:
-            length = du / 6.0 * (speed + 4.0 * _speed(starts, blocks, lo, hi, d, u + 0.5 * du, h) + speed_p)
+            mid = _speed(starts, blocks, lo, hi, d, u + 0.5 * du, h)
+            length = du / 6.0 * (speed + 4.0 * mid + speed_p)
+            rough = abs(speed + speed_p - 2.0 * mid) > ROUGH_SIMPSON * mid
         u_new = min(u_p - (length - ds) / speed_p, hi)
         correction = u_new - u_p
-        for _ in range(MAX_NEWTON):  # a poor prediction: Newton on, with a refined length
-            if abs(correction) <= SECOND_STEP * abs(du):
+        for i in range(MAX_NEWTON):  # a poor prediction or a rough length: Newton on, refined
+            if abs(correction) <= SECOND_STEP * abs(du) and not (rough and i == 0):
                 break
             speed_n = _speed(starts, blocks, lo, hi, d, u_new, h)
             correction = -(_refined_length(starts, blocks, lo, hi, d, u, u_new, speed, speed_n, h) - ds) / speed_n

@@ -16,8 +16,9 @@ Algorithm (``C1 = C'(u)``, ``C2 = C''(u)`` kept from the previous period)::
         point, C1, C2 = C(u_new), C'(u_new), C''(u_new)     # the next step starts from here
 
     while the last correction > SECOND_STEP |du| (a poor prediction, near a cusp of the
-    parametrisation; at most MAX_NEWTON times): Newton again from u_new, the length by Simpson
-    on as many panels as it takes (refined_length)
+    parametrisation; at most MAX_NEWTON times), and once when |C'| bends over the step by more
+    than ROUGH_SIMPSON (one Simpson panel is too rough there): Newton again from u_new, the
+    length by Simpson on as many panels as it takes (refined_length)
 
 The Taylor predictor alone leaves a relative feed error of order (ds kappa)^2; one Newton step
 squares it. Simpson's error over a step of 0.1-1 mm is ~(h/L)^4 / 2880 of the step, far below
@@ -36,6 +37,11 @@ Newton steps with a refined length (near a cusp of the parametrisation, where |C
 changes fast, one step with one Simpson panel leaves a relative feed error of 1e-6 to 1e-5)"""
 MAX_NEWTON = 4
 """Newton steps after the first, at most"""
+ROUGH_SIMPSON = 2e-3
+"""|C'| bending over the step by more than this fraction of its midpoint value (``|s_0 + s_1 -
+2 s_mid| / s_mid``) makes one Simpson panel too rough for the length, even when the Newton
+correction is small (a slow, tight bend of a degree-5 curve: relative feed error 1.4e-6): one
+Newton step more, with the refined length"""
 
 
 class CurveStepper:
@@ -85,14 +91,20 @@ class CurveStepper:
             knot = self.ev.next_break(u)
             if knot < u_p:
                 speed_k = self.ev.speed(knot)
-                length = ((knot - u) / 6.0 * (speed + 4.0 * self.ev.speed(0.5 * (u + knot)) + speed_k)
-                          + (u_p - knot) / 6.0 * (speed_k + 4.0 * self.ev.speed(0.5 * (knot + u_p)) + speed_p))
+                mid1 = self.ev.speed(0.5 * (u + knot))
+                mid2 = self.ev.speed(0.5 * (knot + u_p))
+                length = ((knot - u) / 6.0 * (speed + 4.0 * mid1 + speed_k)
+                          + (u_p - knot) / 6.0 * (speed_k + 4.0 * mid2 + speed_p))
+                rough = (abs(speed + speed_k - 2.0 * mid1) > ROUGH_SIMPSON * mid1
+                         or abs(speed_k + speed_p - 2.0 * mid2) > ROUGH_SIMPSON * mid2)
             else:
-                length = du / 6.0 * (speed + 4.0 * self.ev.speed(u + 0.5 * du) + speed_p)
+                mid = self.ev.speed(u + 0.5 * du)
+                length = du / 6.0 * (speed + 4.0 * mid + speed_p)
+                rough = abs(speed + speed_p - 2.0 * mid) > ROUGH_SIMPSON * mid
             u_new = min(u_p - (length - ds) / speed_p, self.u_end)
             correction = u_new - u_p
-            for _ in range(MAX_NEWTON):  # a poor prediction: Newton on, with a refined length
-                if abs(correction) <= SECOND_STEP * abs(du):
+            for i in range(MAX_NEWTON):  # a poor prediction or a rough length: Newton on, refined
+                if abs(correction) <= SECOND_STEP * abs(du) and not (rough and i == 0):
                     break
                 speed_n = self.ev.speed(u_new)
                 correction = -(refined_length(self.ev, u, u_new, speed, speed_n) - ds) / speed_n

@@ -45,7 +45,7 @@ from cnc_twin.dsp.path_blocks import Curve
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
-from cnc_twin.run.kernel_cache import purge_stale
+from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.whiteboard.records import Dwell

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from cnc_twin.machine import mujoco_c
-from cnc_twin.run.kernel_cache import purge_stale
+from cnc_twin.core.kernel_cache import purge_stale
 
 # rows of the per-axis parameter matrix (float64, shape (N_FPARAMS, 6))
 CPU, KP, KI_DT, KD_OVER_DT, KVFF, KAFF, OUT_LIMIT, INT_LIMIT, CODES_PER_VOLT, VOLTS_PER_CODE, FRICTION_FF, \
