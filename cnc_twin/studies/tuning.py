@@ -8,6 +8,8 @@ off, so the loop's own response shows) and returns the step figures.
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -76,9 +78,30 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
     raise ValueError(f"none of {len(picks)} candidates behaved on the nonlinear twin")
 
 
+def step_direction(scenario: Scenario, axis_index: int, step: float) -> float:
+    """+1 if the axis's home + ``step`` [mm | deg] is inside its soft limits (or it has none),
+    -1 if only home - ``step`` is; ValueError if neither."""
+    axis = scenario.axes[axis_index]
+    allowed = axis.allowed
+    if allowed is None:
+        return 1.0
+    home = scenario.home[axis_index]
+    size = step * (1e-3 if axis_index < 3 else math.pi / 180.0)  # [m | rad]
+    for sign in (1.0, -1.0):
+        if allowed[0] <= home + sign * size <= allowed[1]:
+            return sign
+    raise ValueError(f"a step of {abs(step):g} {'mm' if axis_index < 3 else 'deg'} either way from home leaves "
+                     f"axis {'XYZABC'[axis_index]}'s {axis.allowed_name}")
+
+
 def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | None = None,
               ki: float | None = None, settle: float = 0.5) -> dict[str, Any]:
-    """Nonlinear twin response to a ``step`` (mm | deg) of ``axis`` from home; step figures."""
+    """Nonlinear twin response to a ``step`` (mm | deg) of ``axis`` from home; step figures.
+
+    The step goes the other way when home + ``step`` is outside the axis's soft limits (Z's home
+    is at the top of its travel); the figures are of its size either way."""
+    i = "XYZABC".index(axis)
+    step = step * step_direction(load_scenario(scenario_file), i, step)
     overrides: dict[str, Any] = {
         f"axes.{axis}.max_velocity": 1e9, f"axes.{axis}.max_acceleration": 1e9,
         f"servo.{axis}.kvff": 0.0, f"servo.{axis}.kaff": 0.0,
@@ -89,9 +112,9 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
     if ki is not None:
         overrides[f"servo.{axis}.ki"] = float(ki)
     scenario = load_scenario(scenario_file, overrides=overrides)
-    i = "XYZABC".index(axis)
     trace = run_scenario(scenario).trace
-    command, actual = trace.command[:, i], trace.actual[:, i]
+    sign = 1.0 if step > 0 else -1.0
+    command, actual = sign * trace.command[:, i], sign * trace.actual[:, i]
     start = max(0, int(np.argmax(command != command[0])) - 1)
     final = float(command[-1])
     info = control.step_info(actual[start:] - actual[start], trace.time[start:] - trace.time[start],
