@@ -10,7 +10,9 @@ Per run (lockstep, compiled twin):
   curve part of the run (``path_u >= 0``), feed holds and window joins included;
 - contour error max / RMS [um] (actual tool tip from the encoders against the curve);
 - the real-time factor, and the card's longest wait for the planner's answer [ms] (the longest
-  exchange latency: in lockstep the card waits for every answer).
+  exchange latency: in lockstep the card waits for every answer);
+- after the table, this machine's own floor for that wait: two bare processes ping-ponging a
+  byte over pipes for 5 s (no twin, no Python work), the same sleep-and-wake the planner does.
 """
 
 from __future__ import annotations
@@ -88,6 +90,38 @@ def table(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def wake_up_floor(seconds: float = 5.0, work: float = 60e-6) -> dict:
+    """This machine's floor for the card's wait: two bare processes ping-ponging one byte over
+    pipes (the side that answers sleeps in ``read``, as the planner sleeps on its doorbell), the
+    asking side computing ``work`` seconds between exchanges, as the card simulates a period.
+    Round-trip times [ms]: median, p99, max over ``seconds``."""
+    import os
+    import time
+
+    ask_r, ask_w = os.pipe()
+    answer_r, answer_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the answering side
+        while os.read(ask_r, 1) == b"p":
+            os.write(answer_w, b"a")
+        os._exit(0)
+    trips = []
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        busy = time.perf_counter()
+        while time.perf_counter() - busy < work:
+            pass
+        t0 = time.perf_counter()
+        os.write(ask_w, b"p")
+        os.read(answer_r, 1)
+        trips.append(time.perf_counter() - t0)
+    os.write(ask_w, b"q")
+    os.waitpid(pid, 0)
+    trips.sort()
+    return {"median_ms": trips[len(trips) // 2] * 1e3, "p99_ms": trips[int(len(trips) * 0.99)] * 1e3,
+            "max_ms": trips[-1] * 1e3, "exchanges": len(trips)}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenarios", nargs="*", type=Path)
@@ -104,8 +138,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))
+    floor = wake_up_floor()
+    print(f"\nthis machine's wake-up floor (bare pipe ping-pong, {floor['exchanges']} exchanges in 5 s): "
+          f"median {floor['median_ms'] * 1e3:.0f} us, p99 {floor['p99_ms'] * 1e3:.0f} us, max {floor['max_ms']:.1f} ms")
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1) + "\n")
+        args.json.write_text(json.dumps({"rows": rows, "wake_up_floor": floor}, indent=1) + "\n")
     return 0
 
 
