@@ -61,12 +61,13 @@ def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     # first span's far vertex)
     _, nearest = tree.query(points, k=min(4, len(poly)))
     best = np.full(len(points), np.inf)
-    for idx, offset in ((nearest[:, j], o) for j in range(nearest.shape[1]) for o in (-1, 0)):
-        i0 = np.clip(idx + offset, 0, len(poly) - 2)
-        a, b = poly[i0], poly[i0 + 1]
-        d = b - a
-        t = np.clip(np.sum((points - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-300), 0.0, 1.0)
-        best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * d), axis=1))
+    for idx in nearest.T:
+        for offset in (-1, 0):
+            i0 = np.clip(idx + offset, 0, len(poly) - 2)
+            a, b = poly[i0], poly[i0 + 1]
+            d = b - a
+            t = np.clip(np.sum((points - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-300), 0.0, 1.0)
+            best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * d), axis=1))
     return best
 
 

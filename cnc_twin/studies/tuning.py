@@ -8,8 +8,6 @@ off, so the loop's own response shows) and returns the step figures.
 
 from __future__ import annotations
 
-import math
-
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,6 +15,7 @@ from typing import Any
 import control
 import numpy as np
 
+from cnc_twin.core import units
 from cnc_twin.core.config import Scenario
 from cnc_twin.studies.linearize import analyse, margins, pid_controller, axis_plant
 from cnc_twin.scenario.load import load_scenario
@@ -86,12 +85,12 @@ def step_direction(scenario: Scenario, axis_index: int, step: float) -> float:
     if allowed is None:
         return 1.0
     home = scenario.home[axis_index]
-    size = step * (1e-3 if axis_index < 3 else math.pi / 180.0)  # [m | rad]
+    size = step * units.position_factor(axis.rotary)  # [m | rad]
     for sign in (1.0, -1.0):
         if allowed[0] <= home + sign * size <= allowed[1]:
             return sign
-    raise ValueError(f"a step of {abs(step):g} {'mm' if axis_index < 3 else 'deg'} either way from home leaves "
-                     f"axis {'XYZABC'[axis_index]}'s {axis.allowed_name}")
+    raise ValueError(f"a step of {abs(step):g} {units.position_unit(axis.rotary)} either way from home leaves "
+                     f"axis {axis.name}'s {axis.allowed_name}")
 
 
 def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | None = None,

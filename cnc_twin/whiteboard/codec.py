@@ -114,6 +114,7 @@ _SURFACE, _SURFACE_CURVE, _FORCE = 10, 11, 12
 _GEOMETRY_PART = 16
 _VARIABLE = {_DATA_BLOCK, _CURVE_GEOMETRY, _SURFACE, _SURFACE_CURVE, _FORCE, _GEOMETRY_PART}
 _PART_HEAD = struct.Struct("<HHHH")
+_PART_HEAD_WORDS = _PART_HEAD.size // 2
 _SURFACE_HEAD = struct.Struct("<HHHH8d")
 _UV_HEAD = struct.Struct("<HH")
 _FORCE_HEAD = struct.Struct("<HH12d")
@@ -216,12 +217,14 @@ def split(record: Record, record_words: int = MAX_RECORD_WORDS) -> list[Record]:
     """``[record]`` when it fits one record of ``record_words`` words (header and CRC included),
     else the GeometryPart records that carry it, in order. Only a CurveGeometry or SurfaceGeometry
     is split; ValueError if it exceeds the card's geometry memory."""
+    if not isinstance(record, (CurveGeometry, SurfaceGeometry)):  # the rest are packed once, by encode
+        return [record]
     payload = _payload(record)
     capacity = min(record_words, MAX_RECORD_WORDS) - OVERHEAD_WORDS
-    if len(payload) // 2 <= capacity or not isinstance(record, (CurveGeometry, SurfaceGeometry)):
+    if len(payload) // 2 <= capacity:
         return [record]
     words = np.frombuffer(payload, dtype="<u2")
-    piece = capacity - _PART_HEAD.size // 2
+    piece = capacity - _PART_HEAD_WORDS
     if piece < 1:
         raise ValueError(f"records of {record_words} words cannot carry a geometry part")
     count = -(-len(words) // piece)
@@ -242,7 +245,6 @@ class GeometryJoiner:
 
     def __init__(self) -> None:
         self._parts: list[np.ndarray] = []
-        self._words = 0
         self._kind = self._count = 0
 
     @property
@@ -256,15 +258,14 @@ class GeometryJoiner:
         if part.index != len(self._parts) or (self._parts and (part.kind, part.count) != (self._kind, self._count)):
             raise RecordError(f"geometry part {part.index + 1} of {part.count} out of order "
                               f"({len(self._parts)} of {self._count or part.count} joined)")
-        if self._words + len(part.words) > MAX_GEOMETRY_WORDS:
+        if sum(map(len, self._parts)) + len(part.words) > MAX_GEOMETRY_WORDS:
             raise RecordError(f"geometry beyond the card's memory of {MAX_GEOMETRY_WORDS} words")
         self._parts.append(np.ascontiguousarray(part.words, dtype="<u2"))
-        self._words += len(part.words)
         self._kind, self._count = part.kind, part.count
         if len(self._parts) < part.count:
             return None
         payload = np.concatenate(self._parts).tobytes()
-        self._parts, self._words, self._kind, self._count = [], 0, 0, 0
+        self._parts, self._kind, self._count = [], 0, 0
         return _decode_curve(payload) if part.kind == _CURVE_GEOMETRY else _decode_surface(payload)
 
 
@@ -428,8 +429,9 @@ def decode(words: np.ndarray) -> tuple[int, Record]:
     elif kind == _GEOMETRY_PART:
         head, index, count, _pad = _head(_PART_HEAD, payload, "geometry part")
         if not index < count or len(payload) == _PART_HEAD.size:
-            raise RecordError(f"geometry part {index} of {count} with {len(payload) // 2 - 4} words")
-        record = GeometryPart(kind=head, index=index, count=count, words=words[HEADER_WORDS + 4:-1].copy())
+            raise RecordError(f"geometry part {index} of {count} with {len(payload) // 2 - _PART_HEAD_WORDS} words")
+        record = GeometryPart(kind=head, index=index, count=count,
+                              words=words[HEADER_WORDS + _PART_HEAD_WORDS:-1].copy())
     else:
         record = EndOfProgram()
     return seq, record
