@@ -22,8 +22,9 @@ scaled profile stays within the velocity and acceleration limits (override above
 Curves (CurveGeometry + CurveBlock records): the block clock runs the same way; each period the
 path advances ``ds = s(tau_new) - s(tau)`` of the block's S-curve (continuing into the next queued
 blocks within the period), and :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` turns that arc
-length into the next point on the NURBS curve. The hold slew uses the block's own speed ``v``,
-acceleration ``a`` and ``a_max`` in place of ``s'``, ``s''`` and ``a_lim``. When the queued path
+length into the next point on the NURBS curve. A change of scale there (hold, resume, override,
+the force loop's feed factor) is jerk-limited: the path moves to the target's speed and
+acceleration within the block's own budgets (:mod:`cnc_twin.dsp.feed_slew`). When the queued path
 (the rest of the running block plus every queued block) ends at speed and is no longer than the
 stopping distance (the FIFO is running dry), the card holds, across block boundaries, and stops
 inside what it has; it resumes once new blocks have made the queued path longer than a full-speed
@@ -53,9 +54,9 @@ from collections.abc import Sequence
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
-from cnc_twin.dsp.path_blocks import (
-    SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_distance, stop_reserve,
-)
+from cnc_twin.dsp import feed_slew
+from cnc_twin.dsp.feed_slew import stop_distance
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
@@ -141,6 +142,7 @@ class SegmentInterpolator:
         self._arrivals_at_latch = 0
         self._stop_reserve = 0.0
         self._block_state: tuple[float, float, float] | None = None
+        self._path_accel: float | None = None  # [m/s^2] while the feed moves to a new scale (feed_slew)
         self.path_u = -1.0
         """curve parameter at the end of the last period; -1 when not on a curve"""
         self.path_ds = 0.0
@@ -382,6 +384,7 @@ class SegmentInterpolator:
                 a_lim = min(a_lim, cfg.max_acceleration / d)
                 v_lim = min(v_lim, cfg.max_velocity / d)
         self._a_lim = a_lim
+        self._path_accel = None  # a move's scale slews on its own clock
         prof = seg.profile
         lam_max = math.inf
         if prof.v_peak > 0.0:
@@ -445,30 +448,31 @@ class SegmentInterpolator:
         # Running dry? The queued path ends at speed and is no longer than the stopping distance.
         remaining = prof.length - s_now + self._queued_path
         open_end = self._path_open if self._queue else prof.v1 > 0.0
-        a_stop = SLEW_MARGIN * prof.a_max
+        a_stop, j_stop = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
+        lam = self.override
         if not open_end:
             self._starved_hold = False
         elif not self._starved_hold:
-            speed = self.override * v
-            if remaining <= stop_distance(speed, a_stop, self.period):
+            accel = lam * lam * a if self._path_accel is None else self._path_accel
+            if remaining <= stop_distance(lam * v, accel, a_stop, j_stop, self.period):
                 self._starved_hold = True
                 self._arrivals_at_latch = self._arrivals
         elif self._arrivals != self._arrivals_at_latch:  # new blocks came: resume if a full stop fits
             full = max(v, prof.vp)
-            if remaining > stop_distance(full, a_stop, self.period):
+            if remaining > stop_distance(full, 0.0, a_stop, j_stop, self.period):
                 self._starved_hold = False
             else:
                 self._arrivals_at_latch = self._arrivals
-        lam = self.override
         force = self.force
         if self.hold or self._starved_hold or force.path_gate:
             target = 0.0
         else:
             target = self.override_target * force.feed_factor
-        if lam != target:
-            lam = slew(lam, target, v, a, prof.a_max, self.period)
-            self.override = lam
-        tau += lam * self.period
+        if lam != target or self._path_accel is not None:  # the path moves to the target's feed, jerk-limited
+            tau, self.override, self._path_accel = feed_slew.advance(
+                prof, tau, (s_now, v, a), lam, self._path_accel, target, self.period, a_stop, j_stop)
+        else:
+            tau += lam * self.period
         if tau < prof.duration:
             state = prof.state(tau)  # the next period starts from this state
             self._block_state = state

@@ -54,6 +54,7 @@ import math
 
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
+from cnc_twin.dsp.feed_slew import stop_distance
 from cnc_twin.geometry.kinematics import pose_to_axes
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
@@ -154,18 +155,8 @@ def slew(lam: float, target: float, v: float, a: float, a_lim: float, dt: float)
     return min(target, lam + SLEW_MARGIN * (a_lim - a * lam * lam) / v * dt)
 
 
-STOP_MARGIN = 1.5
-"""a starved curve block starts holding when its remaining length is within 1.5x the stopping distance"""
-
-
-def stop_distance(speed: float, a_stop: float, period: float) -> float:
-    """Path [m] a starved hold needs to stop from ``speed`` [m/s] at ``a_stop`` [m/s^2], with its
-    margins: :data:`STOP_MARGIN` on the braking distance and two periods of travel."""
-    return speed * speed / (2.0 * a_stop) * STOP_MARGIN + 2.0 * speed * period
-
-
 def stop_reserve(profile, period: float) -> float:
     """Queued path [m] the card keeps on an open curve: twice the distance a starved hold needs to
     stop from the block's peak speed ``vp``, so the hold never latches while records still wait
     in the FIFO."""
-    return 2.0 * stop_distance(profile.vp, SLEW_MARGIN * profile.a_max, period)
+    return 2.0 * stop_distance(profile.vp, 0.0, SLEW_MARGIN * profile.a_max, SLEW_MARGIN * profile.j_max, period)

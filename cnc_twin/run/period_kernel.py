@@ -41,7 +41,8 @@ from cnc_twin.dsp import curve_kernel
 from cnc_twin.run import c_clock, servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
-from cnc_twin.dsp.path_blocks import Curve
+from cnc_twin.dsp import feed_slew
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
@@ -52,15 +53,18 @@ from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
 # the batch kernel calls the curve stepper, the servo ticks and the clock: recompile when they change
-purge_stale(__file__, [curve_kernel.__file__, servo_kernel.__file__, c_clock.__file__])
+purge_stale(__file__, [curve_kernel.__file__, servo_kernel.__file__, c_clock.__file__, feed_slew.__file__])
+
+_stop_distance = njit(cache=True)(feed_slew.stop_distance)
+"""the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
 
 MAX_BATCH = SOLO_LIVENESS_PERIODS
 """periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""
 
 # the feed block (float64): clock, path, constant scale, and the (s, v, a) kept for the next period
 TAU, S_DONE, LAM, PERIOD, QUEUED_PATH, A_STOP, OPEN_END, HAS_STATE, S_NOW, V_NOW, A_NOW, LENGTH, DURATION, V0, \
-    DWELL_LEFT, T_ACC, ACCEL, T_FLAT = range(18)
-N_FEED = 18
+    DWELL_LEFT, T_ACC, ACCEL, T_FLAT, J_STOP = range(19)
+N_FEED = 19
 CURVE, MOVE, DWELL = 0, 1, 2
 """what runs: a curve block, a point-to-point move (its trapezoid), a dwell"""
 # the check block (float64, shape (N_CHECK, 6)): per axis
@@ -165,14 +169,14 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
         if mode == CURVE:
             # --- the feed along the block (SegmentInterpolator._advance_block) ---
             if feed[HAS_STATE] != 0.0:
-                s_now, v = feed[S_NOW], feed[V_NOW]
+                s_now, v, a_now = feed[S_NOW], feed[V_NOW], feed[A_NOW]
             else:
                 _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, feed[TAU], state)
-                s_now, v = state[0], state[1]
+                s_now, v, a_now = state[0], state[1], state[2]
             if feed[OPEN_END] != 0.0:
                 remaining = feed[LENGTH] - s_now + feed[QUEUED_PATH]
-                speed = feed[LAM] * v
-                if remaining <= speed * speed / (2.0 * feed[A_STOP]) * 1.5 + 2.0 * speed * T:
+                lam = feed[LAM]
+                if remaining <= _stop_distance(lam * v, lam * lam * a_now, feed[A_STOP], feed[J_STOP], T):
                     return k  # the starved hold latches here
             tau = feed[TAU] + feed[LAM] * T
             if not tau < feed[DURATION]:
@@ -349,7 +353,7 @@ class PeriodBatch:
             return DWELL
         curve = getattr(segment, "curve", None)
         if (isinstance(curve, Curve) and isinstance(curve.stepper, CompiledCurveStepper)
-                and isinstance(segment.profile, SCurve)
+                and isinstance(segment.profile, SCurve) and interp._path_accel is None
                 and interp.override == interp.override_target * interp.force.feed_factor):
             return CURVE
         return None
@@ -385,7 +389,8 @@ class PeriodBatch:
             phases, times, v1 = self._phases, self._times, prof.v1
             curve_args, sstate, sscratch = (*stepper._args, stepper.correct), stepper._state, stepper._scratch
             feed[S_DONE] = interp._s
-            feed[QUEUED_PATH], feed[A_STOP] = interp._queued_path, 0.9 * prof.a_max
+            feed[QUEUED_PATH] = interp._queued_path
+            feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
             open_end = interp._path_open if interp._queue else prof.v1 > 0.0
             feed[OPEN_END] = 1.0 if open_end else 0.0
             feed[LENGTH], feed[DURATION], feed[V0] = prof.length, prof.duration, prof.v0
