@@ -19,6 +19,7 @@ from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
+from cnc_twin.run.signals import Interrupted, SignalGuard, exit_code
 from cnc_twin.scenario.resources import default_scenario
 
 EXIT_OK = 0
@@ -92,12 +93,22 @@ def main(argv: list[str] | None = None) -> int:
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except Interrupted as exc:
+        print(f"interrupted by {exc.name} before the run began; nothing was written", file=sys.stderr)
+        return exit_code(exc.name)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
 
 
 def _run(args: argparse.Namespace) -> int:
+    # SIGINT / SIGTERM from here on: nothing left behind before the run begins, the run written
+    # whole (marked interrupted) after (cnc_twin/run/signals.py)
+    with SignalGuard() as guard:
+        return _run_guarded(args, guard)
+
+
+def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
     from cnc_twin.planner.launch import PlannerPool
 
     # The planner process and the recording process start first: their start-up (0.2 - 0.6 s,
@@ -116,13 +127,13 @@ def _run(args: argparse.Namespace) -> int:
 
             recorder = RecordingProcess()
         try:
-            return _run_with(args, planners, recorder)
+            return _run_with(args, planners, recorder, guard)
         finally:
             if recorder is not None:
                 recorder.close()
 
 
-def _run_with(args: argparse.Namespace, planners, recorder) -> int:
+def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) -> int:
     """One run; ``recorder`` (a :class:`~cnc_twin.view.rerun_stream.RecordingProcess`, or None when
     no recording is wanted) records it while it runs."""
     from cnc_twin.scenario.load import load_scenario
@@ -130,6 +141,9 @@ def _run_with(args: argparse.Namespace, planners, recorder) -> int:
 
     if args.rrd is not None and not args.rrd.parent.is_dir():
         raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
+    # where the run will be written is checked before anything runs: a run's work is never lost
+    # to a folder that cannot be written
+    check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
     scenario = load_scenario(args.scenario or default_scenario())
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
@@ -148,15 +162,16 @@ def _run_with(args: argparse.Namespace, planners, recorder) -> int:
             target = staged = run_dir.parent / f".{run_dir.name}.recording-{os.getpid()}.rrd"
         recorder.open(scenario, rrd=target, spawn=args.rerun)
     try:
-        return _run_and_write(args, twin, bar, run_dir, recorder, staged, planners)
+        return _run_and_write(args, twin, bar, run_dir, recorder, staged, planners, guard)
     finally:
         if staged is not None and staged.exists():  # not moved in: the run stopped with an error
             staged.unlink()
 
 
-def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners) -> int:
+def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners,
+                   guard: SignalGuard) -> int:
     scenario = twin.scenario
-    with _stop_on_signals(twin):
+    with guard.stopping(twin):
         if not args.quiet and twin.kernel is not None:
             from cnc_twin.run.period_kernel import kernels_cached
 
@@ -166,6 +181,30 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
+    with guard.deferred():  # a signal now is noted: the run directory is written whole first
+        _write(args, result, run_dir, recorder, staged)
+    if guard.received is not None and twin.stop_reason is None:  # it came while writing
+        mark_interrupted(run_dir, result.metrics, f"{guard.received} while the run directory was written "
+                                                  "(the run had ended; everything in it is whole)")
+    if not args.quiet:
+        print(summary_table(result.metrics))
+    print(f"run directory: {run_dir}")
+    signalled = twin.stop_reason or guard.received
+    if signalled is not None:
+        print(f"interrupted by {signalled} at {result.metrics['sim_time_s']:.3f} s simulated; the run directory "
+              "holds everything recorded up to then", file=sys.stderr)
+        return exit_code(signalled)
+    if result.status == "fault":
+        fault = result.metrics["fault"]
+        rest = fault.get("at_rest_s")
+        stop = f"{fault['stop']} stop" + (f", at rest at {rest:.3f} s" if rest is not None else ", not yet at rest")
+        print(f"fault {fault['code']} at {fault['time_s']:.3f} s ({stop}): {fault['message']}", file=sys.stderr)
+        return EXIT_FAULT
+    return EXIT_OK
+
+
+def _write(args, result, run_dir: Path, recorder, staged: Path | None) -> None:
+    """The run directory (with the recording, when one was made), and the ``--rrd`` copy."""
     if recorder is None:  # neither the run directory nor --rrd nor --rerun wants a recording
         result.write(run_dir, recording=False)
     else:
@@ -192,48 +231,25 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         from cnc_twin.run.run_dir import RECORDING_FILE
 
         shutil.copyfile(run_dir / RECORDING_FILE, args.rrd)
-    if not args.quiet:
-        print(summary_table(result.metrics))
-    print(f"run directory: {run_dir}")
-    if twin.stop_reason == "SIGTERM":
-        return EXIT_TERMINATED
-    if twin.stop_reason == "SIGINT":
-        print(f"interrupted at {result.metrics['sim_time_s']:.3f} s simulated; the run directory "
-              "holds everything recorded up to then", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    if result.status == "fault":
-        fault = result.metrics["fault"]
-        rest = fault.get("at_rest_s")
-        stop = f"{fault['stop']} stop" + (f", at rest at {rest:.3f} s" if rest is not None else ", not yet at rest")
-        print(f"fault {fault['code']} at {fault['time_s']:.3f} s ({stop}): {fault['message']}", file=sys.stderr)
-        return EXIT_FAULT
-    return EXIT_OK
 
 
-class _stop_on_signals:
-    """Within the block, SIGINT and SIGTERM ask the twin to stop at the next period."""
+def mark_interrupted(run_dir: Path, metrics: dict, reason: str) -> None:
+    """Mark a written run directory's ``metrics.json`` interrupted, with ``reason`` (replaced
+    atomically: the file is whole whatever happens meanwhile)."""
+    from cnc_twin.run.run_dir import METRICS_FILE
 
-    def __init__(self, twin):
-        self.twin = twin
-        self.previous = {}
-
-    def __enter__(self):
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self.previous[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def _handle(self, signum, _frame):
-        self.twin.request_stop(signal.Signals(signum).name)
-
-    def __exit__(self, *exc):
-        for sig, handler in self.previous.items():
-            signal.signal(sig, handler)
-        return False
+    metrics["status"], metrics["stop_reason"] = "interrupted", reason
+    staged = run_dir / f".{METRICS_FILE}.partial"
+    staged.write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+    os.replace(staged, run_dir / METRICS_FILE)
 
 
 def _sweep(args: argparse.Namespace) -> int:
+    from contextlib import closing
+
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.sweep import best_row, cases, parse_param, run_dask, run_local, write_table
+    from cnc_twin.studies.sweep import INTERRUPTED, best_row, cases, parse_param, run_dask, run_local, write_table
+    from cnc_twin.studies.sweep_stop import SweepStop
 
     params = []
     for text in args.param:
@@ -242,17 +258,25 @@ def _sweep(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise ScenarioError("--param", text, str(exc)) from None
     todo = cases(params, random=args.random, seed=args.seed)
-    for overrides in {tuple(sorted((k, type(v).__name__) for k, v in c.items())): c for c in todo}.values():
-        load_scenario(args.scenario, overrides=overrides)  # bad paths or types fail here, before any run
-    bar = ProgressBar(f"sweep {args.scenario.stem}", period=1.0)
-    started = time.perf_counter()
-    if args.scheduler:
-        rows = run_dask(str(args.scenario), todo, scheduler=args.scheduler, progress=bar)
-    else:
-        rows = run_local(str(args.scenario), todo, workers=args.workers, progress=bar)
-    seconds = time.perf_counter() - started
-    out = args.out or Path("runs") / f"sweep-{args.scenario.stem}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
-    parquet, csv = write_table(rows, out)
+    # From here SIGINT and SIGTERM stop the sweep: the cases finished by then still make a table.
+    with closing(SweepStop()) as stop, stop.on_signals():
+        for overrides in {tuple(sorted((k, type(v).__name__) for k, v in c.items())): c for c in todo}.values():
+            load_scenario(args.scenario, overrides=overrides)  # bad paths or types fail here, before any run
+        bar = ProgressBar(f"sweep {args.scenario.stem}", period=1.0)
+        started = time.perf_counter()
+        if args.scheduler:
+            rows = run_dask(str(args.scenario), todo, scheduler=args.scheduler, progress=bar, stop=stop)
+        else:
+            rows = run_local(str(args.scenario), todo, workers=args.workers, progress=bar, stop=stop)
+        seconds = time.perf_counter() - started
+        stamp = time.strftime('%Y%m%d-%H%M%S', time.gmtime())
+        parquet, csv = write_table(rows, args.out or Path("runs") / f"sweep-{args.scenario.stem}-{stamp}")
+    if stop.reason is not None:
+        finished = sum(r.get("status") != INTERRUPTED for r in rows)
+        newline = "\n" if bar.enabled else ""  # the progress bar's line is not finished
+        print(f"{newline}interrupted ({stop.reason}) after {finished} of {len(rows)} runs; "
+              f"partial table, the other runs marked {INTERRUPTED}: {parquet}, {csv}", file=sys.stderr)
+        return EXIT_TERMINATED if stop.reason == "SIGTERM" else EXIT_INTERRUPTED
     minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_sum")
     best = best_row(rows, minimize)
     lost = [r for r in rows if r.get("status") == "lost"]
@@ -357,6 +381,22 @@ def _bench(args: argparse.Namespace) -> int:
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
     return EXIT_OK
+
+
+def check_writable_parent(path: Path, option: str) -> None:
+    """Refuse (exit 2) a ``path`` whose folder cannot be created or written into: the folder is
+    made (as the run would make it) and a file is created and removed in it."""
+    import tempfile
+
+    parent = path.absolute().parent
+    if parent.exists() and not parent.is_dir():
+        raise ScenarioError(path, "", f"{option}: {parent} is a file, not a folder")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=parent, prefix=".cnc-twin-write-check-"):
+            pass
+    except OSError as exc:
+        raise ScenarioError(path, "", f"{option}: cannot write in {parent}: {exc.strerror or exc}") from None
 
 
 def _default_run_dir(parent: Path, name: str) -> Path:

@@ -29,35 +29,17 @@ def single_move(axis: str, target: float, *, settle: float = 0.5, **extra) -> di
             **extra}
 
 
-def _leaked(names) -> set[str]:
-    """Segments whose creator (its pid is in the name) is this process or has exited: leaks.
-
-    A segment of another live process (say a second test run on the same machine) is not ours.
-    """
-    import os
-
-    out = set()
-    for name in names:
-        try:
-            pid = int(name.split("_")[2])
-        except (IndexError, ValueError):
-            out.add(name)
-            continue
-        if pid == os.getpid() or not os.path.exists(f"/proc/{pid}"):
-            out.add(name)
-    return out
-
-
 @pytest.fixture(autouse=True)
 def no_leftover_segments_or_processes():
     """Every test must leave no whiteboard segment in /dev/shm and no child process behind."""
     import multiprocessing
 
-    from cnc_twin.whiteboard.block import leftover_segments
+    from cnc_twin.whiteboard.block import leaked_segments, leftover_segments
 
     before = set(leftover_segments())
     yield
-    assert _leaked(set(leftover_segments()) - before) == set(), "shared-memory segment left behind"
+    # segments of other live processes (say a second test run on this machine) are not ours
+    assert leaked_segments(set(leftover_segments()) - before) == set(), "shared-memory segment left behind"
     assert multiprocessing.active_children() == [], "child process left behind"
     assert _planner_children() == [], "planner process left behind"
 

@@ -32,6 +32,56 @@ def test_fault_case(case):
         assert row.extra["x_off_mm"] == pytest.approx(0.1, abs=0.005)  # 100 counts of 1 um
 
 
+# Another cnc-twin process on the machine: as soon as the case's own segment (named with the
+# test's pid, argv[1]) appears, it creates one of its own in /dev/shm, names it on stdout, and
+# keeps it until its stdin closes.
+OTHER_PROCESS = r"""
+import os, sys, time
+ours = f"cnc_twin_{sys.argv[1]}_"
+deadline = time.monotonic() + 60.0
+print("ready", flush=True)
+while not any(n.startswith(ours) for n in os.listdir("/dev/shm")):
+    if time.monotonic() > deadline:
+        print("never saw the case's segment", flush=True)
+        sys.exit(1)
+    time.sleep(0.001)
+name = f"cnc_twin_{os.getpid()}_0ddba11"
+with open(f"/dev/shm/{name}", "wb") as f:
+    f.write(bytes(4096))
+print(name, flush=True)
+sys.stdin.read()
+os.unlink(f"/dev/shm/{name}")
+"""
+
+
+def test_a_segment_of_another_live_process_is_not_the_case_s_leak():
+    import os
+    import subprocess
+    import sys
+
+    from cnc_twin.whiteboard.block import leftover_segments
+
+    other = subprocess.Popen([sys.executable, "-c", OTHER_PROCESS, str(os.getpid())],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    name = None
+    try:
+        assert other.stdout.readline().strip() == "ready"
+        row = run_case(CASES[0])
+        name = other.stdout.readline().strip()
+        assert name in leftover_segments(), name  # made during the case, still there at its check
+        assert row.leftovers == []
+        assert row.ok
+    finally:
+        other.stdin.close()
+        try:
+            other.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            other.kill()
+            other.wait()
+        if name and os.path.exists(f"/dev/shm/{name}"):  # killed before it could unlink
+            os.unlink(f"/dev/shm/{name}")
+
+
 def test_markdown_has_a_row_per_case():
     rows = [run_case(CASES[0])] * len(CASES)
     assert len(markdown(rows).splitlines()) == len(CASES) + 2
@@ -76,6 +126,28 @@ def test_a_harsher_fault_escalates_the_stop():
     assert ("FOLLOWING_ERROR", "disable") in codes
     assert result.metrics["fault"]["code"] == "PLANNER_LOST"
     assert result.metrics["final_state"] == "FAULT"
+
+
+def test_a_stop_does_not_wait_for_the_planner():
+    """collision_stop: planner delays are scheduled, so the card never goes solo and exchanges
+    every period; once the planner has seen FAULT it stops answering. A stop needs no records, so
+    the card must not sit out the heartbeat timeout (10 s wall in lockstep) waiting for an answer:
+    the run ends in about its simulated time, and lockstep runs stay bit-identical."""
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    sc = load_scenario(scenarios_dir() / "collision_stop.yaml")
+    assert sc.timing.mode == "lockstep" and any(f.kind == "planner_delay" for f in sc.faults)
+    first, second = run_scenario(sc), run_scenario(sc)
+    for result in (first, second):
+        assert (result.metrics["fault"]["code"], result.metrics["fault"]["stop"]) == ("FOLLOWING_ERROR", "disable")
+        assert result.metrics["final_state"] == "FAULT"
+        assert [f["code"] for f in result.metrics["faults"]] == ["FOLLOWING_ERROR"]
+        # the clock loop's wall time [s]: 0.35 s on the 2-vCPU development machine; a card waiting
+        # for the answer the planner never sends after FAULT takes the heartbeat timeout more
+        assert result.metrics["wall_time_s"] < sc.planner.heartbeat_timeout
+    a, b = first.trace.columns(), second.trace.columns()
+    assert all(np.array_equal(a[k], b[k]) for k in a)
 
 
 @pytest.mark.parametrize("fault, key, fragment", [

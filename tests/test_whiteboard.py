@@ -13,9 +13,8 @@ from cnc_twin import load_scenario, run_scenario
 from cnc_twin.trace.parquet import read_trace
 from cnc_twin.scenario.resources import default_scenario
 from cnc_twin.scenario.load import scenario_from_dict
-from cnc_twin.whiteboard.block import leftover_segments
+from cnc_twin.whiteboard.block import leaked_segments, leftover_segments
 from cnc_twin.whiteboard.status import DspState, FaultCode
-from conftest import _leaked
 
 JOG = load_scenario(default_scenario())
 
@@ -139,7 +138,7 @@ def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_sc
     assert metrics["status"] == "fault" and metrics["fault"]["code"] == "PLANNER_LOST"
     trace = read_trace(out / "trace.parquet")
     assert trace["state"][-1] == DspState.FAULT and trace["fault"][-1] == FaultCode.PLANNER_LOST
-    assert not _leaked(leftover_segments())
+    assert not leaked_segments(leftover_segments())
 
 
 def test_benchmark_paths_move_and_verify_every_record():
@@ -177,7 +176,7 @@ def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, 
     with pytest.raises(RuntimeError, match="simulated failure"):
         twin.run()
     # the autouse fixture checks /dev/shm and child processes after this test too
-    assert not _leaked(leftover_segments())
+    assert not leaked_segments(leftover_segments())
 
 
 def test_memory_map_in_the_docs_matches_the_layout():

@@ -4,6 +4,7 @@ Once per interpolation period, before the servo ticks::
 
     acquired = port.acquire(k)                # lockstep waits; real-time may miss. Snapshots the
                                               # FIFO's write index while the DSP owns the bus.
+               (during a stop: port.poll(), never waits and takes no snapshot)
     top up: while fewer than QUEUE_AHEAD records wait behind the running one, pop one from
             the FIFO (up to the snapshot):
         seq, record = decode(words)           # CRC, framing; geometry parts are joined and
@@ -21,6 +22,12 @@ fill and free space are real and throttle the planner.
 A lost planner (process exited or heartbeat stopped) makes a controlled stop: the interpolator
 holds (decelerating along the path within every axis's acceleration limit), no further
 exchanges are attempted, and the state becomes FAULT once the axes are at rest.
+
+During any stop (STOPPING, then FAULT) the card needs nothing more from the planner: it neither
+waits for answers nor checks the planner's liveness, takes no new records (no FIFO snapshot; it
+may still decode what the last snapshot held, the same on every run) and publishes its status
+only when the PC has answered the last one. Lockstep runs stay bit-identical: whether and when
+the PC answers from then on changes nothing in the trace.
 
 The supervisor (:mod:`cnc_twin.dsp.supervisor`) checks every period, before the setpoint is
 made; a trip raises its fault with its stop. A later trip with a harsher stop (controlled <
@@ -116,7 +123,14 @@ class DspTask:
     def begin_period(self, k: int) -> None:
         """Exchange, then latch this period's setpoint into the servo task."""
         acquired = False
-        if not self.planner_lost:
+        if self.stop is not None:
+            # A stop is under way: the card needs no more records and no answer, so it never waits
+            # (a planner that saw FAULT, stalls or died would otherwise hold it for the whole
+            # heartbeat timeout) and no longer watches the planner. It still shows its status when
+            # the PC has answered the last one; nothing it executes or records depends on that.
+            if not self.planner_lost:
+                acquired = self.port.poll()
+        elif not self.planner_lost:
             try:
                 acquired = self.port.acquire(k)
             except PlannerLost as exc:

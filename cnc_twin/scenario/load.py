@@ -18,7 +18,7 @@ from typing import Annotated, Any, Literal, Union
 
 import mujoco
 import yaml
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
@@ -39,7 +39,11 @@ from cnc_twin.scenario.resources import resolve_model_file
 from cnc_twin.scenario.schema_base import Strict
 from cnc_twin.scenario.surface import SurfacePolishProgram
 from cnc_twin.scenario.validation import validate
+from cnc_twin.scenario.yaml_input import check_structure, parse, read_text
 
+
+MAX_NAME_LENGTH = 100
+"""[characters] of a scenario name"""
 
 ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec,
                               MotionChipProgramSpec],
@@ -49,7 +53,8 @@ ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePol
 class ScenarioFile(Strict):
     """A whole scenario file, after the machine parameters were merged in."""
 
-    name: str = Field(min_length=1)
+    name: str = Field(min_length=1, max_length=MAX_NAME_LENGTH,
+                      description="names the default run directory: one file name, printable")
     description: str = ""
     seed: int = Field(0, ge=0, description="seed for every random source in the run")
     timing: TimingSpec = TimingSpec()
@@ -67,6 +72,20 @@ class ScenarioFile(Strict):
     program: ProgramSpec
 
 
+    @field_validator("name")
+    @classmethod
+    def _one_file_name(cls, name: str) -> str:
+        # the name becomes runs/<name>-<time>: it may not climb out of runs/, hide the folder or
+        # carry terminal control characters into what the CLI prints
+        bad = next((ch for ch in name if not ch.isprintable() or ch in "/\\"), None)
+        if bad is not None:
+            raise ValueError(f"one file name of printable characters (it names the run directory); "
+                             f"{bad!r} is not allowed")
+        if name.startswith(".") or name != name.strip():
+            raise ValueError("may not start with '.' or start or end with a space (it names the run directory)")
+        return name
+
+
 # --------------------------------------------------------------------------------------------
 # Loading.
 # --------------------------------------------------------------------------------------------
@@ -81,17 +100,12 @@ def load_scenario(path: str | Path, *, overrides: dict[str, Any] | None = None) 
         override too).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(path, "", "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(path, "", f"cannot read: {exc}") from None
+    text = read_text(path)
     if not overrides:
         return scenario_from_text(text, source_file=path)
     from cnc_twin.scenario.overrides import apply_overrides
 
-    raw = _parse_yaml(text, path)
+    raw = parse(text, path)
     if not isinstance(raw, dict):
         raise ScenarioError(path, "", f"expected a mapping of keys at the top level, got {type(raw).__name__}")
     changed = apply_overrides(raw, overrides, label=f"{path} (overrides)")
@@ -125,7 +139,7 @@ def _override_for(key_path: str, overrides: dict[str, Any]) -> str | None:
 def scenario_from_text(text: str, *, source_file: Path | None = None) -> Scenario:
     """Validate scenario YAML ``text``; relative model paths resolve against ``source_file``'s folder."""
     label = source_file if source_file is not None else Path("<scenario>")
-    raw = _parse_yaml(text, label)
+    raw = parse(text, label)
     return scenario_from_dict(raw, source_file=source_file, source_text=text)
 
 
@@ -134,13 +148,14 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     label = source_file if source_file is not None else Path("<scenario>")
     if not isinstance(raw, dict):
         raise ScenarioError(label, "", f"expected a mapping of keys at the top level, got {type(raw).__name__}")
+    check_structure(raw, label)  # a mapping built in Python (overrides, scripts) gets the file's limits too
     folder = source_file.parent if source_file is not None else None
 
     machine_raw = raw.get("machine", {})
     machine_ref = validate(MachineRef, machine_raw, label, prefix=("machine",))
     model_path = _resolve(machine_ref.model, folder, label, "machine.model")
     params_path = _resolve(machine_ref.parameters, folder, label, "machine.parameters")
-    params_raw = _parse_yaml(_read(params_path), params_path)
+    params_raw = parse(read_text(params_path), params_path)
     params = validate(MachineParameters, params_raw, params_path)
 
     merged = dict(raw)
@@ -200,27 +215,6 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path):
 
         return chip.convert(spec, axes, has_home_switch, label)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
-
-
-def _read(path: Path) -> str:
-    try:
-        return path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(path, "", f"cannot read: {exc}") from None
-
-
-_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-"""PyYAML's safe loader, in C when libyaml is there (7x faster; the same safe subset)"""
-
-
-def _parse_yaml(text: str, label: Path) -> Any:
-    try:
-        return yaml.load(text, Loader=_SAFE_LOADER)  # noqa: S506 - a safe loader, never the full one
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ScenarioError(label, where, f"not valid YAML: {problem}") from None
 
 
 def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,11 @@ from cnc_twin.scenario.schema_base import KeyedValueError
 
 UNION_TAGS = FAULT_TAGS | {"point_to_point", "nurbs_curve", "surface_polish", "contour", "motion_chip"}
 """union tags pydantic puts in an error's location; a key path leaves them out"""
+
+
+_SHORT = reprlib.Repr()
+"""the input a message quotes, cut short (a value may be a large or deep structure)"""
+_SHORT.maxlevel, _SHORT.maxstring, _SHORT.maxother, _SHORT.maxlist, _SHORT.maxdict = 2, 60, 60, 4, 4
 
 
 def validate(model_cls: type[BaseModel], data: Any, label: Path, prefix: tuple = ()) -> Any:
@@ -36,7 +42,8 @@ def first_error(exc: ValidationError, label: Path, prefix: tuple) -> ScenarioErr
     elif err["type"] == "missing":
         message = "required key is missing"
     else:
-        message = f"{err['msg'][0].lower()}{err['msg'][1:]}, got {err['input']!r}"
+        text = str(cause) if err["type"] == "value_error" and cause is not None else err["msg"]
+        message = f"{text[0].lower()}{text[1:]}, got {_SHORT.repr(err['input'])}"
     more = len(errors) - 1
     if more:
         message += f" (and {more} more problem{'s' if more > 1 else ''})"

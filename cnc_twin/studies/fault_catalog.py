@@ -10,9 +10,9 @@ Per case the runner measures:
 - the fault the card raised (code, stop), and how long after the injection [ms];
 - when the machine was at rest in FAULT [ms after the injection];
 - for faults the card cannot see: what happened instead (how the run ended);
-- leftovers: a planner process still alive, a whiteboard segment still in ``/dev/shm``, a
-  partial run directory (the run is written to a temporary folder and the check looks for
-  anything but the finished run directory there).
+- leftovers: a planner process still alive, a whiteboard segment of this process (or of one
+  that exited) still in ``/dev/shm``, a partial run directory (the run is written to a temporary
+  folder and the check looks for anything but the finished run directory there).
 """
 
 from __future__ import annotations
@@ -141,7 +141,7 @@ def run_case(case: Case) -> Row:
     check what is left behind."""
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.run.twin import Twin
-    from cnc_twin.whiteboard.block import leftover_segments
+    from cnc_twin.whiteboard.block import leaked_segments, leftover_segments
 
     segments_before = set(leftover_segments())
     with tempfile.TemporaryDirectory(prefix="cnc_twin_fault_") as folder:
@@ -156,7 +156,10 @@ def run_case(case: Case) -> Row:
         leftovers = [f"partial file {p.name}" for p in runs.iterdir() if p.name != "run"]
         if twin.process is not None and twin.process.poll() is None:
             leftovers.append("planner process alive")
-        leftovers += [f"segment {name}" for name in set(leftover_segments()) - segments_before]
+        # only this process's segments (or orphans) count: another cnc-twin run on the machine
+        # creates and unlinks its own while this case runs
+        new_segments = set(leftover_segments()) - segments_before
+        leftovers += [f"segment {name}" for name in sorted(leaked_segments(new_segments))]
         complete = {p.name for p in (runs / "run").iterdir()}
         if not {"scenario.yaml", "trace.parquet", "metrics.json"} <= complete:
             leftovers.append(f"run directory incomplete: {sorted(complete)}")

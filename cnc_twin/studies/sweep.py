@@ -10,6 +10,10 @@ Each case is one complete twin run (its own planner process) in a worker process
 lockstep-deterministic, so the table does not depend on where or in which order cases ran
 (wall-clock columns aside). A worker that dies takes its runs with it: they are retried once in
 a fresh pool, then reported as ``lost``; the rest of the sweep completes.
+
+A sweep stopped (:class:`~cnc_twin.studies.sweep_stop.SweepStop`: the CLI's SIGINT or SIGTERM)
+starts no new case and stops the running ones at their next period; its table has every case,
+those that did not finish with status ``interrupted``.
 """
 
 from __future__ import annotations
@@ -18,8 +22,9 @@ import itertools
 import math
 import multiprocessing
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,8 +32,14 @@ from typing import Any
 
 import numpy as np
 
+from cnc_twin.studies.sweep_stop import SweepStop, init_worker, stop_requested, stoppable
+
 WALL_CLOCK_COLUMNS = ("wall_time_s", "real_time_factor")
 """columns that vary from run to run of the same case"""
+INTERRUPTED = "interrupted"
+"""the status of a case that a stopped sweep did not finish"""
+POLL_S = 0.2
+"""how often the sweep's loop looks at its stop while cases run [s]"""
 
 
 @dataclass(frozen=True)
@@ -142,81 +153,157 @@ _WORKER_PLANNERS = None
 
 
 def run_case(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
-    """Run one case (in a worker); returns its overrides and flattened metrics, or its error."""
+    """Run one case (in a worker); returns its overrides and flattened metrics, or its error.
+
+    After a SIGINT in a local worker (:mod:`cnc_twin.studies.sweep_stop`) a case is not run, and
+    the one running stops at its next period: both are ``interrupted`` (the latter with its
+    figures up to ``sim_time_s``)."""
     global _WORKER_PLANNERS
     from cnc_twin.core.errors import ScenarioError
     from cnc_twin.planner.launch import PlannerPool
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.run.twin import run_scenario
+    from cnc_twin.run.twin import Twin
 
     _exit_on_sigterm()
+    if stop_requested():
+        return interrupted_row(overrides)
     if _WORKER_PLANNERS is None:
         _WORKER_PLANNERS = PlannerPool()
     try:
-        result = run_scenario(load_scenario(scenario_file, overrides=overrides), planners=_WORKER_PLANNERS)
+        twin = Twin(load_scenario(scenario_file, overrides=overrides))
+        with stoppable(twin):
+            result = twin.run(planners=_WORKER_PLANNERS)
     except ScenarioError as exc:
         return {**overrides, "status": "invalid", "error": str(exc)}
+    if result.status == INTERRUPTED and not result.metrics.get("sim_time_s"):
+        return interrupted_row(overrides)  # stopped before its first period: its zeros would read as figures
     return {**overrides, **flatten_metrics(result.metrics)}
+
+
+def interrupted_row(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The row of a case that a stopped sweep never ran: its overrides and its status."""
+    return {**overrides, "status": INTERRUPTED}
 
 
 ProgressCallback = Callable[[int, int], None]
 
 
 def run_local(scenario_file: str, todo: list[dict[str, Any]], *, workers: int | None = None,
-              progress: ProgressCallback | None = None, case_fn=run_case) -> list[dict[str, Any]]:
-    """Run the cases on a local process pool.
+              progress: ProgressCallback | None = None, case_fn=run_case,
+              stop: SweepStop | None = None) -> list[dict[str, Any]]:
+    """Run the cases on a local process pool; one row per case, in ``todo``'s order.
 
-    A worker that dies breaks the pool and fails every case in flight with it, so failed cases
-    are retried one at a time, each in a fresh single-worker pool: only a case that kills its
-    worker again is reported ``lost``.
+    A worker that dies breaks the pool and fails every case in flight with it: the cases not yet
+    started go on in a fresh pool, and those that failed are retried one at a time, each in a
+    fresh single-worker pool: only a case that kills its worker again is reported ``lost``.
+
+    ``stop``: once requested (the CLI requests it on SIGINT or SIGTERM), no case starts, the
+    running ones stop at their next period, and every case not finished is ``interrupted``. A
+    KeyboardInterrupt here stops the workers the same way before it propagates.
     """
+    own_stop = stop is None
+    stop = SweepStop() if stop is None else stop
     rows: list[dict[str, Any] | None] = [None] * len(todo)
-    ctx = multiprocessing.get_context("spawn")
-    done = 0
-    failed = []
-    with ProcessPoolExecutor(max_workers=workers or 2, mp_context=ctx) as pool:
-        futures = {pool.submit(case_fn, scenario_file, todo[i]): i for i in range(len(todo))}
-        for future in as_completed(futures):
-            i = futures[future]
-            try:
-                rows[i] = future.result()
-            except BrokenProcessPool:
-                failed.append(i)
-                continue
-            done += 1
-            if progress is not None:
-                progress(done, len(todo))
-    for i in sorted(failed):
-        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-            try:
-                rows[i] = pool.submit(case_fn, scenario_file, todo[i]).result()
-            except BrokenProcessPool:
-                rows[i] = {**todo[i], "status": "lost", "error": "its worker process died (twice)"}
-        done += 1
+    finished = 0
+
+    def done() -> None:
+        nonlocal finished
+        finished += 1
         if progress is not None:
-            progress(done, len(todo))
-    return rows  # type: ignore[return-value]
+            progress(finished, len(todo))
+
+    try:
+        queue, failed = deque(range(len(todo))), []
+        while queue and stop.reason is None:
+            failed += _run_pool(scenario_file, todo, queue, rows, workers or 2, case_fn, stop, done)
+        for i in sorted(failed):
+            if stop.reason is not None:
+                break
+            if _run_pool(scenario_file, todo, deque([i]), rows, 1, case_fn, stop, done):
+                rows[i] = {**todo[i], "status": "lost", "error": "its worker process died (twice)"}
+                done()
+    finally:
+        if own_stop:
+            stop.close()
+    return [row if row is not None else interrupted_row(case) for row, case in zip(rows, todo)]
+
+
+def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int], rows: list[dict[str, Any] | None],
+              workers: int, case_fn, stop: SweepStop, done: Callable[[], None]) -> list[int]:
+    """Run cases from the front of ``queue`` (indices into ``todo``) on a pool of ``workers``
+    processes into ``rows`` until the queue is empty, the pool breaks or ``stop`` is requested;
+    returns the cases that were in flight when a worker died."""
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=init_worker, initargs=stop.worker_args)
+    # Cases are handed out as workers free up (two per worker in flight keeps them busy), so a
+    # stop has few to call back and a broken pool leaves the rest of the queue untouched.
+    in_flight: dict[Future, int] = {}
+    failed: list[int] = []
+    try:
+        while True:
+            while queue and stop.reason is None and not failed and len(in_flight) < 2 * workers:
+                i = queue.popleft()
+                try:
+                    in_flight[pool.submit(case_fn, scenario_file, todo[i])] = i
+                except BrokenProcessPool:
+                    queue.appendleft(i)
+                    break
+            if not in_flight:
+                return failed
+            finished, _ = wait(in_flight, timeout=POLL_S, return_when=FIRST_COMPLETED)
+            stop.pass_on()
+            for future in finished:
+                i = in_flight.pop(future)
+                try:
+                    rows[i] = future.result()
+                except BrokenProcessPool:
+                    failed.append(i)
+                    continue
+                except (KeyboardInterrupt, SystemExit):  # a signal ended it in its worker
+                    continue
+                done()
+    except BaseException as exc:
+        stop.request(type(exc).__name__)  # e.g. Ctrl-C in a script: the runs stop before the wait below
+        stop.pass_on()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        stop.forget_workers()
 
 
 def run_dask(scenario_file: str, todo: list[dict[str, Any]], *, scheduler: str,
-             progress: ProgressCallback | None = None, retries: int = 1) -> list[dict[str, Any]]:
+             progress: ProgressCallback | None = None, retries: int = 1,
+             stop: SweepStop | None = None) -> list[dict[str, Any]]:
     """Run the cases on a Dask cluster at ``scheduler``; a case whose worker died is retried,
-    then reported ``lost``. Workers must be non-daemonic (each run starts a planner process)."""
+    then reported ``lost``. Workers must be non-daemonic (each run starts a planner process).
+
+    Once ``stop`` is requested the cases not finished are cancelled and ``interrupted`` (a case
+    already running on the cluster runs to its end there; its result is dropped)."""
     from distributed import Client, as_completed as dask_completed
 
     rows: list[dict[str, Any] | None] = [None] * len(todo)
     with Client(scheduler) as client:
         futures = {client.submit(run_case, scenario_file, todo[i], pure=False, retries=retries): i
                    for i in range(len(todo))}
-        for done, future in enumerate(dask_completed(futures), start=1):
-            i = futures[future]
-            try:
-                rows[i] = future.result()
-            except Exception as exc:  # KilledWorker after the retries, or a crash in the case
-                rows[i] = {**todo[i], "status": "lost", "error": f"{type(exc).__name__}: {exc}"}
-            if progress is not None:
-                progress(done, len(todo))
-    return rows  # type: ignore[return-value]
+        pending = dask_completed(futures)
+        done = 0
+        while not pending.is_empty():
+            if stop is not None and stop.reason is not None:
+                client.cancel([f for f, i in futures.items() if rows[i] is None])
+                break
+            if not pending.has_ready():  # polled, so that a stop is seen while cases run
+                time.sleep(POLL_S)
+                continue
+            for future in pending.next_batch(block=False):
+                i = futures[future]
+                try:
+                    rows[i] = future.result()
+                except Exception as exc:  # KilledWorker after the retries, or a crash in the case
+                    rows[i] = {**todo[i], "status": "lost", "error": f"{type(exc).__name__}: {exc}"}
+                done += 1
+                if progress is not None:
+                    progress(done, len(todo))
+    return [row if row is not None else interrupted_row(case) for row, case in zip(rows, todo)]
 
 
 def write_table(rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:

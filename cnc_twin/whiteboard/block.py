@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import secrets
+from collections.abc import Iterable
 from multiprocessing import resource_tracker, shared_memory
 
 import numpy as np
@@ -137,3 +138,29 @@ def leftover_segments() -> list[str]:
         return sorted(n for n in os.listdir("/dev/shm") if n.startswith(NAME_PREFIX))
     except FileNotFoundError:  # pragma: no cover - not Linux
         return []
+
+
+def creator_pid(name: str) -> int | None:
+    """The pid of the process that created segment ``name`` (:meth:`Whiteboard.create` puts it
+    in the name), or None when the name carries none."""
+    if not name.startswith(NAME_PREFIX):
+        return None
+    try:
+        return int(name[len(NAME_PREFIX):].split("_")[0])
+    except ValueError:
+        return None
+
+
+def leaked_segments(names: Iterable[str]) -> set[str]:
+    """The segments among ``names`` that are leaks: created by this process, or by one that has
+    exited (nobody is left to unlink them), or of unknown origin.
+
+    A segment of another live process (a second run or test session on the same machine) is that
+    process's business, not a leak of this one.
+    """
+    out = set()
+    for name in names:
+        pid = creator_pid(name)
+        if pid is None or pid == os.getpid() or not os.path.exists(f"/proc/{pid}"):
+            out.add(name)
+    return out

@@ -12,6 +12,8 @@ Per period ``k`` on the DSP::
 
     acquire(k):  lockstep  -> wait for the PC's ack of the last status (planner-lost checks while waiting)
                  real-time -> if no ack yet or HOLD high: missed exchange, skip the rest this period
+    poll():      during a stop, either mode -> take the bus only if the PC has answered; else skip
+                 the rest this period (no wait, no miss counted, no FIFO snapshot)
     (the FIFO's write index is snapshotted: records up to it are consumed as the card needs them)
     publish(status):  status block; HOLDA = 1; mailbox DSP -> PC = (k + 1) & 0xFFFF
 
@@ -127,6 +129,21 @@ class DspPort:
         # Read while the DSP owns the bus, right after the PC's answer: the same period on every
         # lockstep run, so going solo never changes what the card does.
         self.solo = bool(self.words[self.wb.ALL_SENT])
+        return True
+
+    def poll(self) -> bool:
+        """Take the bus only if the PC has already answered the last status: the card's exchange
+        once it needs nothing more from the planner (a stop under way). Never waits, never counts
+        a missed exchange and takes no FIFO snapshot, so whatever the PC does or fails to do from
+        here on changes nothing the card executes or records; True when the card may publish."""
+        if self.solo:
+            return False
+        if self.last_posted is not None:
+            if self.words[self.wb.MAILBOX_TO_DSP] != mailbox_value(self.last_posted) or self.words[self.wb.HOLD]:
+                return False  # not answered yet: the status block stays the PC's until it is
+            self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
+            self.latency_period.append(self.last_posted)
+        self.words[self.wb.HOLDA] = 0
         return True
 
     def _wait_ack(self, ack: int) -> None:

@@ -1,0 +1,90 @@
+"""SIGINT and SIGTERM at any moment of a command: either nothing is left, or the run is written whole.
+
+:class:`SignalGuard` is installed when a command starts and decides what a signal does by the
+phase the command is in:
+
+- before the run begins (loading, compiling, starting the planner, building the workpiece): the
+  first signal raises :class:`Interrupted`; the ``finally`` blocks and context managers on the
+  way out end the child processes and remove what was staged, so nothing is left;
+- while the twin runs (:meth:`SignalGuard.stopping`): the twin is asked to stop at its next
+  period and the run goes on to be written, marked interrupted;
+- while the run directory is written (:meth:`SignalGuard.deferred`): the signal is only noted;
+  the writing completes, then the command ends with the signal's exit code.
+
+After the first signal every further one is only noted, so a second Ctrl-C cannot cut the
+clean-up short. Exit codes: 130 for SIGINT, 143 for SIGTERM (128 + the signal number).
+"""
+
+from __future__ import annotations
+
+import signal
+from contextlib import contextmanager
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def exit_code(name: str) -> int:
+    """The shell's exit code for a process ended by the signal ``name`` ("SIGINT" -> 130)."""
+    return 128 + int(signal.Signals[name])
+
+
+class Interrupted(BaseException):
+    """A signal arrived before the run began (a BaseException, like KeyboardInterrupt: ``except
+    Exception`` clauses on the way out do not swallow it)."""
+
+    def __init__(self, name: str):
+        super().__init__(name)
+        self.name = name
+
+
+class SignalGuard:
+    """Context manager: SIGINT / SIGTERM handled by phase (see the module docstring).
+    ``received`` is the first signal's name ("SIGINT", "SIGTERM"), or None."""
+
+    def __init__(self):
+        self.received: str | None = None
+        self._previous: dict[int, object] = {}
+        self._on_signal = self._raise
+
+    def __enter__(self) -> "SignalGuard":
+        for sig in SIGNALS:
+            self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        return False
+
+    def _handle(self, signum: int, _frame) -> None:
+        first = self.received is None
+        if first:
+            self.received = signal.Signals(signum).name
+        if first:
+            self._on_signal(self.received)
+
+    def _raise(self, name: str) -> None:
+        self._on_signal = _note  # clean-up on the way out is not cut short by a second signal
+        raise Interrupted(name)
+
+    @contextmanager
+    def stopping(self, twin):
+        """Within the block a signal asks ``twin`` to stop at its next period (one that came
+        before the block stops it at once)."""
+        if self.received is not None:
+            twin.request_stop(self.received)
+        self._on_signal = twin.request_stop
+        try:
+            yield
+        finally:
+            self._on_signal = _note
+
+    @contextmanager
+    def deferred(self):
+        """Within the block a signal is only noted (``received``)."""
+        self._on_signal = _note
+        yield
+
+
+def _note(_name: str) -> None:
+    """A signal that only needs noting (``SignalGuard.received`` holds it)."""

@@ -1,0 +1,132 @@
+"""Stopping a local sweep on SIGINT or SIGTERM: the main process's side and the workers' side.
+
+The main process holds a :class:`SweepStop` (the CLI sets it from SIGINT and SIGTERM); once it
+is set, no new case is handed out and SIGINT is passed on to the pool's workers, which told the
+main process their pids through a pipe when they started (:func:`init_worker`). A worker takes
+SIGINT, from the main process or from the terminal (Ctrl-C reaches the whole process group), as
+"stop": the case it runs stops at the twin's next interpolation period as ``cnc-twin run`` does,
+and a case it is handed afterwards returns at once; both come back with status ``interrupted``.
+The planner ignores SIGINT and ends with its run; the workers then leave as the pool shuts down,
+closing their planners on the way out.
+
+Why a signal and not a flag that a thread in the worker watches: a run gives up the GIL only for
+the microseconds of each compiled servo call and takes it straight back, so such a thread waits
+up to a whole run (seconds) before it can set the flag; a signal handler runs in the worker's
+main thread between two periods.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator
+from typing import Any
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+"""what stops a sweep in the main process"""
+
+_stopped = False
+"""in a worker: SIGINT came; cases from now on are not run"""
+_running: Any = None
+"""in a worker: the twin of the case running now (a SIGINT asks it to stop)"""
+
+
+class SweepStop:
+    """The main process's stop: its reason, and the workers to pass it on to.
+
+    ``reason`` is None until :meth:`request` (``"SIGINT"`` or ``"SIGTERM"`` from a signal).
+    Give :attr:`worker_args` to each pool as the ``initargs`` of :func:`init_worker`.
+    """
+
+    def __init__(self):
+        self.reason: str | None = None
+        # workers write their pids here at start-up; only the main process reads
+        self._pids_in, self._pids_out = multiprocessing.Pipe(duplex=False)
+        self._workers: set[int] = set()
+        self._told: set[int] = set()
+
+    @property
+    def worker_args(self) -> tuple[Any, ...]:
+        return (self._pids_out,)
+
+    def request(self, reason: str) -> None:
+        """Stop the sweep (the first reason is kept). Safe in a signal handler: it only notes
+        the reason; :meth:`pass_on`, from the sweep's loop, tells the workers."""
+        if self.reason is None:
+            self.reason = reason
+
+    def pass_on(self) -> None:
+        """Once stopped, send SIGINT to every worker that registered and was not told yet."""
+        if self.reason is None:
+            return
+        while self._pids_in.poll():
+            self._workers.add(int(self._pids_in.recv_bytes()))
+        for pid in self._workers - self._told:
+            self._told.add(pid)
+            try:
+                os.kill(pid, signal.SIGINT)
+            except ProcessLookupError:  # it left already (a broken pool)
+                pass
+
+    def forget_workers(self) -> None:
+        """After a pool has shut down (its workers joined): their pids may be reused, so none
+        of them is signalled again."""
+        while self._pids_in.poll():
+            self._pids_in.recv_bytes()
+        self._workers.clear()
+        self._told.clear()
+
+    @contextlib.contextmanager
+    def on_signals(self) -> Iterator["SweepStop"]:
+        """Within the block, SIGINT and SIGTERM stop the sweep instead of raising or killing
+        (main thread only); the previous handlers come back after it."""
+        previous = {sig: signal.signal(sig, self._handle) for sig in STOP_SIGNALS}
+        try:
+            yield self
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def _handle(self, signum, _frame) -> None:
+        self.request(signal.Signals(signum).name)
+
+    def close(self) -> None:
+        """Close the pid pipe (no pool may start after this)."""
+        self._pids_in.close()
+        self._pids_out.close()
+
+
+def init_worker(pids) -> None:
+    """Pool initializer, in each worker: SIGINT stops this worker's cases; then the worker's pid
+    goes to the main process (``pids``: the write end from :attr:`SweepStop.worker_args`)."""
+    signal.signal(signal.SIGINT, _on_sigint)
+    pids.send_bytes(str(os.getpid()).encode())  # one short write: workers' pids never interleave
+    pids.close()
+
+
+def _on_sigint(_signum, _frame) -> None:
+    global _stopped
+    _stopped = True
+    if _running is not None:
+        _running.request_stop("SIGINT")
+
+
+def stop_requested() -> bool:
+    """In a worker: whether SIGINT came (no further case should run)."""
+    return _stopped
+
+
+@contextlib.contextmanager
+def stoppable(twin) -> Iterator[None]:
+    """In a worker, around ``twin.run()``: a SIGINT, before or during the run, asks the twin to
+    stop at its next period (its result is then ``interrupted``)."""
+    global _running
+    _running = twin
+    try:
+        if _stopped:  # came between the check before the case and now
+            twin.request_stop("SIGINT")
+        yield
+    finally:
+        _running = None

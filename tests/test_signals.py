@@ -1,0 +1,88 @@
+"""SIGINT and SIGTERM at any moment of `cnc-twin run`: either nothing is left (the run had not
+begun) or a complete, readable run directory marked interrupted; exit 130 / 143 either way, and
+no stray file, shared-memory segment or child process."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from cnc_twin.run.run_dir import METRICS_FILE, RECORDING_FILE, SCENARIO_FILE, TRACE_FILE
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.whiteboard.block import leaked_segments, leftover_segments
+
+SCENARIO = scenarios_dir() / "freeform_polish.yaml"
+MOMENTS = 10
+
+
+def _start(folder: Path) -> subprocess.Popen:
+    """`cnc-twin run` into ``folder/run``, in a session of its own (its process group is its pid)."""
+    folder.mkdir(parents=True)
+    return subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(SCENARIO), "--out", str(folder / "run")],
+                            cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def _live_members(group: int) -> list[str]:
+    """Processes of ``group`` still alive (zombies waiting for init to reap them are not)."""
+    out = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(group)], capture_output=True, text=True).stdout
+    return [line for line in out.splitlines() if line.split()[1][0] != "Z"]
+
+
+def _outcome(proc: subprocess.Popen, folder: Path, segments_before: set[str]) -> str:
+    """Wait for ``proc``; assert one of the two clean outcomes; which one ("nothing" / "run")."""
+    _, err = proc.communicate(timeout=120)
+    deadline = time.monotonic() + 10.0
+    while _live_members(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _live_members(proc.pid) == [], "a child process outlived the command"
+    assert leaked_segments(set(leftover_segments()) - segments_before) == set()
+    assert "Traceback" not in err, err
+    files = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*"))
+    run = folder / "run"
+    if not run.exists():
+        assert files == [], files  # nothing staged or hidden left behind
+        return "nothing"
+    assert {SCENARIO_FILE, TRACE_FILE, METRICS_FILE, RECORDING_FILE} <= {p.name for p in run.iterdir()}
+    assert not [p.name for p in run.iterdir() if p.name.startswith(".")]  # nothing half-written inside
+    assert [f for f in files if not f.startswith("run/")] == ["run"]  # no hidden staging beside it
+    metrics = json.loads((run / METRICS_FILE).read_text())
+    trace = pq.read_table(run / TRACE_FILE)
+    assert trace.num_rows > 0 or metrics["sim_time_s"] == 0.0
+    assert (run / RECORDING_FILE).stat().st_size > 0
+    if proc.returncode == 0:
+        assert metrics["status"] == "complete"
+        return "complete"
+    assert metrics["status"] == "interrupted" and metrics["stop_reason"].startswith(("SIGINT", "SIGTERM"))
+    return "run"
+
+
+def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(tmp_path):
+    """A clean run sets the time scale (start-up to the last write); then SIGINT and SIGTERM in
+    turn at ten evenly spread moments of it, one run at a time (the moments stay true)."""
+    before = set(leftover_segments())
+    started = time.monotonic()
+    clean = _start(tmp_path / "clean")
+    assert _outcome(clean, tmp_path / "clean", before) == "complete", clean.returncode
+    whole = time.monotonic() - started
+    outcomes = {}
+    for k in range(MOMENTS):
+        at, sig = whole * (k + 0.5) / MOMENTS, (signal.SIGINT, signal.SIGTERM)[k % 2]
+        t0 = time.monotonic()
+        proc = _start(tmp_path / f"m{k}")
+        time.sleep(max(0.0, t0 + at - time.monotonic()))
+        proc.send_signal(sig)
+        outcome = _outcome(proc, tmp_path / f"m{k}", before)
+        # the last moment may come after the command ended: a complete run, exit 0
+        assert proc.returncode == 128 + int(sig) or (outcome == "complete" and k == MOMENTS - 1), (k, proc.returncode)
+        outcomes[f"{at:.1f} s {sig.name}"] = outcome
+    kinds = set(outcomes.values())
+    assert "nothing" in kinds and "run" in kinds, outcomes  # both phases were hit

@@ -1,0 +1,227 @@
+"""A sweep stopped by Ctrl-C (SIGINT to the whole process group, as a terminal sends it) or by
+SIGTERM (to the main process only, as ``kill`` sends it) after some cases finished: exit code
+130 / 143, a table of all 16 cases (finished ones ``complete``, the rest ``interrupted``), and
+nothing left behind: no worker, planner or resource-tracker process, nothing new in /dev/shm.
+
+The sweep runs as a real ``python -m cnc_twin sweep`` subprocess with its stderr on a pseudo
+terminal, so that its progress bar (drawn only on a terminal) tells how many cases finished.
+Every process of the sweep carries a marker in its environment, so that one left behind is
+found even after it lost its parent; other processes on the machine (and their shared memory)
+are not ours and are not looked at.
+"""
+
+from __future__ import annotations
+
+import os
+import pty
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import pyarrow.parquet as pq
+
+SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "jog_axes.yaml"
+KP = [200.0 + 25.0 * i for i in range(16)]
+PARAMS = ["servo.X.kp=200:575:25", "program.settle=30"]
+"""16 cases of about 1 s of wall time each (35 s simulated): 8 s and more for the whole sweep"""
+FINISHED_BEFORE_SIGNAL = 3
+MARKER = "CNC_TWIN_SWEEP_INTERRUPT_TEST"
+PROGRESS = re.compile(r"(\d+)\.00 / 16\.00 s sim")
+"""the sweep's progress bar counts cases as its simulated seconds"""
+
+
+def test_ctrl_c_stops_the_sweep_and_writes_the_partial_table(tmp_path):
+    _interrupt_and_check(tmp_path, signal.SIGINT, to_group=True, exit_code=130)
+
+
+def test_sigterm_stops_the_sweep_and_writes_the_partial_table(tmp_path):
+    _interrupt_and_check(tmp_path, signal.SIGTERM, to_group=False, exit_code=143)
+
+
+def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool, exit_code: int) -> None:
+    tag = uuid.uuid4().hex
+    shm_before = set(os.listdir("/dev/shm"))
+    out = tmp_path / "sweep"
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cnc_twin", "sweep", str(SCENARIO), "--param", PARAMS[0], "--param", PARAMS[1],
+         "--workers", "2", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=slave, env={**os.environ, MARKER: tag}, start_new_session=True, text=True)
+    os.close(slave)
+    stderr = _PtyReader(master)
+    ours = {proc.pid}
+    clean = False
+    try:
+        done = stderr.wait_for_cases(FINISHED_BEFORE_SIGNAL, deadline=time.monotonic() + 30.0)
+        assert done >= FINISHED_BEFORE_SIGNAL, f"the sweep did not get going: {stderr.text()!r}"
+        tree = _descendants(proc.pid)
+        ours |= {pid for pid, _ in tree} | _marked(tag)
+        assert any("cnc_twin.planner.process" in _cmdline(pid) for pid, _ in tree), "no planner in the sweep's tree"
+        if to_group:
+            os.killpg(proc.pid, sig)
+        else:
+            proc.send_signal(sig)
+        proc.communicate(timeout=30)
+        assert proc.returncode == exit_code, stderr.text()
+        assert "interrupted" in stderr.text() and str(out / "sweep.parquet") in stderr.text()
+
+        rows = pq.read_table(out / "sweep.parquet").to_pylist()
+        assert len(rows) == 16
+        assert [r["servo.X.kp"] for r in rows] == KP and all(r["program.settle"] == 30 for r in rows)
+        status = [r["status"] for r in rows]
+        assert set(status) == {"complete", "interrupted"}, status
+        assert status.count("complete") >= done  # those finished before the signal stay finished
+        assert "ferr_rms_sum" in rows[0] and (out / "sweep.csv").is_file()  # the normal columns
+
+        ours |= _marked(tag)
+        left = _wait_gone(tree, tag, seconds=5.0)
+        assert not left, f"left running: {left}"
+        leaked = _leaked_shm(shm_before, ours)
+        assert not leaked, f"left in /dev/shm: {leaked}"
+        clean = True
+    finally:
+        if not clean:
+            _clean_up(proc, tag, shm_before, ours)
+        os.close(master)
+
+
+class _PtyReader:
+    """Collects what the sweep writes to its terminal (the pty's master side), in a thread."""
+
+    def __init__(self, fd: int):
+        self.fd, self.chunks = fd, []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        while True:
+            try:
+                chunk = os.read(self.fd, 4096)
+            except OSError:  # EIO: every process holding the terminal is gone
+                return
+            if not chunk:
+                return
+            self.chunks.append(chunk)
+
+    def text(self) -> str:
+        return b"".join(self.chunks).decode("utf-8", "replace")
+
+    def wait_for_cases(self, n: int, *, deadline: float) -> int:
+        """Wait until the progress bar shows ``n`` finished cases (or the deadline); how many."""
+        done = 0
+        while time.monotonic() < deadline:
+            counts = [int(m) for m in PROGRESS.findall(self.text())]
+            done = max(counts, default=0)
+            if done >= n:
+                break
+            time.sleep(0.05)
+        return done
+
+
+def _stat(pid: int) -> tuple[int, str, int] | None:
+    """(parent pid, state, start time in clock ticks) of a process, None if it is gone."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = text[text.rindex(")") + 2:].split()
+    return int(fields[1]), fields[0], int(fields[19])
+
+
+def _pids() -> list[int]:
+    return [int(name) for name in os.listdir("/proc") if name.isdigit()]
+
+
+def _descendants(root: int) -> list[tuple[int, int]]:
+    """Every process below ``root``, as (pid, start time): a pid reused later is not confused
+    with one of them."""
+    children: dict[int, list[tuple[int, int]]] = {}
+    for pid in _pids():
+        st = _stat(pid)
+        if st is not None:
+            children.setdefault(st[0], []).append((pid, st[2]))
+    found, todo = [], [root]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child[0])
+    return found
+
+
+def _marked(tag: str) -> set[int]:
+    """Live processes with the test's marker in their environment (the sweep and all it started)."""
+    needle = f"{MARKER}={tag}".encode()
+    found = set()
+    for pid in _pids():
+        try:
+            environ = Path(f"/proc/{pid}/environ").read_bytes()
+        except OSError:
+            continue
+        st = _stat(pid)
+        if needle in environ.split(b"\0") and st is not None and st[1] != "Z":
+            found.add(pid)
+    return found
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
+
+
+def _wait_gone(tree: list[tuple[int, int]], tag: str, *, seconds: float) -> list[str]:
+    """The sweep's processes still alive after ``seconds`` (the resource tracker leaves a moment
+    after the main process): those seen in its tree, and any other carrying the marker."""
+    deadline = time.monotonic() + seconds
+    while True:
+        alive = {pid for pid, start in tree if (st := _stat(pid)) is not None and st[2] == start and st[1] != "Z"}
+        alive |= _marked(tag)
+        if not alive or time.monotonic() > deadline:
+            return [f"{pid}: {_cmdline(pid)}" for pid in sorted(alive)]
+        time.sleep(0.1)
+
+
+def _mapped_shm() -> set[str]:
+    """Names in /dev/shm that some live process has mapped (another program's, in use)."""
+    names = set()
+    for pid in _pids():
+        try:
+            maps = Path(f"/proc/{pid}/maps").read_text()
+        except OSError:
+            continue
+        names.update(m.group(1) for m in re.finditer(r"/dev/shm/(\S+)", maps))
+    return names
+
+
+def _leaked_shm(before: set[str], ours: set[int]) -> list[str]:
+    """New entries in /dev/shm that the sweep left: whiteboards named after one of its processes,
+    and multiprocessing semaphores nobody has mapped (another program's live ones are mapped)."""
+    new = set(os.listdir("/dev/shm")) - before
+    whiteboards = {n for n in new if n.startswith("cnc_twin_") and n.split("_")[2].isdigit()
+                   and int(n.split("_")[2]) in ours}
+    semaphores = {n for n in new if n.startswith("sem.mp-")} - _mapped_shm()
+    return sorted(whiteboards | semaphores)
+
+
+def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[int]) -> None:
+    """After a failure, nothing of this test stays: kill the sweep's processes (found by the
+    marker) and remove what they leaked."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    for pid in _marked(tag):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    time.sleep(0.2)
+    for name in _leaked_shm(shm_before, ours):
+        try:
+            os.unlink(f"/dev/shm/{name}")
+        except FileNotFoundError:
+            pass
