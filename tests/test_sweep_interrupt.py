@@ -48,10 +48,11 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
     shm_before = set(os.listdir("/dev/shm"))
     out = tmp_path / "sweep"
     master, slave = pty.openpty()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cnc_twin", "sweep", str(SCENARIO), "--param", PARAMS[0], "--param", PARAMS[1],
-         "--workers", "2", "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=slave, env={**os.environ, MARKER: tag}, start_new_session=True, text=True)
+    with open(tmp_path / "stdout.txt", "wb") as stdout:  # a file: no pipe for a left-behind child to hold open
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "cnc_twin", "sweep", str(SCENARIO), "--param", PARAMS[0], "--param", PARAMS[1],
+             "--workers", "2", "--out", str(out)],
+            stdout=stdout, stderr=slave, env={**os.environ, MARKER: tag}, start_new_session=True)
     os.close(slave)
     stderr = _PtyReader(master)
     ours = {proc.pid}
@@ -66,7 +67,7 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
             os.killpg(proc.pid, sig)
         else:
             proc.send_signal(sig)
-        proc.communicate(timeout=30)
+        proc.wait(timeout=30)
         assert proc.returncode == exit_code, stderr.text()
         assert "interrupted" in stderr.text() and str(out / "sweep.parquet") in stderr.text()
 

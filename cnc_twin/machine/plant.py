@@ -80,8 +80,8 @@ def load_model(path: Path) -> mujoco.MjModel:
         try:
             compiled = mujoco.MjModel.from_xml_path(str(path))
         except ValueError as exc:
-            first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else "does not compile"
-            raise ScenarioError(path, "", f"MJCF does not compile: {first_line}") from None
+            reason = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or "no reason given"
+            raise ScenarioError(path, "", f"MJCF does not compile: {reason}") from None
         _require(compiled, path)
         if len(_COMPILED) >= _COMPILED_MAX:
             _COMPILED.clear()

@@ -171,7 +171,8 @@ class Streamer:
                     and int(st["state"]) != DspState.FEED_HOLD):  # a card holding for data gets data
                 break
             words = self.encoded[self.next_index]
-            if len(words) > budget or len(words) > free:
+            # a record longer than the chunk goes alone, first in its exchange (else it never would)
+            if (len(words) > budget and written) or len(words) > free:
                 break
             if corrupt is not None:
                 words = corrupt(words)

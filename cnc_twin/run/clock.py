@@ -34,6 +34,8 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from cnc_twin.core import units
+from cnc_twin.core.errors import ScenarioError
 from cnc_twin.dsp.supervisor import STOP_DISABLE
 from cnc_twin.dsp.task import DspTask
 from cnc_twin.trace.recorder import Recorder
@@ -53,6 +55,31 @@ REPORTS_PER_RUN = 200
 """progress and observer reports per run (batches end at report periods when someone listens)"""
 
 
+MAX_PHYSICS_STEPS = 500_000_000
+"""most MuJoCo steps a run may take (about a day of wall time on one core)"""
+MAX_TRACE_TICKS = 50_000_000
+"""most servo ticks a run may record (about 10 GB of trace in memory)"""
+
+
+def check_run_size(sc, planned: int, max_periods: int) -> None:
+    """Refuse (a :class:`ScenarioError`, exit 2, before the clock starts) a run whose periods
+    would take more physics steps or trace rows than the limits: a tiny timestep or a huge dwell
+    is a bad input, not a run that never ends."""
+    timing = sc.timing
+    steps = max_periods * timing.ticks_per_period * timing.substeps_per_tick
+    label = sc.source_file or sc.name
+    if steps > MAX_PHYSICS_STEPS:
+        raise ScenarioError(label, "timing.physics_timestep",
+                            f"{timing.physics_timestep / units.MS:g} ms gives {steps:.3g} physics steps for this program "
+                            f"({max_periods * timing.interpolation_period:g} s simulated at most); the limit is "
+                            f"{MAX_PHYSICS_STEPS:.3g}")
+    ticks = (planned + 2) * timing.ticks_per_period
+    if ticks > MAX_TRACE_TICKS:
+        raise ScenarioError(label, "timing.servo_period",
+                            f"{timing.servo_period / units.MS:g} ms gives {ticks:.3g} trace rows for this program "
+                            f"({planned * timing.interpolation_period:g} s); the limit is {MAX_TRACE_TICKS:.3g}")
+
+
 class Clock:
     """Runs ``twin``'s periods with the card's task ``dsp``; ``planned`` is the program's length
     as the planner announced it [periods]. Sets ``twin.recorder`` (read by observers during the
@@ -68,6 +95,7 @@ class Clock:
         self.max_periods = max(1, round(self.max_time / self.period_s))
         self.ticks_per_period = timing.ticks_per_period
         self.substeps = timing.substeps_per_tick
+        check_run_size(sc, planned, self.max_periods)
         self.realtime = timing.mode == "realtime"
         twin.expected_periods = planned + 1
         self.report_every = max(1, twin.expected_periods // REPORTS_PER_RUN)

@@ -24,7 +24,7 @@ from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import AxisConfig, ChipStep, MotionChipProgram
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.schema_base import KeyedValueError, Strict
+from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict
 
 AxisName = Literal["X", "Y", "Z", "A", "B", "C"]
 
@@ -61,7 +61,7 @@ class ChipCommandSpec(Strict):
     index: IndexSpec | None = None
     jog: JogSpec | None = None
     linear: LinearSpec | None = None
-    dwell: float | None = Field(None, ge=0, description="[s]")
+    dwell: float | None = Field(None, ge=0, le=DAY, description="[s]")
 
     @model_validator(mode="after")
     def _one(self) -> "ChipCommandSpec":
@@ -75,7 +75,7 @@ class MotionChipProgramSpec(Strict):
     type: Literal["motion_chip"]
     profile: Literal["constant", "trapezoid", "s_curve"] = "s_curve"
     commands: list[ChipCommandSpec] = Field(min_length=1)
-    settle: float = Field(0.3, ge=0, description="time simulated after the last command [s]")
+    settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the last command [s]")
 
 
 def _speed(cfg: AxisConfig, value: float, label: Path, key: str) -> float:

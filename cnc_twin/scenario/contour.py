@@ -29,7 +29,7 @@ from cnc_twin.geometry.contour import Arc, Line, check_contour, element_length, 
 from cnc_twin.legacy.quadrants import end_is_on_circle
 from cnc_twin.scenario.curve import NurbsCurveProgram
 from cnc_twin.scenario.curve import convert as convert_curve
-from cnc_twin.scenario.schema_base import KeyedValueError, PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, KeyedValueError, PathLimitsSpec, Strict
 from cnc_twin.scenario.validation import validate
 
 Method = Literal["nurbs", "point_by_point", "dda"]
@@ -72,8 +72,8 @@ class ContourProgramSpec(Strict):
     dda_bits: int = Field(0, ge=0, le=30, description="DDA register length [bits]; 0 = the smallest that holds each element")
     C: float = Field(0.0, description="spindle angle held [deg]")
     approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the moves to the start [mm/min]")
-    dwell: float = Field(0.2, ge=0, description="pause at the start before each pass [s]")
-    settle: float = Field(0.3, ge=0, description="time simulated after the last pass [s]")
+    dwell: float = Field(0.2, ge=0, le=DAY, description="pause at the start before each pass [s]")
+    settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the last pass [s]")
 
     @model_validator(mode="after")
     def _methods(self) -> "ContourProgramSpec":

@@ -11,7 +11,7 @@ from pydantic import Field
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, AxisCurve, NurbsProgram, PathLimits
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.schema_base import PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 
 
 class ToolAxisSpec(Strict):
@@ -46,7 +46,7 @@ class NurbsCurveProgram(Strict):
     tool_axis_curve: AxisCurveSpec | None = Field(None, description="tool axis varying along the path (replaces tool_axis)")
     C: float = Field(0.0, description="spindle angle held along the curve [deg]")
     approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
-    settle: float = Field(0.3, ge=0, description="dwell after the approach move, before the curve starts, "
+    settle: float = Field(0.3, ge=0, le=DAY, description="dwell after the approach move, before the curve starts, "
                                                  "and time simulated after the curve [s]")
 
 

@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import FaultInjection, SupervisorConfig
-from cnc_twin.scenario.schema_base import KeyedValueError, Strict as _Strict
+from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict as _Strict
 
 AxisName = Literal["X", "Y", "Z", "A", "B", "C"]
 
@@ -27,8 +27,8 @@ class PlannerStallFault(_Strict):
     """The planner stops answering (and beating) for a while."""
 
     type: Literal["planner_stall"]
-    at: float = Field(ge=0, description="simulated time of the first status it does not answer in time [s]")
-    duration: float = Field(gt=0, description="wall-clock stall [ms]")
+    at: float = Field(ge=0, le=DAY, description="simulated time of the first status it does not answer in time [s]")
+    duration: float = Field(gt=0, le=600000.0, description="wall-clock stall [ms], at most 10 minutes")
 
 
 class PlannerDelayFault(_Strict):
@@ -36,24 +36,24 @@ class PlannerDelayFault(_Strict):
     every ``every`` seconds if given)."""
 
     type: Literal["planner_delay"]
-    at: float = Field(ge=0, description="[s] simulated")
-    duration: float = Field(gt=0, description="window [s] simulated")
-    delay: float = Field(gt=0, description="wall-clock delay per answer [ms]")
-    every: float = Field(0.0, ge=0, description="repeat the window every this many seconds [s] simulated; 0 = once")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
+    duration: float = Field(gt=0, le=DAY, description="window [s] simulated")
+    delay: float = Field(gt=0, le=600000.0, description="wall-clock delay per answer [ms], at most 10 minutes")
+    every: float = Field(0.0, ge=0, le=DAY, description="repeat the window every this many seconds [s] simulated; 0 = once")
 
 
 class PlannerKillFault(_Strict):
     """The planner process dies (SIGKILL) when it sees a status at or after ``at``."""
 
     type: Literal["planner_kill"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
 
 
 class RecordBitflipFault(_Strict):
     """One bit of the next record written at or after ``at`` is flipped after its CRC was computed."""
 
     type: Literal["record_bitflip"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     bit: int = Field(0, ge=0, description="bit index within the record (wraps to its length)")
 
 
@@ -62,7 +62,7 @@ class EncoderLossFault(_Strict):
     position is off by that many counts from then on."""
 
     type: Literal["encoder_loss"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     axis: AxisName
     counts: int = Field(description="counts lost (negative: gained)")
 
@@ -72,7 +72,7 @@ class EncoderNoiseFault(_Strict):
     +-amplitude for a window (seeded by the scenario's seed)."""
 
     type: Literal["encoder_noise"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     axis: AxisName
     amplitude: int = Field(gt=0, description="[counts]")
     duration: float = Field(0.0, ge=0, description="window [s] simulated; 0 = for good")
@@ -82,7 +82,7 @@ class DacStuckFault(_Strict):
     """The axis's DAC channel keeps the code it has at ``at`` whatever the card writes."""
 
     type: Literal["dac_stuck"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     axis: AxisName
 
 
@@ -90,7 +90,7 @@ class DacDeadFault(_Strict):
     """The axis's DAC channel outputs 0 V from ``at`` on."""
 
     type: Literal["dac_dead"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     axis: AxisName
 
 
@@ -99,7 +99,7 @@ class TorqueDropFault(_Strict):
     (a failing amplifier or a motor phase lost)."""
 
     type: Literal["torque_drop"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     axis: AxisName
     fraction: float = Field(ge=0, lt=1, description="peak force kept [-]")
 
@@ -108,7 +108,7 @@ class ForceSpikeFault(_Strict):
     """The load cell reads ``force`` newtons more than it feels, for ``duration``."""
 
     type: Literal["force_spike"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     force: float = Field(description="[N] added to the reading")
     duration: float = Field(gt=0, description="[ms] simulated; at least one interpolation period acts")
 
@@ -117,7 +117,7 @@ class ForceOffsetFault(_Strict):
     """The load cell's reading is offset by ``force`` newtons from ``at`` on (a drifting bridge)."""
 
     type: Literal["force_offset"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     force: float = Field(description="[N] added to the reading")
 
 
@@ -126,7 +126,7 @@ class CollisionFault(_Strict):
     it is in place from ``at`` on (before that it is far away)."""
 
     type: Literal["collision"]
-    at: float = Field(0.0, ge=0, description="[s] simulated")
+    at: float = Field(0.0, ge=0, le=DAY, description="[s] simulated")
     position: list[float] = Field(min_length=3, max_length=3, description="box centre, world frame [mm]")
     size: list[float] = Field(min_length=3, max_length=3, description="box half sizes [mm], each > 0")
 
@@ -142,7 +142,7 @@ class DspHangFault(_Strict):
     last codes). The watchdog disables the drives if the hang outlasts its timeout."""
 
     type: Literal["dsp_hang"]
-    at: float = Field(ge=0, description="[s] simulated")
+    at: float = Field(ge=0, le=DAY, description="[s] simulated")
     duration: float = Field(gt=0, description="[ms] simulated")
 
 

@@ -13,6 +13,7 @@ override any of them, key by key.
 from __future__ import annotations
 
 import copy
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -36,10 +37,10 @@ from cnc_twin.scenario.machine import (
 )
 from cnc_twin.scenario.points import PointToPointProgram
 from cnc_twin.scenario.resources import resolve_model_file
-from cnc_twin.scenario.schema_base import Strict
+from cnc_twin.scenario.schema_base import DAY, Strict
 from cnc_twin.scenario.surface import SurfacePolishProgram
 from cnc_twin.scenario.validation import validate
-from cnc_twin.scenario.yaml_input import check_structure, parse, read_text
+from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES, check_structure, parse, read_text
 
 
 MAX_NAME_LENGTH = 100
@@ -56,7 +57,7 @@ class ScenarioFile(Strict):
     name: str = Field(min_length=1, max_length=MAX_NAME_LENGTH,
                       description="names the default run directory: one file name, printable")
     description: str = ""
-    seed: int = Field(0, ge=0, description="seed for every random source in the run")
+    seed: int = Field(0, ge=0, le=2**64 - 1, description="seed for every random source in the run")
     timing: TimingSpec = TimingSpec()
     machine: MachineRef = MachineRef()
     axes: AxesSpec
@@ -65,7 +66,7 @@ class ScenarioFile(Strict):
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)
     supervisor: SupervisorSpec = SupervisorSpec()
-    max_time: float | None = Field(None, gt=0, description="cap on simulated time [s]; default twice the program plus 5 s")
+    max_time: float | None = Field(None, gt=0, le=DAY, description="cap on simulated time [s]; default twice the program plus 5 s")
     command_output: Literal["analog", "pulse"] = Field(
         "analog", description="analog: +-10 V from the card's PID, drives in velocity mode; "
                               "pulse: step/direction pulses, drives in position mode")
@@ -155,17 +156,23 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     machine_ref = validate(MachineRef, machine_raw, label, prefix=("machine",))
     model_path = _resolve(machine_ref.model, folder, label, "machine.model")
     params_path = _resolve(machine_ref.parameters, folder, label, "machine.parameters")
-    params_raw = parse(read_text(params_path), params_path)
-    params = validate(MachineParameters, params_raw, params_path)
+    with _named_by(label, "machine.parameters"):
+        params = validate(MachineParameters, parse(read_text(params_path), params_path), params_path)
 
     merged = dict(raw)
     defaults = params.model_dump()
     merged["axes"] = _deep_merge(defaults["axes"], raw.get("axes", {}))
     merged["force_sensor"] = _deep_merge(defaults["force_sensor"], raw.get("force_sensor", {}))
     spec = validate(ScenarioFile, merged, label)
+    for i, fault in enumerate(spec.faults):
+        if spec.max_time is not None and fault.at > spec.max_time:
+            raise ScenarioError(label, f"faults[{i}].at", f"{fault.at:g} s is after the run's end (max_time {spec.max_time:g} s)")
 
     timing = convert_timing(spec.timing, label)
-    model = load_model(model_path)
+    with _named_by(label, "machine.model"):
+        if model_path.stat().st_size > MAX_FILE_BYTES:
+            raise ScenarioError(model_path, "", f"larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB")
+        model = load_model(model_path)
     info = model_info(model)
     axes = convert_axes(spec.axes, info, label)
     if spec.command_output == "pulse":
@@ -215,6 +222,17 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path):
 
         return chip.convert(spec, axes, has_home_switch, label)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
+
+
+@contextmanager
+def _named_by(label: Path, key: str):
+    """A problem in a file the scenario names (the model, the parameters) is reported at the
+    scenario's key that names it, with the file and what is wrong there."""
+    try:
+        yield
+    except ScenarioError as exc:
+        inner = f"{exc.file}: {exc.key_path}" if exc.key_path else exc.file
+        raise ScenarioError(label, key, f"{inner}: {exc.message}") from None
 
 
 def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:

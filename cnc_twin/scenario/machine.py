@@ -20,13 +20,13 @@ from cnc_twin.core.axes import AXES, is_rotary
 from cnc_twin.core.config import AxisConfig, Timing
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.plant import ModelInfo
-from cnc_twin.scenario.schema_base import KeyedValueError, Strict
+from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict
 
 
 class EncoderSpec(Strict):
     """Quadrature encoder on the motor shaft (semi-closed loop)."""
 
-    lines_per_rev: int = Field(gt=0, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
+    lines_per_rev: int = Field(gt=0, le=2**24, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
     gear_ratio: float = Field(1.0, gt=0, description="motor revolutions per screw (linear) or axis (rotary) revolution")
     pitch: float | None = Field(None, gt=0, description="ball-screw lead [mm per screw revolution]; linear axes only")
     index_offset: float = Field(0.0, description="where one of the index pulses (one per motor revolution) is [mm | deg]")
@@ -35,24 +35,24 @@ class EncoderSpec(Strict):
 class ServoSpec(Strict):
     """Position loop gains in machine terms; the DSP converts them to volts per count."""
 
-    kp: float = Field(ge=0, description="position loop gain [1/s]: commanded speed per unit of following error")
-    ki: float = Field(0.0, ge=0, description="integral gain [1/s^2]")
-    kd: float = Field(0.0, ge=0, description="derivative gain [-]: speed per unit error rate")
-    kvff: float = Field(1.0, ge=0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
-    kaff: float = Field(0.0, ge=0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    kp: float = Field(ge=0, le=1e5, description="position loop gain [1/s]: commanded speed per unit of following error")
+    ki: float = Field(0.0, ge=0, le=1e8, description="integral gain [1/s^2]")
+    kd: float = Field(0.0, ge=0, le=1e3, description="derivative gain [-]: speed per unit error rate")
+    kvff: float = Field(1.0, ge=0, le=10.0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
+    kaff: float = Field(0.0, ge=0, le=10.0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
     friction_ff: float = Field(0.0, ge=0, le=10.0, description="friction feed-forward [V]: added with the sign of the "
                                "commanded speed to cancel the axis's Coulomb friction; 0 = off")
     friction_ff_band: float = Field(1.0, gt=0, description="commanded speed over which the friction feed-forward "
                                     "ramps from 0 to full [mm/s | deg/s]")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
-    integrator_limit: float = Field(3.0, ge=0, description="clamp on the integrator's contribution [V]")
+    integrator_limit: float = Field(3.0, ge=0, le=10.0, description="clamp on the integrator's contribution [V]")
 
 
 class PulseSpec(Strict):
     """Pulse-train output (``command_output: pulse``): the generator's limit and the amplifier
     in position mode."""
 
-    max_rate: float = Field(500.0, gt=0, description="highest step rate of the card and the drive input [kHz]")
+    max_rate: float = Field(500.0, gt=0, le=10000.0, description="highest step rate of the card and the drive input [kHz]")
     position_gain: float = Field(80.0, gt=0, description="the amplifier's position-loop gain [1/s]")
     velocity_ff: float = Field(1.0, ge=0, le=1.0, description="the amplifier's velocity feed-forward [-]")
     ff_filter: float = Field(1.0, ge=0, description="feed-forward filter time constant [ms]")
@@ -121,9 +121,9 @@ class MachineParameters(Strict):
 class TimingSpec(Strict):
     """The three rates; each period must be an integer multiple of the next."""
 
-    interpolation_period: float = Field(1.0, gt=0, description="PC <-> DSP exchange and interpolation period [ms]")
-    servo_period: float = Field(0.25, gt=0, description="DSP servo interrupt period [ms]")
-    physics_timestep: float = Field(0.25, gt=0, description="MuJoCo timestep [ms]")
+    interpolation_period: float = Field(1.0, ge=0.05, le=100.0, description="PC <-> DSP exchange and interpolation period [ms]")
+    servo_period: float = Field(0.25, ge=0.01, le=100.0, description="DSP servo interrupt period [ms]")
+    physics_timestep: float = Field(0.25, ge=0.001, le=10.0, description="MuJoCo timestep [ms]")
     mode: Literal["lockstep", "realtime"] = Field(
         "lockstep",
         description="lockstep: the DSP waits for every exchange (deterministic); "
@@ -142,12 +142,12 @@ HEARTBEAT_DEFAULT_MS = {"realtime": 1000.0, "lockstep": 10000.0}
 class PlannerSpec(Strict):
     """The PC planner process."""
 
-    lookahead: float = Field(0.0, ge=0, description="motion kept queued on the card ahead of execution [ms]; 0 = no limit")
+    lookahead: float = Field(0.0, ge=0, le=DAY * 1e3, description="motion kept queued on the card ahead of execution [ms]; 0 = no limit")
     heartbeat_timeout: float | None = Field(
-        None, gt=0, description="wall-clock time without planner heartbeat before it counts as lost [ms]; "
+        None, gt=0, le=3.6e6, description="wall-clock time without planner heartbeat before it counts as lost [ms]; "
         "default 1000 in realtime mode, 10000 in lockstep (where the card waits anyway, and a busy machine "
         "running a sweep must not pass for a hung planner)")
-    start_timeout: float = Field(60.0, gt=0, description="wall-clock time for the planner process to start [s]")
+    start_timeout: float = Field(60.0, gt=0, le=3600.0, description="wall-clock time for the planner process to start [s]")
 
 
 class WhiteboardSpec(Strict):
@@ -160,6 +160,10 @@ class WhiteboardSpec(Strict):
     def _power_of_two(self) -> "WhiteboardSpec":
         if not (2048 <= self.words <= 32768 and self.words & (self.words - 1) == 0):
             raise KeyedValueError(("words",), f"expected a power of two from 2048 to 32768, got {self.words}")
+        fifo_bytes = 2 * (self.words // 2 - 32)  # the PC half less its control block (whiteboard/layout.py)
+        if self.chunk > fifo_bytes:
+            raise KeyedValueError(("chunk",), f"at most the command FIFO's {fifo_bytes} bytes (words {self.words}), "
+                                              f"got {self.chunk}")
         return self
 
 
@@ -238,7 +242,24 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
                 soft_limits=_soft_limits(axis, a, info.travel[i], label),
             )
         )
+        _check_counter(out[-1], a.encoder.lines_per_rev, label)
     return tuple(out)
+
+
+COUNTER_MAX = 2**31 - 1
+"""the QEP position counter's largest value (a signed 32-bit register)"""
+
+
+def _check_counter(cfg: AxisConfig, lines: int, label: Path) -> None:
+    """The encoder counts over the axis's travel must fit the card's 32-bit position counter (a
+    continuous axis, without travel, wraps by design)."""
+    if cfg.travel is None:
+        return
+    counts = cfg.counts_per_unit * (cfg.travel[1] - cfg.travel[0])
+    if counts > COUNTER_MAX:
+        raise ScenarioError(label, f"axes.{cfg.name}.encoder.lines_per_rev",
+                            f"{lines} lines give {counts:.3g} counts over the {cfg.name} travel; the card's "
+                            f"32-bit position counter holds {COUNTER_MAX}")
 
 
 def _soft_limits(axis: str, spec: AxisSpec, travel: tuple[float, float] | None, label: Path

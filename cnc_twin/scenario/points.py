@@ -12,7 +12,7 @@ from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, Move, PointToPoint
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.plant import ModelInfo
-from cnc_twin.scenario.schema_base import Strict
+from cnc_twin.scenario.schema_base import DAY, Strict
 
 
 class MoveSpec(Strict):
@@ -25,7 +25,7 @@ class MoveSpec(Strict):
     B: float | None = Field(None, description="[deg]")
     C: float | None = Field(None, description="[deg]")
     feed: float | None = Field(None, gt=0, description="cap on the tool's X/Y/Z path speed [mm/min]; default: rapid")
-    dwell: float = Field(0.0, ge=0, description="pause after arriving [s]")
+    dwell: float = Field(0.0, ge=0, le=DAY, description="pause after arriving [s]")
 
 
 class PointToPointProgram(Strict):
@@ -33,7 +33,7 @@ class PointToPointProgram(Strict):
 
     type: Literal["point_to_point"]
     moves: list[MoveSpec] = Field(min_length=1)
-    settle: float = Field(0.3, ge=0, description="time simulated after the last move [s]")
+    settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the last move [s]")
 
 
 def convert(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], info: ModelInfo, label: Path) -> PointToPoint:

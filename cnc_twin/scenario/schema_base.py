@@ -3,11 +3,45 @@ and the path limits every tool-path program takes."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+LARGEST_VALUE = 1e9
+"""magnitude no scenario number may exceed (in the file's own units: mm, ms, deg, V...): beyond
+every quantity the machine or the card represents, and far inside what a period count, a 32-bit
+record field or a float's precision can hold after conversion. Fields with a tighter range of
+their own say so."""
+
+
+DAY = 86400.0
+"""[s] the longest time a scenario may name (a dwell, a settle, a fault's moment, a run's cap)"""
 
 
 class Strict(BaseModel):
+    """A scenario section: unknown keys refused, no type coercion, no inf or nan, and every
+    number within +-:data:`LARGEST_VALUE` (a huge finite number would overflow a period count or
+    a record field later, in the middle of a run)."""
+
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _numbers_in_range(self):
+        for name, value in self:
+            for index, number in _numbers(value):
+                if abs(number) > LARGEST_VALUE:
+                    raise KeyedValueError((name, *index), f"{number:g} is beyond +-{LARGEST_VALUE:g}, "
+                                                           "larger than any quantity the machine or the card represents")
+        return self
+
+
+def _numbers(value, index: tuple = ()):
+    """``(index, float)`` of every float in ``value``, a field's value: a number, or lists of
+    them (the nested models check their own fields)."""
+    if isinstance(value, float):
+        yield index, value
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            yield from _numbers(item, index + (i,))
 
 
 class KeyedValueError(ValueError):

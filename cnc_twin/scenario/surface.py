@@ -16,7 +16,7 @@ from pydantic import Field, model_validator
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, ForceControl, PathLimits, Preston, SurfaceDef, SurfaceProgram
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.schema_base import KeyedValueError, PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, KeyedValueError, PathLimitsSpec, Strict
 
 REACH_SAMPLES = 2000
 """poses checked per path section at load"""
@@ -97,7 +97,7 @@ class SurfacePolishProgram(Strict):
     removal: RemovalSpec = RemovalSpec()
     friction: float | None = Field(None, gt=0, description="pad-workpiece sliding friction coefficient; default the model's")
     approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
-    settle: float = Field(0.2, ge=0, description="time simulated after the program [s]")
+    settle: float = Field(0.2, ge=0, le=DAY, description="time simulated after the program [s]")
 
 
 def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file: Path, label: Path) -> SurfaceProgram:
