@@ -108,7 +108,9 @@ def test_bad_mjcf_is_a_clear_error(write_scenario, tmp_path):
     path = write_scenario({"name": "b", "machine": {"model": "broken.xml"}, "program": GOOD_PROGRAM})
     with pytest.raises(ScenarioError) as info:
         load_scenario(path)
-    assert info.value.file.endswith("broken.xml") and "MJCF does not compile" in info.value.message
+    # named at the scenario's key, with the model file and the parser's whole reason
+    assert info.value.file == str(path) and info.value.key_path == "machine.model"
+    assert "broken.xml: MJCF does not compile" in info.value.message and "Line number" in info.value.message
 
 
 @pytest.mark.parametrize("label, content, key, fragment", BAD[:6], ids=[b[0] for b in BAD[:6]])

@@ -1,0 +1,175 @@
+"""Hostile and careless scenario files (docs/hostile_inputs.md is this table in words): each is
+refused with exit 2 and one line naming the file, the key (or line) and the limit, before
+anything runs; nothing is written anywhere."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cnc_twin.cli import main
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES
+
+GOOD = "name: h\nprogram:\n  type: point_to_point\n  moves: [{X: 1}]\n"
+
+
+def _bomb(levels: int = 9) -> str:
+    """A few lines of anchors, each nine aliases of the one before: 9^9 values once expanded."""
+    rows = ["  - &a0 [x, x, x, x, x, x, x, x, x]"]
+    rows += [f"  - &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, levels)]
+    return GOOD + "description:\n" + "\n".join(rows) + "\n"
+
+
+def _nested(depth: int) -> str:
+    return GOOD + "timing: " + "{a: " * depth + "1" + "}" * depth + "\n"
+
+
+def _with(**top) -> str:
+    raw = yaml.safe_load(GOOD)
+    for path, value in top.items():
+        node = raw
+        keys = path.split("__")
+        for key in keys[:-1]:
+            node = node.setdefault(key, {})
+        node[keys[-1]] = value
+    return yaml.safe_dump(raw, sort_keys=False)
+
+
+CASES = {
+    # YAML tricks
+    "duplicate key": ("name: a\nname: b\n" + GOOD.split("\n", 1)[1], "line 2", "duplicate key 'name' on lines 1 and 2"),
+    "alias bomb": (_bomb(), "description", "expands to more than"),
+    "recursive alias": (GOOD + "description: &r [*r]\n", "", ""),
+    "deep nesting": (_nested(200), "timing", "nested more than 32 levels deep"),
+    "nesting past the parser": (_nested(20000), "", "nested more than"),
+    "not UTF-8": (b"name: \xff\xfe\n", "", "not UTF-8"),
+    "a list at the top": ("- 1\n- 2\n", "", "expected a mapping"),
+    # numbers
+    "huge feed": (_with(program__moves=[{"X": 1, "feed": 1e300}]), "program.moves[0].feed", "beyond +-1e+09"),
+    "dwell beyond a day": (_with(program__moves=[{"X": 1, "dwell": 1e8}]), "program.moves[0].dwell", "less than or equal to 86400"),
+    "settle beyond a day": (_with(program__settle=1e300), "program.settle", ""),
+    "nanosecond physics": (_with(timing={"physics_timestep": 1e-6}), "timing.physics_timestep", "greater than or equal to 0.001"),
+    "period of hours": (_with(timing={"interpolation_period": 1e7, "servo_period": 0.25}), "timing.interpolation_period",
+                        "less than or equal to 100"),
+    "kp 1e308": (_with(axes={"X": {"servo": {"kp": 1e308}}}), "axes.X.servo.kp", ""),
+    "absurd encoder": (_with(axes={"X": {"encoder": {"lines_per_rev": 2**24}}}), "axes.X.encoder.lines_per_rev",
+                       "32-bit position counter"),
+    "seed beyond 64 bits": (_with(seed=2**70), "seed", "less than or equal to 18446744073709551615"),
+    "chunk beyond the FIFO": (_with(whiteboard={"chunk": 10**9}), "whiteboard.chunk", "command FIFO"),
+    "stall of days": (_with(faults=[{"type": "planner_stall", "at": 0.1, "duration": 1e9}]), "faults[0].duration", ""),
+    "fault after the end": (_with(max_time=2.0, faults=[{"type": "planner_kill", "at": 5.0}]), "faults[0].at",
+                            "after the run's end"),
+    "nan": (GOOD + "max_time: .nan\n", "max_time", ""),
+    # names
+    "name climbing out": (_with(name="../../../tmp/x/escaped"), "name", "'/' is not allowed"),
+    "hidden name": (_with(name=".x"), "name", "may not start with '.'"),
+    "name with escape codes": (_with(name="a\x1b[31mred"), "", ""),
+    "name with a bidi override": (_with(name="a\u202eb"), "name", "'\\u202e' is not allowed"),
+    "very long name": (_with(name="x" * 500), "name", "at most 100 characters"),
+    # paths
+    "model not MJCF": (_with(machine={"model": "/etc/passwd"}), "machine.model", "MJCF does not compile"),
+    "model missing": (_with(machine={"model": "nothing.xml"}), "machine.model", "not found"),
+    "parameters not a mapping": (_with(machine={"parameters": "/etc/hostname"}), "machine.parameters", ""),
+}
+
+
+def _validate(path: Path) -> tuple[int, str]:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(["validate", str(path)])
+    return code, err.getvalue()
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_a_hostile_scenario_is_refused_in_one_line(tmp_path, case):
+    text, key, fragment = CASES[case]
+    path = tmp_path / "hostile.yaml"
+    path.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8"))
+    code, err = _validate(path)
+    assert code == 2, err
+    line = err.strip()
+    assert "\n" not in line and "Traceback" not in line and line.startswith(f"error: {path}")
+    assert line.isprintable(), line  # no raw control character from the input reaches the terminal
+    assert f": {key}" in line and fragment in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hostile.yaml"]
+
+
+@pytest.mark.parametrize("source", ["/dev/zero", "big"])
+def test_a_huge_file_is_refused_without_reading_it_whole(tmp_path, source):
+    path = Path(source) if source.startswith("/") else tmp_path / "big.yaml"
+    if source == "big":
+        path.write_bytes(b"# " + b"x" * (MAX_FILE_BYTES + 10) + b"\n" + GOOD.encode())
+    code, err = _validate(path)
+    assert code == 2 and "larger than 16 MiB" in err, err
+
+
+def test_a_run_too_large_for_its_timestep_is_refused_before_the_clock(tmp_path):
+    """Valid numbers each, too many physics steps together: exit 2 before any motion, no run
+    directory, and the message says how many steps against which limit."""
+    raw = yaml.safe_load(GOOD)
+    raw["timing"] = {"interpolation_period": 0.05, "servo_period": 0.05, "physics_timestep": 0.001}
+    raw["program"]["moves"][0]["dwell"] = 80000.0
+    path = tmp_path / "long.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "timing.physics_timestep" in last and "physics steps" in last and "the limit is" in last
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("out", ["a_file/run", "/proc/none/run"])
+def test_an_unwritable_out_is_refused_before_the_run(tmp_path, out):
+    (tmp_path / "a_file").write_text("")
+    target = out if out.startswith("/") else str(tmp_path / out)
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(scenarios_dir() / "jog_axes.yaml"),
+                           "--out", target, "--no-rrd"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "--out" in proc.stderr and "running" not in proc.stderr, proc.stderr
+
+
+numbers = st.one_of(st.floats(allow_nan=False), st.sampled_from([1e308, -1e308, 5e-324, 1e9 + 1, 0.0, -0.0]),
+                    st.integers(-2**80, 2**80))
+NUMERIC_KEYS = ["seed", "max_time", "timing.interpolation_period", "timing.servo_period", "timing.physics_timestep",
+                "program.moves.0.feed", "program.moves.0.dwell", "program.settle", "axes.X.servo.kp",
+                "axes.Y.servo.ki", "axes.Z.encoder.lines_per_rev", "axes.A.max_velocity", "whiteboard.chunk",
+                "planner.lookahead", "supervisor.retract", "force_sensor.bits"]
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(NUMERIC_KEYS), value=numbers, name=st.text(max_size=120),
+       depth=st.integers(0, 60), duplicate=st.booleans())
+def test_fuzzed_numbers_names_nesting_and_duplicates_never_escape(tmp_path, key, value, name, depth, duplicate):
+    """Huge and tiny numbers at real keys, any name, nesting and duplicate keys: exit 0 or exit 2
+    with one printable line; never a traceback, never a file written."""
+    raw = yaml.safe_load(GOOD)
+    node = raw
+    parts = [int(p) if p.isdigit() else p for p in key.split(".")]
+    for part in parts[:-1]:
+        node = node[part] if isinstance(part, int) else node.setdefault(part, {})
+    node[parts[-1]] = value
+    raw["name"] = name
+    if depth:
+        raw["description"] = json.loads("[" * depth + "]" * depth)
+    text = yaml.safe_dump(raw, sort_keys=False)
+    if duplicate:
+        text += "seed: 3\n"
+    folder = tmp_path / "f"
+    folder.mkdir(exist_ok=True)
+    path = folder / "fuzz.yaml"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    code, err = _validate(path)
+    assert code in (0, 2), err
+    if code == 2:
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and err.strip().isprintable()
+    assert [p.name for p in folder.iterdir()] == ["fuzz.yaml"]
