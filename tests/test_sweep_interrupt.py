@@ -67,8 +67,10 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
             os.killpg(proc.pid, sig)
         else:
             proc.send_signal(sig)
+        signalled = time.monotonic()
         proc.wait(timeout=30)
         assert proc.returncode == exit_code, stderr.text()
+        assert time.monotonic() - signalled < 10.0  # the running cases stopped, none started after
         assert "interrupted" in stderr.text() and str(out / "sweep.parquet") in stderr.text()
 
         rows = pq.read_table(out / "sweep.parquet").to_pylist()

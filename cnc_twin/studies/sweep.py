@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_twin.studies.sweep_stop import SweepStop, init_worker, stop_requested, stoppable
+from cnc_twin.studies.sweep_stop import (SweepStop, exit_on_sigterm, init_worker, sigint_held, stop_requested,
+                                         stoppable)
 
 WALL_CLOCK_COLUMNS = ("wall_time_s", "real_time_factor")
 """columns that vary from run to run of the same case"""
@@ -135,19 +136,6 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
-def _exit_on_sigterm() -> None:
-    """In a worker's main thread: SIGTERM (a pool shutting down after another worker died) exits
-    through the twin's clean-up (planner reaped, shared memory unlinked) instead of killing it."""
-    import signal
-    import threading
-
-    def leave(signum, _frame):
-        raise SystemExit(128 + signum)
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, leave)
-
-
 _WORKER_PLANNERS = None
 """the worker process's planner pool: its cases after the first reuse one planner process"""
 
@@ -164,11 +152,13 @@ def run_case(scenario_file: str, overrides: dict[str, Any]) -> dict[str, Any]:
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.run.twin import Twin
 
-    _exit_on_sigterm()
+    exit_on_sigterm()
     if stop_requested():
         return interrupted_row(overrides)
     if _WORKER_PLANNERS is None:
         _WORKER_PLANNERS = PlannerPool()
+    with sigint_held():  # the run takes this planner: one that a Ctrl-C cannot kill while it starts
+        _WORKER_PLANNERS.prestart()
     try:
         twin = Twin(load_scenario(scenario_file, overrides=overrides))
         with stoppable(twin):
@@ -244,7 +234,8 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
             while queue and stop.reason is None and not failed and len(in_flight) < 2 * workers:
                 i = queue.popleft()
                 try:
-                    in_flight[pool.submit(case_fn, scenario_file, todo[i])] = i
+                    with sigint_held():  # a submit may start a worker
+                        in_flight[pool.submit(case_fn, scenario_file, todo[i])] = i
                 except BrokenProcessPool:
                     queue.appendleft(i)
                     break
@@ -261,6 +252,10 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
                     continue
                 except (KeyboardInterrupt, SystemExit):  # a signal ended it in its worker
                     continue
+                except Exception:
+                    if stop.reason is None:
+                        raise
+                    continue  # e.g. an import that a signal cut short in the worker: interrupted too
                 done()
     except BaseException as exc:
         stop.request(type(exc).__name__)  # e.g. Ctrl-C in a script: the runs stop before the wait below

@@ -7,7 +7,8 @@ SIGINT, from the main process or from the terminal (Ctrl-C reaches the whole pro
 "stop": the case it runs stops at the twin's next interpolation period as ``cnc-twin run`` does,
 and a case it is handed afterwards returns at once; both come back with status ``interrupted``.
 The planner ignores SIGINT and ends with its run; the workers then leave as the pool shuts down,
-closing their planners on the way out.
+closing their planners on the way out. SIGTERM in a worker (the pool ending it, or a SIGTERM to
+the whole group) leaves the case through the run's clean-up, and no further case runs there.
 
 Why a signal and not a flag that a thread in the worker watches: a run gives up the GIL only for
 the microseconds of each compiled servo call and takes it straight back, so such a thread waits
@@ -21,6 +22,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -28,7 +30,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """what stops a sweep in the main process"""
 
 _stopped = False
-"""in a worker: SIGINT came; cases from now on are not run"""
+"""in a worker: SIGINT or SIGTERM came; cases from now on are not run"""
 _running: Any = None
 """in a worker: the twin of the case running now (a SIGINT asks it to stop)"""
 
@@ -98,12 +100,43 @@ class SweepStop:
         self._pids_out.close()
 
 
+@contextlib.contextmanager
+def sigint_held() -> Iterator[None]:
+    """Around starting a child (a pool's worker: ``pool.submit`` may start one; a worker's
+    planner): SIGINT is blocked in this thread, and so in the child, which inherits the mask;
+    Python still takes a SIGINT for this process meanwhile through another thread, or once the
+    block ends. Without this, a Ctrl-C during a child's start-up (imports, about a second) kills
+    it with a KeyboardInterrupt traceback. A worker unblocks SIGINT in :func:`init_worker`, once
+    it stops the worker's cases; a planner keeps it blocked (it ignores SIGINT anyway)."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def init_worker(pids) -> None:
-    """Pool initializer, in each worker: SIGINT stops this worker's cases; then the worker's pid
-    goes to the main process (``pids``: the write end from :attr:`SweepStop.worker_args`)."""
+    """Pool initializer, in each worker: from now on SIGINT stops this worker's cases (one that
+    came during its start-up, held back by :func:`sigint_held`, arrives now); then the worker's
+    pid goes to the main process (``pids``: the write end from :attr:`SweepStop.worker_args`)."""
     signal.signal(signal.SIGINT, _on_sigint)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     pids.send_bytes(str(os.getpid()).encode())  # one short write: workers' pids never interleave
     pids.close()
+
+
+def exit_on_sigterm() -> None:
+    """In a worker's main thread: SIGTERM (a pool shutting down after another worker died, or a
+    SIGTERM to the whole process group) exits the case through the twin's clean-up (planner
+    reaped, shared memory unlinked) instead of killing the worker, and no further case runs."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+def _on_sigterm(signum, _frame) -> None:
+    global _stopped
+    _stopped = True
+    raise SystemExit(128 + signum)
 
 
 def _on_sigint(_signum, _frame) -> None:
@@ -114,7 +147,7 @@ def _on_sigint(_signum, _frame) -> None:
 
 
 def stop_requested() -> bool:
-    """In a worker: whether SIGINT came (no further case should run)."""
+    """In a worker: whether SIGINT or SIGTERM came (no further case should run)."""
     return _stopped
 
 
