@@ -38,8 +38,8 @@ class ServoSpec(Strict):
     kp: float = Field(ge=0, le=1e5, description="position loop gain [1/s]: commanded speed per unit of following error")
     ki: float = Field(0.0, ge=0, le=1e8, description="integral gain [1/s^2]")
     kd: float = Field(0.0, ge=0, le=1e3, description="derivative gain [-]: speed per unit error rate")
-    kvff: float = Field(1.0, ge=0, le=10.0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
-    kaff: float = Field(0.0, ge=0, le=10.0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    kvff: float = Field(1.0, ge=0, le=100.0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
+    kaff: float = Field(0.0, ge=0, le=100.0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
     friction_ff: float = Field(0.0, ge=0, le=10.0, description="friction feed-forward [V]: added with the sign of the "
                                "commanded speed to cancel the axis's Coulomb friction; 0 = off")
     friction_ff_band: float = Field(1.0, gt=0, description="commanded speed over which the friction feed-forward "
