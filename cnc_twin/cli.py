@@ -12,7 +12,6 @@ import argparse
 import json
 import os
 import shutil
-import signal
 import sys
 import time
 from pathlib import Path
@@ -87,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune}
     try:
         return handlers[args.command](args)
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     # SIGINT / SIGTERM from here on: nothing left behind before the run begins, the run written
     # whole (marked interrupted) after (cnc_twin/run/signals.py)
-    with SignalGuard() as guard:
+    with SignalGuard(restore=not args.whole_process) as guard:
         return _run_guarded(args, guard)
 
 
@@ -183,13 +183,14 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
     with guard.deferred():  # a signal now is noted: the run directory is written whole first
         _write(args, result, run_dir, recorder, staged)
-    if guard.received is not None and twin.stop_reason is None:  # it came while writing
-        mark_interrupted(run_dir, result.metrics, f"{guard.received} while the run directory was written "
+    # read once: a signal after this only ends the command's printing, the run being whole and marked
+    signalled = twin.stop_reason or guard.received
+    if signalled is not None and twin.stop_reason is None:  # it came while writing
+        mark_interrupted(run_dir, result.metrics, f"{signalled} while the run directory was written "
                                                   "(the run had ended; everything in it is whole)")
     if not args.quiet:
         print(summary_table(result.metrics))
     print(f"run directory: {run_dir}")
-    signalled = twin.stop_reason or guard.received
     if signalled is not None:
         print(f"interrupted by {signalled} at {result.metrics['sim_time_s']:.3f} s simulated; the run directory "
               "holds everything recorded up to then", file=sys.stderr)

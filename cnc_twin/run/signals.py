@@ -39,9 +39,12 @@ class Interrupted(BaseException):
 
 class SignalGuard:
     """Context manager: SIGINT / SIGTERM handled by phase (see the module docstring).
-    ``received`` is the first signal's name ("SIGINT", "SIGTERM"), or None."""
+    ``received`` is the first signal's name ("SIGINT", "SIGTERM"), or None. With ``restore``
+    False (the command is the whole process) the handlers stay after the block, noting only:
+    a signal while the interpreter shuts down cannot kill a process whose work is done."""
 
-    def __init__(self):
+    def __init__(self, *, restore: bool = True):
+        self.restore = restore
         self.received: str | None = None
         self._previous: dict[int, object] = {}
         self._on_signal = self._raise
@@ -52,8 +55,11 @@ class SignalGuard:
         return self
 
     def __exit__(self, *exc) -> bool:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+        if self.restore:
+            for sig, handler in self._previous.items():
+                signal.signal(sig, handler)
+        else:  # the process ends next: a signal during its shutdown is only noted (the run is whole)
+            self._on_signal = _note
         return False
 
     def _handle(self, signum: int, _frame) -> None:
