@@ -40,8 +40,8 @@ class Interrupted(BaseException):
 class SignalGuard:
     """Context manager: SIGINT / SIGTERM handled by phase (see the module docstring).
     ``received`` is the first signal's name ("SIGINT", "SIGTERM"), or None. With ``restore``
-    False (the command is the whole process) the handlers stay after the block, noting only:
-    a signal while the interpreter shuts down cannot kill a process whose work is done."""
+    False (the command is the whole process) the signals are ignored after the block: one while
+    the interpreter shuts down cannot kill a process whose work is done."""
 
     def __init__(self, *, restore: bool = True):
         self.restore = restore
@@ -58,8 +58,11 @@ class SignalGuard:
         if self.restore:
             for sig, handler in self._previous.items():
                 signal.signal(sig, handler)
-        else:  # the process ends next: a signal during its shutdown is only noted (the run is whole)
-            self._on_signal = _note
+        else:  # the process ends next, its work done: a signal while it shuts down changes nothing.
+            # Ignored, not handled: Python resets its own handlers to the default (die) early in
+            # the interpreter's finalization, but leaves an ignored signal ignored
+            for sig in SIGNALS:
+                signal.signal(sig, signal.SIG_IGN)
         return False
 
     def _handle(self, signum: int, _frame) -> None:
