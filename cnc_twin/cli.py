@@ -235,14 +235,11 @@ def _write(args, result, run_dir: Path, recorder, staged: Path | None) -> None:
 
 
 def mark_interrupted(run_dir: Path, metrics: dict, reason: str) -> None:
-    """Mark a written run directory's ``metrics.json`` interrupted, with ``reason`` (replaced
-    atomically: the file is whole whatever happens meanwhile)."""
-    from cnc_twin.run.run_dir import METRICS_FILE
+    """Mark a written run directory's ``metrics.json`` interrupted, with ``reason``."""
+    from cnc_twin.run.run_dir import rewrite_metrics
 
     metrics["status"], metrics["stop_reason"] = "interrupted", reason
-    staged = run_dir / f".{METRICS_FILE}.partial"
-    staged.write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
-    os.replace(staged, run_dir / METRICS_FILE)
+    rewrite_metrics(run_dir, metrics)
 
 
 def _sweep(args: argparse.Namespace) -> int:
@@ -260,7 +257,7 @@ def _sweep(args: argparse.Namespace) -> int:
             raise ScenarioError("--param", text, str(exc)) from None
     todo = cases(params, random=args.random, seed=args.seed)
     # From here SIGINT and SIGTERM stop the sweep: the cases finished by then still make a table.
-    with closing(SweepStop()) as stop, stop.on_signals():
+    with closing(SweepStop()) as stop, SignalGuard() as guard, guard.stopping(stop):
         for overrides in {tuple(sorted((k, type(v).__name__) for k, v in c.items())): c for c in todo}.values():
             load_scenario(args.scenario, overrides=overrides)  # bad paths or types fail here, before any run
         bar = ProgressBar(f"sweep {args.scenario.stem}", period=1.0)

@@ -55,7 +55,6 @@ from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
 from cnc_twin.dsp import feed_slew
-from cnc_twin.dsp.feed_slew import stop_distance
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
@@ -454,12 +453,12 @@ class SegmentInterpolator:
             self._starved_hold = False
         elif not self._starved_hold:
             accel = lam * lam * a if self._path_accel is None else self._path_accel
-            if remaining <= stop_distance(lam * v, accel, a_stop, j_stop, self.period):
+            if remaining <= feed_slew.stop_distance(lam * v, accel, a_stop, j_stop, self.period):
                 self._starved_hold = True
                 self._arrivals_at_latch = self._arrivals
         elif self._arrivals != self._arrivals_at_latch:  # new blocks came: resume if a full stop fits
             full = max(v, prof.vp)
-            if remaining > stop_distance(full, 0.0, a_stop, j_stop, self.period):
+            if remaining > feed_slew.stop_distance(full, 0.0, a_stop, j_stop, self.period):
                 self._starved_hold = False
             else:
                 self._arrivals_at_latch = self._arrivals

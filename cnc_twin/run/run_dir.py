@@ -40,7 +40,7 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
         write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
         if extra is not None:
             extra(tmp)
-        (tmp / METRICS_FILE).write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+        _write_metrics(tmp / METRICS_FILE, metrics)
         if run_dir.exists():
             raise FileExistsError(f"run directory {run_dir} already exists")
         os.replace(tmp, run_dir)
@@ -48,3 +48,15 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return run_dir
+
+
+def rewrite_metrics(run_dir: Path, metrics: dict[str, Any]) -> None:
+    """Replace a written run directory's ``metrics.json`` atomically (staged beside it, then
+    renamed): the file is whole whatever happens meanwhile."""
+    staged = Path(run_dir) / f".{METRICS_FILE}.partial"
+    _write_metrics(staged, metrics)
+    os.replace(staged, Path(run_dir) / METRICS_FILE)
+
+
+def _write_metrics(path: Path, metrics: dict[str, Any]) -> None:
+    path.write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")

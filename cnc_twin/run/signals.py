@@ -77,12 +77,13 @@ class SignalGuard:
         raise Interrupted(name)
 
     @contextmanager
-    def stopping(self, twin):
-        """Within the block a signal asks ``twin`` to stop at its next period (one that came
-        before the block stops it at once)."""
+    def stopping(self, target):
+        """Within the block a signal asks ``target`` to stop: a twin (at its next period), or
+        anything else with ``request_stop(name)`` (a sweep's stop). One that came before the
+        block stops it at once."""
         if self.received is not None:
-            twin.request_stop(self.received)
-        self._on_signal = twin.request_stop
+            target.request_stop(self.received)
+        self._on_signal = target.request_stop
         try:
             yield
         finally:

@@ -40,7 +40,7 @@ from cnc_twin.scenario.resources import resolve_model_file
 from cnc_twin.scenario.schema_base import DAY, Strict
 from cnc_twin.scenario.surface import SurfacePolishProgram
 from cnc_twin.scenario.validation import validate
-from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES, check_structure, parse, read_text
+from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES, check_structure, parse, read_text, too_large
 
 
 MAX_NAME_LENGTH = 100
@@ -71,7 +71,6 @@ class ScenarioFile(Strict):
         "analog", description="analog: +-10 V from the card's PID, drives in velocity mode; "
                               "pulse: step/direction pulses, drives in position mode")
     program: ProgramSpec
-
 
     @field_validator("name")
     @classmethod
@@ -171,7 +170,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     timing = convert_timing(spec.timing, label)
     with _named_by(label, "machine.model"):
         if model_path.stat().st_size > MAX_FILE_BYTES:
-            raise ScenarioError(model_path, "", f"larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB")
+            raise too_large(model_path)
         model = load_model(model_path)
     info = model_info(model)
     axes = convert_axes(spec.axes, info, label)

@@ -74,11 +74,16 @@ def read_text(path: Path) -> str:
     except OSError as exc:
         raise ScenarioError(path, "", f"cannot read: {exc.strerror or exc}") from None
     if len(data) > MAX_FILE_BYTES:
-        raise ScenarioError(path, "", f"larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB, the limit for a scenario file")
+        raise too_large(path)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ScenarioError(path, "", f"not UTF-8 text (byte {exc.start})") from None
+
+
+def too_large(path: Path) -> ScenarioError:
+    """The error for a file beyond :data:`MAX_FILE_BYTES`."""
+    return ScenarioError(path, "", f"larger than {MAX_FILE_BYTES // (1024 * 1024)} MiB, the limit for an input file")
 
 
 def parse(text: str, label: Path) -> Any:

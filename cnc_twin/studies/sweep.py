@@ -258,7 +258,7 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
                     continue  # e.g. an import that a signal cut short in the worker: interrupted too
                 done()
     except BaseException as exc:
-        stop.request(type(exc).__name__)  # e.g. Ctrl-C in a script: the runs stop before the wait below
+        stop.request_stop(type(exc).__name__)  # e.g. Ctrl-C in a script: the runs stop before the wait below
         stop.pass_on()
         raise
     finally:

@@ -1,6 +1,7 @@
 """Stopping a local sweep on SIGINT or SIGTERM: the main process's side and the workers' side.
 
-The main process holds a :class:`SweepStop` (the CLI sets it from SIGINT and SIGTERM); once it
+The main process holds a :class:`SweepStop` (the CLI sets it from SIGINT and SIGTERM through
+:class:`~cnc_twin.run.signals.SignalGuard`); once it
 is set, no new case is handed out and SIGINT is passed on to the pool's workers, which told the
 main process their pids through a pipe when they started (:func:`init_worker`). A worker takes
 SIGINT, from the main process or from the terminal (Ctrl-C reaches the whole process group), as
@@ -26,9 +27,6 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-"""what stops a sweep in the main process"""
-
 _stopped = False
 """in a worker: SIGINT or SIGTERM came; cases from now on are not run"""
 _running: Any = None
@@ -38,7 +36,8 @@ _running: Any = None
 class SweepStop:
     """The main process's stop: its reason, and the workers to pass it on to.
 
-    ``reason`` is None until :meth:`request` (``"SIGINT"`` or ``"SIGTERM"`` from a signal).
+    ``reason`` is None until :meth:`request_stop` (``"SIGINT"`` or ``"SIGTERM"`` from a signal:
+    the CLI hands it to :meth:`cnc_twin.run.signals.SignalGuard.stopping`, as it hands a twin).
     Give :attr:`worker_args` to each pool as the ``initargs`` of :func:`init_worker`.
     """
 
@@ -53,7 +52,7 @@ class SweepStop:
     def worker_args(self) -> tuple[Any, ...]:
         return (self._pids_out,)
 
-    def request(self, reason: str) -> None:
+    def request_stop(self, reason: str) -> None:
         """Stop the sweep (the first reason is kept). Safe in a signal handler: it only notes
         the reason; :meth:`pass_on`, from the sweep's loop, tells the workers."""
         if self.reason is None:
@@ -79,20 +78,6 @@ class SweepStop:
             self._pids_in.recv_bytes()
         self._workers.clear()
         self._told.clear()
-
-    @contextlib.contextmanager
-    def on_signals(self) -> Iterator["SweepStop"]:
-        """Within the block, SIGINT and SIGTERM stop the sweep instead of raising or killing
-        (main thread only); the previous handlers come back after it."""
-        previous = {sig: signal.signal(sig, self._handle) for sig in STOP_SIGNALS}
-        try:
-            yield self
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-
-    def _handle(self, signum, _frame) -> None:
-        self.request(signal.Signals(signum).name)
 
     def close(self) -> None:
         """Close the pid pipe (no pool may start after this)."""
