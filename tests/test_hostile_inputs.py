@@ -173,3 +173,84 @@ def test_fuzzed_numbers_names_nesting_and_duplicates_never_escape(tmp_path, key,
     if code == 2:
         assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and err.strip().isprintable()
     assert [p.name for p in folder.iterdir()] == ["fuzz.yaml"]
+
+
+def test_readme_axis_table_states_the_ranges_the_schema_enforces(tmp_path):
+    """The 'accepted' column of README's machine-parameter table is the schema's own bounds; a
+    value just beyond each stated upper bound is refused at that key."""
+    from cnc_twin.scenario.machine import AxisSpec, ForceSensorSpec
+    from cnc_twin.scenario.ranges import accepted_range
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    table = readme.split("Machine parameters (", 1)[1].split("\n\n")[1].splitlines()
+    assert table[0].startswith("| key | unit (linear / rotary) | accepted |")
+    rows = [[cell.strip() for cell in line.strip("|").split(" | ")] for line in table[2:]]
+    assert len(rows) >= 20
+    for key, _unit, stated, *_ in rows:
+        key = key.strip("`")
+        model = ForceSensorSpec if key.startswith("force_sensor.") else AxisSpec
+        assert stated == accepted_range(model, key.removeprefix("force_sensor.")), key
+    path = tmp_path / "kp.yaml"
+    path.write_text(_with(axes={"X": {"servo": {"kp": 1.000001e5}}}))
+    code, err = _validate(path)
+    assert code == 2 and "axes.X.servo.kp" in err and "100000" in err, err
+
+
+odd_but_plausible = st.one_of(st.floats(-1e3, 1e4, allow_nan=False), st.integers(-10, 10**6),
+                              st.sampled_from([0.0, 5e-324, 1e-9, 0.05, 0.001, 2**24, 86400.0]))
+RUN_BUDGET_S = 8.0
+
+
+@settings(max_examples=8, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much])
+@given(key=st.sampled_from(NUMERIC_KEYS), value=odd_but_plausible)
+def test_fuzzed_scenarios_that_validate_also_run_cleanly(tmp_path, key, value):
+    """What `validate` accepts, `run` runs to one of the clean ends: complete (0), a named fault
+    (3) with a whole run directory, or, stopped by SIGINT after a wall budget, a whole run
+    directory marked interrupted (130); a refusal is one line (2). Never a traceback, never a
+    file outside the run directory."""
+    import os
+    import shutil
+    import signal
+    import time
+
+    from hypothesis import assume
+
+    raw = yaml.safe_load(GOOD)
+    node = raw
+    parts = [int(p) if p.isdigit() else p for p in key.split(".")]
+    for part in parts[:-1]:
+        node = node[part] if isinstance(part, int) else node.setdefault(part, {})
+    node[parts[-1]] = value
+    folder = tmp_path / "f"
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir()
+    path = folder / "fuzz.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    code, err = _validate(path)
+    assume(code == 0)  # refusals are the other fuzz test's part
+    proc = subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(folder / "run"),
+                             "--no-rrd", "--quiet"], cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=RUN_BUDGET_S)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    assert "Traceback" not in err, err
+    assert proc.returncode in (0, 2, 3, 130), (proc.returncode, err)
+    if proc.returncode == 2:
+        assert len(err.strip().splitlines()) == 1 and not (folder / "run").exists(), err
+        assert sorted(p.name for p in folder.iterdir()) == ["fuzz.yaml"]
+        return
+    if proc.returncode == 130 and not (folder / "run").exists():  # stopped before the run began
+        assert sorted(p.name for p in folder.iterdir()) == ["fuzz.yaml"]
+        return
+    metrics = json.loads((folder / "run" / "metrics.json").read_text())
+    assert metrics["status"] == {0: "complete", 3: "fault", 130: "interrupted"}[proc.returncode], metrics["status"]
+    assert (folder / "run" / "trace.parquet").stat().st_size > 0
+    assert sorted(p.name for p in folder.iterdir()) == ["fuzz.yaml", "run"]
+    from cnc_twin.whiteboard.block import creator_pid
+
+    time.sleep(0.2)
+    assert not [n for n in os.listdir("/dev/shm") if creator_pid(n) == proc.pid]
