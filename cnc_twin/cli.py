@@ -70,7 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--out", type=Path, default=None, help="folder for the Bode and step plots (PNG)")
 
     view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
-    view.add_argument("run_dir", type=Path)
+    view.add_argument("run_dir", type=Path, help="a run directory, or a .rrd recording")
+    view.add_argument("--web", action="store_true",
+                      help="serve the run to a browser on this machine instead (no display needed)")
+    view.add_argument("--port", type=int, default=9090, help="--web: the web viewer's port on 127.0.0.1")
 
     validate = sub.add_parser("validate", help="check scenario files without running them")
     validate.add_argument("scenarios", nargs="+", type=Path)
@@ -113,8 +116,9 @@ def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
 
     # The planner process and the recording process start first: their start-up (0.2 - 0.6 s,
     # about 1 s) overlaps the imports below.
-    if args.rerun and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or
-                                                                 os.environ.get("WAYLAND_DISPLAY")):
+    from cnc_twin.view.viewer import display_available
+
+    if args.rerun and not display_available():
         # A viewer cannot open here, and the recording would wait ~10 s for it to connect.
         print("warning: --rerun: no display (DISPLAY and WAYLAND_DISPLAY unset), no viewer opened; "
               "open the run later with `cnc-twin view RUN_DIR`", file=sys.stderr)
@@ -330,11 +334,17 @@ def _view(args: argparse.Namespace) -> int:
 
     from cnc_twin.run.run_dir import RECORDING_FILE
 
-    from cnc_twin.view.viewer import rerun_command, viewer_environment
+    from cnc_twin.view.viewer import display_available, rerun_command, serve_web, viewer_environment
 
     path = args.run_dir / RECORDING_FILE if args.run_dir.is_dir() else args.run_dir
     if not path.is_file():
         raise ScenarioError(path, "", "no rerun recording here (runs write recording.rrd unless --no-rrd)")
+    if args.web:
+        return serve_web(path, args.port)
+    if not display_available():
+        raise ScenarioError(args.run_dir, "", "no display to open the viewer on (DISPLAY and WAYLAND_DISPLAY "
+                            f"unset); serve it to a browser with `cnc-twin view {args.run_dir} --web`, or open "
+                            f"{path} with `rerun` on a machine with a display")
     with viewer_environment() as env:
         return subprocess.call(rerun_command() + [str(path)], env=env)
 
@@ -342,11 +352,19 @@ def _view(args: argparse.Namespace) -> int:
 def _validate(args: argparse.Namespace) -> int:
     from cnc_twin.scenario.load import load_scenario
 
+    # every file is checked and each bad one reported, so one pass finds all of them
+    bad = 0
     for path in args.scenarios:
-        scenario = load_scenario(path)
-        program = scenario.program
-        print(f"{path}: ok ({scenario.name}, {describe_program(program)})")
-    return EXIT_OK
+        try:
+            scenario = load_scenario(path)
+        except ScenarioError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            bad += 1
+            continue
+        print(f"{path}: ok ({scenario.name}, {describe_program(scenario.program)})")
+    if bad and len(args.scenarios) > 1:
+        print(f"{bad} of {len(args.scenarios)} scenarios refused", file=sys.stderr)
+    return EXIT_BAD_INPUT if bad else EXIT_OK
 
 
 def describe_program(program) -> str:

@@ -56,15 +56,15 @@ CASES = {
     "a list at the top": ("- 1\n- 2\n", "", "expected a mapping"),
     # numbers
     "huge feed": (_with(program__moves=[{"X": 1, "feed": 1e300}]), "program.moves[0].feed", "beyond +-1e+09"),
-    "dwell beyond a day": (_with(program__moves=[{"X": 1, "dwell": 1e8}]), "program.moves[0].dwell", "less than or equal to 86400"),
+    "dwell beyond a day": (_with(program__moves=[{"X": 1, "dwell": 1e8}]), "program.moves[0].dwell", "expected at most 86400"),
     "settle beyond a day": (_with(program__settle=1e300), "program.settle", ""),
-    "nanosecond physics": (_with(timing={"physics_timestep": 1e-6}), "timing.physics_timestep", "greater than or equal to 0.001"),
+    "nanosecond physics": (_with(timing={"physics_timestep": 1e-6}), "timing.physics_timestep", "expected at least 0.001"),
     "period of hours": (_with(timing={"interpolation_period": 1e7, "servo_period": 0.25}), "timing.interpolation_period",
-                        "less than or equal to 100"),
+                        "expected at most 100"),
     "kp 1e308": (_with(axes={"X": {"servo": {"kp": 1e308}}}), "axes.X.servo.kp", ""),
     "absurd encoder": (_with(axes={"X": {"encoder": {"lines_per_rev": 2**24}}}), "axes.X.encoder.lines_per_rev",
                        "32-bit position counter"),
-    "seed beyond 64 bits": (_with(seed=2**70), "seed", "less than or equal to 18446744073709551615"),
+    "seed beyond 64 bits": (_with(seed=2**70), "seed", "expected at most 18446744073709551615"),
     "chunk beyond the FIFO": (_with(whiteboard={"chunk": 10**9}), "whiteboard.chunk", "command FIFO"),
     "stall of days": (_with(faults=[{"type": "planner_stall", "at": 0.1, "duration": 1e9}]), "faults[0].duration", ""),
     "fault after the end": (_with(max_time=2.0, faults=[{"type": "planner_kill", "at": 5.0}]), "faults[0].at",
@@ -79,8 +79,11 @@ CASES = {
     # paths
     "model not MJCF": (_with(machine={"model": "/etc/passwd"}), "machine.model", "MJCF does not compile"),
     "model missing": (_with(machine={"model": "nothing.xml"}), "machine.model", "not found"),
-    "parameters not a mapping": (_with(machine={"parameters": "/etc/hostname"}), "machine.parameters", ""),
+    "parameters not a mapping": (_with(machine={"parameters": "list.yaml"}), "machine.parameters", ""),
 }
+
+
+DOC_ROWS = (Path(__file__).parents[1] / "docs" / "hostile_inputs.md").read_text(encoding="utf-8").splitlines()
 
 
 def _validate(path: Path) -> tuple[int, str]:
@@ -95,13 +98,18 @@ def test_a_hostile_scenario_is_refused_in_one_line(tmp_path, case):
     text, key, fragment = CASES[case]
     path = tmp_path / "hostile.yaml"
     path.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8"))
+    (tmp_path / "list.yaml").write_text("- 1\n- 2\n")  # a parameter file that is not a mapping
     code, err = _validate(path)
     assert code == 2, err
     line = err.strip()
     assert "\n" not in line and "Traceback" not in line and line.startswith(f"error: {path}")
     assert line.isprintable(), line  # no raw control character from the input reaches the terminal
     assert f": {key}" in line and fragment in line, line
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["hostile.yaml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["hostile.yaml", "list.yaml"]
+    # docs/hostile_inputs.md quotes this very message
+    quoted = line.replace(str(path), "FILE").replace(str(tmp_path), "DIR").replace("|", "\\|")
+    row = f"| {case} | {quoted} |"
+    assert row in DOC_ROWS, f"docs/hostile_inputs.md has no row {row!r}"
 
 
 @pytest.mark.parametrize("source", ["/dev/zero", "big"])

@@ -65,6 +65,46 @@ def test_view_without_a_recording_is_a_clear_error(tmp_path):
     assert proc.returncode == 2 and "no rerun recording" in proc.stderr
 
 
+def test_view_without_a_display_says_what_to_do_and_web_serves_the_run(short_run, tmp_path):
+    """No display: one sentence naming `--web`, exit 2. `--web` serves the recording over HTTP
+    on 127.0.0.1 until Ctrl-C (exit 0); a port already taken is a one-line error, exit 2."""
+    import os
+    import signal
+    import socket
+    import time
+    import urllib.request
+
+    _, run_dir = short_run
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["XDG_CONFIG_HOME"] = str(tmp_path / "config")
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "view", str(run_dir)], capture_output=True, text=True,
+                          timeout=60, env=env)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert "no display" in proc.stderr and "--web" in proc.stderr and "Listening" not in proc.stderr
+    with socket.socket() as probe:  # a free port
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = subprocess.Popen([sys.executable, "-m", "cnc_twin", "view", str(run_dir), "--web", "--port", str(port)],
+                              stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline, page = time.monotonic() + 30, None
+        while page is None and time.monotonic() < deadline:
+            try:
+                page = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2).read()
+            except OSError:
+                time.sleep(0.2)
+        assert page and b"<html" in page.lower()
+        said = server.stderr.readline()  # printed once the viewer has held its port for 1 s
+        assert f"http://127.0.0.1:{port}" in said and "Ctrl-C" in said, said
+        second = subprocess.run([sys.executable, "-m", "cnc_twin", "view", str(run_dir), "--web", "--port", str(port)],
+                                capture_output=True, text=True, timeout=60, env=env)
+        assert second.returncode == 2 and "did not start" in second.stderr and "in use" in second.stderr
+    finally:
+        server.send_signal(signal.SIGINT)
+        _, err = server.communicate(timeout=30)
+    assert server.returncode == 0 and "Traceback" not in err, err
+
+
 def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, monkeypatch):
     import json
     import os

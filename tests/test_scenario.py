@@ -134,3 +134,17 @@ def test_errors_stay_one_line_whatever_the_input_held():
     text = str(ScenarioError("f.yaml", "machine.model", "file '\x1e\n\u2028x' not found"))
     assert len(text.splitlines()) == 1
     assert "\\x1e" in text and "\\n" in text
+
+
+def test_validate_checks_every_file_and_reports_each_bad_one(tmp_path):
+    bad_a, bad_b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    bad_a.write_text("name: a\n")
+    bad_b.write_text("name: b\nprogram: {type: point_to_point, moves: [{X: 1, feed: -5}]}\n")
+    good = scenarios_dir() / "jog_axes.yaml"
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "validate", str(bad_a), str(good), str(bad_b)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    errors = proc.stderr.strip().splitlines()
+    assert errors[0].startswith(f"error: {bad_a}: program") and errors[1].startswith(f"error: {bad_b}: program.moves[0].feed")
+    assert errors[2] == "2 of 3 scenarios refused" and len(errors) == 3
+    assert proc.stdout.startswith(f"{good}: ok (jog_axes")

@@ -18,6 +18,47 @@ from collections.abc import Iterator
 from pathlib import Path
 
 
+def display_available() -> bool:
+    """Whether a native viewer window can open here (always assumed off Linux)."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def serve_web(recording: Path, port: int) -> int:
+    """Serve ``recording`` (a .rrd file) to a browser at http://127.0.0.1:``port`` until Ctrl-C:
+    rerun's own web viewer, bound to this machine only, its log kept off the terminal (shown only
+    if it fails to start). Returns the exit code (0 after Ctrl-C)."""
+    import re
+    import subprocess
+
+    if not 1024 <= port <= 65535:
+        print(f"error: --port: expected 1024 - 65535, got {port}", file=sys.stderr)
+        return 2
+    command = rerun_command() + ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
+                                 "--port", "0", str(recording)]
+    with viewer_environment() as env:
+        child = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        try:  # a port in use ends it at once: say so instead of "serving"
+            _, log = child.communicate(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            print(f"serving {recording} at http://127.0.0.1:{port} (open it in a browser on this machine, or "
+                  f"forward the port over ssh: ssh -L {port}:127.0.0.1:{port} HOST); Ctrl-C stops",
+                  file=sys.stderr, flush=True)
+            _, log = child.communicate()
+    except KeyboardInterrupt:
+        child.terminate()
+        child.wait()
+        return 0
+    if child.returncode != 0:
+        lines = [re.sub(r"\x1b\[[0-9;]*m", "", line) for line in log.splitlines() if line.strip()]
+        print(f"error: the web viewer did not start: {lines[-1] if lines else 'exit ' + str(child.returncode)}",
+              file=sys.stderr)
+        return 2
+    return 0
+
+
 def rerun_command() -> list[str]:
     """The rerun CLI of this environment."""
     binary = Path(sys.executable).with_name("rerun")
