@@ -103,6 +103,15 @@ def test_view_without_a_display_says_what_to_do_and_web_serves_the_run(short_run
         server.send_signal(signal.SIGINT)
         _, err = server.communicate(timeout=30)
     assert server.returncode == 0 and "Traceback" not in err, err
+    left = [pid for pid in os.listdir("/proc") if pid.isdigit() and _cmdline_has(pid, f"--web-viewer-port\0{port}\0")]
+    assert not left, "a web viewer process outlived `cnc-twin view --web`"
+
+
+def _cmdline_has(pid: str, text: str) -> bool:
+    try:
+        return text in open(f"/proc/{pid}/cmdline").read()
+    except OSError:
+        return False
 
 
 def test_viewers_start_with_analytics_disabled_in_a_private_config(tmp_path, monkeypatch):

@@ -13,6 +13,7 @@ import contextlib
 import json
 import os
 import secrets
+import signal
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,8 +38,12 @@ def serve_web(recording: Path, port: int) -> int:
         return 2
     command = rerun_command() + ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
                                  "--port", "0", str(recording)]
+    # Its own process group: `rerun` may be a launcher whose child is the server, and both must
+    # end with the command (Ctrl-C and SIGTERM here stop the whole group).
     with viewer_environment() as env:
-        child = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        child = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                 start_new_session=True)
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         try:  # a port in use ends it at once: say so instead of "serving"
             _, log = child.communicate(timeout=1.0)
@@ -48,15 +53,22 @@ def serve_web(recording: Path, port: int) -> int:
                   file=sys.stderr, flush=True)
             _, log = child.communicate()
     except KeyboardInterrupt:
-        child.terminate()
-        child.wait()
         return 0
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(child.pid, signal.SIGTERM)
+        child.wait()
     if child.returncode != 0:
         lines = [re.sub(r"\x1b\[[0-9;]*m", "", line) for line in log.splitlines() if line.strip()]
         print(f"error: the web viewer did not start: {lines[-1] if lines else 'exit ' + str(child.returncode)}",
               file=sys.stderr)
         return 2
     return 0
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def rerun_command() -> list[str]:
