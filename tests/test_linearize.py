@@ -82,3 +82,51 @@ def test_the_verification_step_goes_the_way_that_stays_inside_the_soft_limits():
     assert step_direction(scenario, 0, 1.0) == 1.0
     with pytest.raises(ValueError, match="soft limits"):
         step_direction(scenario, 2, 1000.0)
+
+
+def _tune(*args: str) -> tuple[int, str, str]:
+    import contextlib
+    import io
+
+    from cnc_twin.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["tune", str(default_scenario()), *args])
+    return code, out.getvalue(), err.getvalue()
+
+
+def _row(text: str, name: str) -> dict[str, float]:
+    import re
+
+    line = next(line for line in text.splitlines() if line.startswith(name))
+    values = [float(x) for x in re.findall(r"[-\d.]+|inf|nan", line[len(name):])]
+    return dict(zip(("kp", "ki", "pm", "gm", "fc", "rise", "overshoot", "settle"), values))
+
+
+@pytest.mark.parametrize("axis", list("XYZABC"))
+def test_tune_never_recommends_what_the_twin_did_not_show_better(axis):
+    """jog_axes, default margins and step: either gains whose printed twin step settles sooner
+    (by 10 %) with no more overshoot than the current gains', or the current gains kept with the
+    reason and no recommendation."""
+    code, out, err = _tune("--axis", axis)
+    assert code == 0, err
+    before = _row(out, "before")
+    if "to use:" in out:
+        proposed = _row(out, "proposed")
+        assert proposed["settle"] < before["settle"] * 0.9 or not np.isfinite(before["settle"]), out
+        assert proposed["overshoot"] <= before["overshoot"] + 0.5 and proposed["pm"] >= 45, out
+        import re
+
+        use = re.search(r"to use: axes: \{(\w): \{servo: \{kp: ([\d.e+]+), ki: ([\d.e+]+)\}", out)
+        assert use and use.group(1) == axis and abs(float(use.group(2)) - proposed["kp"]) < 0.06, out
+    else:
+        assert "keeping the current gains: none of the" in out and "proposed" not in out, out
+
+
+def test_tune_refuses_what_it_cannot_do_in_one_line():
+    code, _, err = _tune("--axis", "X", "--phase-margin", "95")
+    assert code == 2 and "--phase-margin: expected more than 0 and less than 90 deg" in err
+    code, _, err = _tune("--axis", "X", "--step", "5")  # beyond X's 3 mm following-error limit
+    assert code == 2 and "ends in a fault on the twin (FOLLOWING_ERROR" in err and "smaller --step" in err
+    assert err.strip().splitlines()[-1].startswith("error: ") and "Traceback" not in err
