@@ -52,7 +52,7 @@ BAD = [
     ("wrong type", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": "ten"}]}},
      "program.moves[0].X", "valid number"),
     ("negative feed", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 1, "feed": -100}]}},
-     "program.moves[0].feed", "greater than 0"),
+     "program.moves[0].feed", "expected more than 0"),
     ("beyond travel", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 10}, {"X": 900}]}},
      "program.moves[1].X", "outside the X soft limits -385..385 mm"),
     ("rates not divisible", {"name": "b", "timing": {"servo_period": 0.3}, "program": GOOD_PROGRAM},
