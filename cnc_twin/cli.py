@@ -58,6 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--workers", type=int, default=None, help="local worker processes (default 2)")
     sweep.add_argument("--scheduler", default=None, help="Dask scheduler address (default: local processes)")
     sweep.add_argument("--out", type=Path, default=None, help="folder for sweep.parquet and sweep.csv")
+    sweep.add_argument("--yes", action="store_true", help="run a sweep of more than 1000 cases without asking")
     sweep.add_argument("--minimize", default=None,
                        help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_sum)")
 
@@ -250,7 +251,8 @@ def _sweep(args: argparse.Namespace) -> int:
     from contextlib import closing
 
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.sweep import INTERRUPTED, best_row, cases, parse_param, run_dask, run_local, write_table
+    from cnc_twin.studies.sweep import (CONFIRM_CASES, INTERRUPTED, MAX_CASES, best_row, case_count, cases, parse_param,
+                                        run_dask, run_local, write_table)
     from cnc_twin.studies.sweep_stop import SweepStop
 
     params = []
@@ -259,6 +261,17 @@ def _sweep(args: argparse.Namespace) -> int:
             params.append(parse_param(text))
         except ValueError as exc:
             raise ScenarioError("--param", text, str(exc)) from None
+    count = case_count(params, random=args.random)
+    workers = args.workers or 2
+    if count < 1 or count > MAX_CASES:
+        raise ScenarioError("--param" if not args.random else "--random", "",
+                            f"the sweep has {count} cases; expected 1 to {MAX_CASES}")
+    if count > CONFIRM_CASES and not args.yes:
+        raise ScenarioError("--param" if not args.random else "--random", "",
+                            f"the sweep has {count} cases (about {count * 2.0 / 3600 / workers:.3g} h at 2 s a run on "
+                            f"{workers} workers); pass --yes to run it, or narrow the ranges")
+    print(f"sweep: {count} cases on {f'the Dask cluster {args.scheduler}' if args.scheduler else f'{workers} workers'}",
+          file=sys.stderr, flush=True)
     todo = cases(params, random=args.random, seed=args.seed)
     # From here SIGINT and SIGTERM stop the sweep: the cases finished by then still make a table.
     with closing(SweepStop()) as stop, SignalGuard() as guard, guard.stopping(stop):

@@ -86,3 +86,18 @@ def test_cli_sweep_writes_the_table_and_prints_the_best_row(tmp_path, scenario_f
     bad = subprocess.run([sys.executable, "-m", "cnc_twin", "sweep", scenario_file, "--param", "servo.X.kpp=1,2"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "servo.X.kpp" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_a_sweep_of_more_than_a_thousand_cases_asks_for_yes_and_a_huge_one_is_refused(tmp_path):
+    import subprocess
+    import sys
+
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    base = [sys.executable, "-m", "cnc_twin", "sweep", str(scenarios_dir() / "jog_axes.yaml"), "--out", str(tmp_path)]
+    asks = subprocess.run(base + ["--param", "servo.X.kp=1:100:1", "--param", "servo.X.ki=1:100:1"],
+                          capture_output=True, text=True, timeout=120)
+    assert asks.returncode == 2 and "10000 cases" in asks.stderr and "--yes" in asks.stderr, asks.stderr
+    huge = subprocess.run(base + ["--param", "servo.X.kp=1:1e12:1", "--yes"], capture_output=True, text=True, timeout=120)
+    assert huge.returncode == 2 and "at most 1000000 cases" in huge.stderr, huge.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -40,7 +40,8 @@ class RunResult:
         try:
             import pandas as pd
         except ImportError:
-            raise ImportError("RunResult.dataframe() needs pandas: pip install pandas") from None
+            raise ImportError("RunResult.dataframe() needs pandas: pip install 'cnc-twin[analysis]' "
+                              "(from a clone: pip install '.[analysis]')") from None
         return pd.DataFrame(self.trace.columns())
 
     def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:

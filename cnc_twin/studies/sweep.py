@@ -80,6 +80,8 @@ def parse_param(text: str) -> Param:
         if step <= 0 or stop < start:
             raise ValueError(f"expected start <= stop and step > 0 in {text!r}")
         n = int(math.floor((stop - start) / step + 1e-9)) + 1
+        if n > MAX_CASES:
+            raise ValueError(f"{n} values in {text!r}; a sweep runs at most {MAX_CASES} cases")
         values = tuple(float(x) for x in np.round(start + step * np.arange(n), 12))
     else:
         values = tuple(_number(x.strip()) for x in spec.split(","))
@@ -93,6 +95,17 @@ def _number(text: str) -> Any:
         except ValueError:
             pass
     return text
+
+
+MAX_CASES = 1_000_000
+"""most cases a sweep runs (a larger grid is an error, not a week of computing)"""
+CONFIRM_CASES = 1000
+"""a sweep of more cases than this runs only when asked to (``--yes``)"""
+
+
+def case_count(params: Sequence[Param], *, random: int | None = None) -> int:
+    """How many cases :func:`cases` makes, without making them."""
+    return int(random) if random else math.prod(len(p.values) for p in params)
 
 
 def cases(params: Sequence[Param], *, random: int | None = None, seed: int = 0) -> list[dict[str, Any]]:
