@@ -65,31 +65,39 @@ def _outcome(proc: subprocess.Popen, folder: Path, segments_before: set[str]) ->
     return "run"
 
 
-def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(tmp_path):
-    """A clean run sets the time scale (start-up to the last write); then SIGINT and SIGTERM in
-    turn at ten evenly spread moments of it, one run at a time (the moments stay true)."""
+@pytest.fixture(scope="module")
+def time_scale(tmp_path_factory) -> float:
+    """[s] a clean run's wall time from start-up to the last write (the ten moments spread over it)."""
+    folder = tmp_path_factory.mktemp("clean")
     before = set(leftover_segments())
     started = time.monotonic()
-    clean = _start(tmp_path / "clean")
-    assert _outcome(clean, tmp_path / "clean", before) == "complete", clean.returncode
-    whole = time.monotonic() - started
-    outcomes = {}
-    for k in range(MOMENTS):
-        at, sig = whole * (k + 0.5) / MOMENTS, (signal.SIGINT, signal.SIGTERM)[k % 2]
-        t0 = time.monotonic()
-        proc = _start(tmp_path / f"m{k}")
-        time.sleep(max(0.0, t0 + at - time.monotonic()))
-        sent = time.time()
-        proc.send_signal(sig)
-        outcome = _outcome(proc, tmp_path / f"m{k}", before)
-        if outcome == "complete":
-            # a late moment may come after the run directory was in place (a loaded machine runs
-            # faster or slower than the clean run did): the command then ends as a complete run,
-            # exit 0; never a complete run the signal should have stopped
-            done = (tmp_path / f"m{k}" / "run").stat()
-            assert max(done.st_ctime, done.st_mtime) <= sent + 0.01, (k, "a signal before the end was not acted on")
-        else:
-            assert proc.returncode == 128 + int(sig), (k, proc.returncode)
-        outcomes[f"{at:.1f} s {sig.name}"] = outcome
-    kinds = set(outcomes.values())
-    assert "nothing" in kinds and "run" in kinds, outcomes  # both phases were hit
+    clean = _start(folder / "clean")
+    assert _outcome(clean, folder / "clean", before) == "complete", clean.returncode
+    return time.monotonic() - started
+
+
+@pytest.mark.parametrize("k", range(MOMENTS))
+def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(k, time_scale, tmp_path):
+    """SIGINT and SIGTERM in turn at ten evenly spread moments of a clean run's time (each moment
+    its own test, so that they spread over the suite's workers): the first comes before the run
+    begins (nothing left), the middle one while it runs (a whole run directory, interrupted)."""
+    before = set(leftover_segments())
+    at, sig = time_scale * (k + 0.5) / MOMENTS, (signal.SIGINT, signal.SIGTERM)[k % 2]
+    t0 = time.monotonic()
+    proc = _start(tmp_path / f"m{k}")
+    time.sleep(max(0.0, t0 + at - time.monotonic()))
+    sent = time.time()
+    proc.send_signal(sig)
+    outcome = _outcome(proc, tmp_path / f"m{k}", before)
+    if outcome == "complete":
+        # a late moment may come after the run directory was in place (a loaded machine runs
+        # faster or slower than the clean run did): the command then ends as a complete run,
+        # exit 0; never a complete run the signal should have stopped
+        done = (tmp_path / f"m{k}" / "run").stat()
+        assert max(done.st_ctime, done.st_mtime) <= sent + 0.01, (k, "a signal before the end was not acted on")
+    else:
+        assert proc.returncode == 128 + int(sig), (k, proc.returncode)
+    if k == 0:
+        assert outcome == "nothing", f"at {at:.2f} s the run had already begun"
+    if k == MOMENTS // 2:
+        assert outcome == "run", f"at {at:.2f} s: {outcome}"
