@@ -409,7 +409,10 @@ def _bench(args: argparse.Namespace) -> int:
 
     if args.repeat < 1:
         raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
-    figures = bench_scenario(args.scenario or default_scenario(), repeat=args.repeat)
+    scenario_file = args.scenario or default_scenario()
+    print(f"bench: {scenario_file.name}, the twin and bare MuJoCo stepping, best of {args.repeat} each "
+          "(compiling the kernels first if this is the first run) ...", file=sys.stderr, flush=True)
+    figures = bench_scenario(scenario_file, repeat=args.repeat)
     if not args.no_whiteboard:
         from cnc_twin.studies.bench_whiteboard import exchange_round_trip, stream_throughput
 

@@ -159,3 +159,24 @@ def test_signal_stops_run_and_keeps_what_was_recorded(tmp_path, write_scenario, 
 
     assert rrd_rows(out / "recording.rrd")[0]["/axes/X/position"] == n // 4
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["run", "scenario.yaml"])
+
+
+def test_the_progress_bar_ends_at_the_time_simulated():
+    """The last report is (periods run, periods run): the bar's end shows the simulated time,
+    not the planner's estimate of it."""
+    import io
+
+    from cnc_twin.run.progress import ProgressBar
+
+    calls = []
+    scenario = scenario_from_dict({"name": "p", "program": {"type": "point_to_point", "settle": 0.05,
+                                                            "moves": [{"X": 5}, {"Y": 3}]}})
+    result = run_scenario(scenario, progress=lambda done, total: calls.append((done, total)))
+    done, total = calls[-1]
+    assert done == total and done * scenario.timing.interpolation_period == pytest.approx(result.metrics["sim_time_s"],
+                                                                                            abs=2e-3)
+    stream = io.StringIO()
+    stream.isatty = lambda: True
+    bar = ProgressBar("p", period=scenario.timing.interpolation_period, stream=stream)
+    bar(done, total)
+    assert f"{result.metrics['sim_time_s']:.2f} / {result.metrics['sim_time_s']:.2f} s sim" in stream.getvalue()

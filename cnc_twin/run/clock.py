@@ -181,7 +181,7 @@ class Clock:
         if kernel is not None:
             kernel.store()  # the metrics read the DACs' saturation counts
         if self.progress is not None and twin.stop_reason is None:
-            self.progress(twin.expected_periods, twin.expected_periods)
+            self.progress(k, k)  # the bar ends at what was simulated, not at the estimate
         return wall_time, k
 
     def servo_ticks(self, t: int) -> int:
