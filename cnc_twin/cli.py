@@ -12,6 +12,7 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import sys
 import time
 from pathlib import Path
@@ -92,6 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune}
+    if args.whole_process and args.command in ("tune", "bench", "validate"):
+        # SIGTERM ends these as Ctrl-C does: through the runs' cleanup (planner processes,
+        # shared memory), not by the default handler's immediate exit
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return handlers[args.command](args)
     except ScenarioError as exc:
@@ -100,9 +105,22 @@ def main(argv: list[str] | None = None) -> int:
     except Interrupted as exc:
         print(f"interrupted by {exc.name} before the run began; nothing was written", file=sys.stderr)
         return exit_code(exc.name)
+    except Terminated:
+        print("terminated (SIGTERM)", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, so that its ``finally`` blocks and context managers
+    clean up as for Ctrl-C."""
+
+
+def _terminate(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup itself is not interrupted again
+    raise Terminated
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -130,3 +130,24 @@ def test_tune_refuses_what_it_cannot_do_in_one_line():
     code, _, err = _tune("--axis", "X", "--step", "5")  # beyond X's 3 mm following-error limit
     assert code == 2 and "ends in a fault on the twin (FOLLOWING_ERROR" in err and "smaller --step" in err
     assert err.strip().splitlines()[-1].startswith("error: ") and "Traceback" not in err
+
+
+def test_sigterm_ends_tune_like_ctrl_c_with_nothing_left():
+    """SIGTERM during tune's twin runs: exit 143 with one line, no planner process left."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "cnc_twin", "tune", str(default_scenario()), "--axis", "X"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while "each checked on the twin" not in (line := proc.stderr.readline()) and time.monotonic() < deadline:
+        assert line, "tune ended before its twin runs"
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and "terminated (SIGTERM)" in err and "Traceback" not in err, err
+    time.sleep(0.5)
+    left = subprocess.run(["ps", "-o", "pid=,stat=", "-g", str(proc.pid)], capture_output=True, text=True).stdout
+    assert [line for line in left.splitlines() if line.split()[1][0] != "Z"] == []
