@@ -323,9 +323,8 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _tune(args: argparse.Namespace) -> int:
-    from cnc_twin.studies.linearize import analyse
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.tuning import check_margins, save_plots, verified_proposal
+    from cnc_twin.studies.tuning import check_margins, format_verdict, save_plots, verified_proposal
 
     try:
         check_margins(args.phase_margin, args.gain_margin)
@@ -340,30 +339,8 @@ def _tune(args: argparse.Namespace) -> int:
                                     gain_margin=args.gain_margin, step=args.step)
     except ValueError as exc:
         raise ScenarioError(args.scenario, "", str(exc)) from None
-    rows = [("before", cfg.kp, cfg.ki, verdict.before)]
-    if verdict.best_candidate is not None:
-        name = "proposed" if verdict.proposal is not None else "best tried"
-        rows.append((name, verdict.best_candidate.kp, verdict.best_candidate.ki, verdict.best))
-    unit = cfg.display_unit
-    print(f"axis {axis}: targets phase margin >= {args.phase_margin:g} deg, gain margin >= {args.gain_margin:g} dB")
-    print(f"{'':18}{'kp [1/s]':>10}{'ki [1/s^2]':>12}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}"
-          f"{'rise [ms]':>11}{'overshoot':>11}{'settle [ms]':>13}")
-    for name, kp, ki, twin in rows:
-        lin = analyse(scenario, axis, kp=kp, ki=ki)[0]
-        print(f"{name:<18}{kp:>10.1f}{ki:>12.1f}{lin.phase_margin_deg:>10.1f}{lin.gain_margin_db:>9.1f}"
-              f"{lin.crossover_hz:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
-              f"{twin['settling_time_s'] * 1e3:>13.1f}")
-    print(f"(step responses: the nonlinear twin, {abs(args.step):g} {unit} step, feed-forward off; "
-          f"{verdict.tried} candidate(s) tried on it)")
-    saturated = verdict.before["saturated_ticks"] * scenario.timing.servo_period * 1e3
-    if saturated > 0:
-        print(f"note: the {abs(args.step):g} {unit} step holds the DAC at full scale for {saturated:.2f} ms with the "
-              "current gains; the loop's own response shows on a smaller --step")
-    if verdict.proposal is None:
-        print(f"keeping the current gains: {verdict.reason}")
-    else:
-        print(f"to use: axes: {{{axis}: {{servo: {{kp: {verdict.proposal.kp:.4g}, ki: {verdict.proposal.ki:.4g}}}}}}}"
-              f"  ({verdict.reason})")
+    print(format_verdict(verdict, scenario, axis, phase_margin=args.phase_margin, gain_margin=args.gain_margin,
+                         step=args.step))
     if args.out is not None:
         gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
         if verdict.proposal is not None:

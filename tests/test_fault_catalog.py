@@ -13,6 +13,8 @@ from cnc_twin.studies.fault_catalog import CASES, markdown, run_case
 from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.run.twin import run_scenario
 
+pytestmark = pytest.mark.fresh_planner  # a case checks that its planner process ended
+
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_fault_case(case):

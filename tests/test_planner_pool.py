@@ -15,6 +15,8 @@ from cnc_twin.scenario.resources import default_scenario, scenarios_dir
 from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.run.twin import Twin
 
+pytestmark = pytest.mark.fresh_planner  # these count and compare planner processes themselves
+
 
 def _short(**changes):
     raw = yaml.safe_load(default_scenario().read_text())

@@ -168,6 +168,10 @@ class PlannerPool:
         else:
             planner.close()
 
+    def idle_pids(self) -> set[int]:
+        """Process ids of the planners this pool keeps idle."""
+        return {planner.pid for planner in self._idle}
+
     def close(self) -> None:
         """Close the idle planners (a pool can be used again after; it starts new ones)."""
         _close_idle(self._idle)

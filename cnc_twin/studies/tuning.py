@@ -140,6 +140,39 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
                    "more overshoot on the twin")
 
 
+def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_margin: float, gain_margin: float,
+                   step: float) -> str:
+    """The tuner's report: linear and twin figures of the current gains and of the proposed (or
+    best tried) ones, a note when the step saturates the DAC, and the recommendation or the
+    reason for keeping the current gains."""
+    cfg = scenario.axis(axis)
+    rows = [("before", cfg.kp, cfg.ki, verdict.before)]
+    if verdict.best_candidate is not None:
+        name = "proposed" if verdict.proposal is not None else "best tried"
+        rows.append((name, verdict.best_candidate.kp, verdict.best_candidate.ki, verdict.best))
+    unit = cfg.display_unit
+    lines = [f"axis {axis}: targets phase margin >= {phase_margin:g} deg, gain margin >= {gain_margin:g} dB",
+             f"{'':18}{'kp [1/s]':>10}{'ki [1/s^2]':>12}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}"
+             f"{'rise [ms]':>11}{'overshoot':>11}{'settle [ms]':>13}"]
+    for name, kp, ki, twin in rows:
+        lin = analyse(scenario, axis, kp=kp, ki=ki)[0]
+        lines.append(f"{name:<18}{kp:>10.1f}{ki:>12.1f}{lin.phase_margin_deg:>10.1f}{lin.gain_margin_db:>9.1f}"
+                     f"{lin.crossover_hz:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
+                     f"{twin['settling_time_s'] * 1e3:>13.1f}")
+    lines.append(f"(step responses: the nonlinear twin, {abs(step):g} {unit} step, feed-forward off; "
+                 f"{verdict.tried} candidate(s) tried on it)")
+    saturated = verdict.before["saturated_ticks"] * scenario.timing.servo_period * 1e3
+    if saturated > 0:
+        lines.append(f"note: the {abs(step):g} {unit} step holds the DAC at full scale for {saturated:.2f} ms with "
+                     "the current gains; the loop's own response shows on a smaller --step")
+    if verdict.proposal is None:
+        lines.append(f"keeping the current gains: {verdict.reason}")
+    else:
+        lines.append(f"to use: axes: {{{axis}: {{servo: {{kp: {verdict.proposal.kp:.4g}, "
+                     f"ki: {verdict.proposal.ki:.4g}}}}}}}  ({verdict.reason})")
+    return "\n".join(lines)
+
+
 def _settle_key(twin: dict[str, Any]) -> tuple[float, float]:
     return (twin["settling_time_s"] if np.isfinite(twin["settling_time_s"]) else np.inf, twin["overshoot_pct"])
 
@@ -257,4 +290,4 @@ def save_plots(scenario: Scenario, axis: str, out_dir: Path, gains: dict[str, di
     return paths
 
 
-__all__ = ["Proposal", "Verdict", "analyse", "beats", "propose_gains", "save_plots", "twin_step", "verified_proposal"]
+__all__ = ["Proposal", "Verdict", "analyse", "beats", "format_verdict", "propose_gains", "save_plots", "twin_step", "verified_proposal"]
