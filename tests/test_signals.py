@@ -67,13 +67,28 @@ def _outcome(proc: subprocess.Popen, folder: Path, segments_before: set[str]) ->
 
 @pytest.fixture(scope="module")
 def time_scale(tmp_path_factory) -> float:
-    """[s] a clean run's wall time from start-up to the last write (the ten moments spread over it)."""
-    folder = tmp_path_factory.mktemp("clean")
-    before = set(leftover_segments())
-    started = time.monotonic()
-    clean = _start(folder / "clean")
-    assert _outcome(clean, folder / "clean", before) == "complete", clean.returncode
-    return time.monotonic() - started
+    """[s] a clean run's wall time from start-up to the last write (the ten moments spread over
+    it). Measured once per session: the suite's workers share it through a locked file in their
+    common temporary folder (the first to need it runs the clean run, the others read it)."""
+    import fcntl
+
+    import os
+
+    base = tmp_path_factory.getbasetemp()
+    # under xdist each worker's folder sits in the session's; without it the folder is the session's
+    shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "signals_time_scale.txt"
+    with open(shared.with_suffix(".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if shared.exists():
+            return float(shared.read_text())
+        folder = tmp_path_factory.mktemp("clean")
+        before = set(leftover_segments())
+        started = time.monotonic()
+        clean = _start(folder / "clean")
+        assert _outcome(clean, folder / "clean", before) == "complete", clean.returncode
+        scale = time.monotonic() - started
+        shared.write_text(repr(scale))
+        return scale
 
 
 def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
