@@ -97,3 +97,24 @@ def test_quoted_command_lines_parse_and_name_files_that_exist(where, command):
         for path in (getattr(args, name, None) if name == "scenarios" else [getattr(args, name, None)]) or []:
             if path is not None:
                 assert (ROOT / path).is_file(), f"{where}: {path} does not exist"
+
+
+RUNS = sorted({command for _, command in quoted_commands() if command.split()[1] == "run"})
+
+
+@pytest.mark.parametrize("command", RUNS)
+def test_quoted_run_commands_run(command, tmp_path, monkeypatch):
+    """Each distinct `cnc-twin run ...` the docs quote runs to a complete run directory (in a
+    scratch folder holding scenarios/, recording skipped: the small-input version of it)."""
+    import contextlib
+    import io
+    import json
+
+    from cnc_twin.cli import main
+
+    (tmp_path / "scenarios").symlink_to(ROOT / "scenarios")
+    monkeypatch.chdir(tmp_path)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+        code = main(shlex.split(command)[1:] + ["--out", "run", "--quiet", "--no-rrd"])
+    assert code == 0, err.getvalue()
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["status"] == "complete"
