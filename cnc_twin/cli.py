@@ -93,9 +93,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune}
-    if args.whole_process and args.command in ("tune", "bench", "validate"):
-        # SIGTERM ends these as Ctrl-C does: through the runs' cleanup (planner processes,
-        # shared memory), not by the default handler's immediate exit
+    if args.whole_process and args.command not in ("run", "sweep"):
+        # The program's start handlers (cnc_twin/entry.py) end it at once; from here Ctrl-C is a
+        # KeyboardInterrupt and SIGTERM ends these commands as Ctrl-C does: through the runs'
+        # cleanup (planner processes, shared memory), not by an immediate exit. run and sweep
+        # keep the start handlers until their SignalGuard takes over (nothing to clean before).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, _terminate)
     try:
         return handlers[args.command](args)

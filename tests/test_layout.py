@@ -38,12 +38,13 @@ MAY_IMPORT: dict[str, set[str]] = {
                 "polishing", "view", "scenario", "run"},
     "cli": {"core", "motion", "geometry", "legacy", "whiteboard", "dsp", "planner", "machine", "trace",
             "polishing", "view", "scenario", "run", "studies"},
-    "__main__": {"cli"},
+    "entry": {"cli"},
+    "__main__": {"entry"},
     "__init__": set(),
 }
 """each part of the package and the parts it may import: what sits below it"""
 
-TOP_LEVEL_MODULES = {"__init__", "__main__", "cli"}
+TOP_LEVEL_MODULES = {"__init__", "__main__", "entry", "cli"}
 MAX_LINES = 520
 """no module over about 500 lines"""
 

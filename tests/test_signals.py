@@ -31,6 +31,22 @@ def _start(folder: Path) -> subprocess.Popen:
                             start_new_session=True)
 
 
+def _wait_until_started(proc: subprocess.Popen, timeout: float = 60.0) -> None:
+    """Until the CLI has started: its first lines catch SIGINT and SIGTERM (cnc_twin/entry.py).
+    Before that the interpreter itself is starting, and a signal there is the OS's business."""
+    wanted = (1 << (signal.SIGINT - 1)) | (1 << (signal.SIGTERM - 1))
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            status = Path(f"/proc/{proc.pid}/status").read_text()
+        except OSError:
+            return
+        caught = int(next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), 16)
+        if caught & wanted == wanted:
+            return
+        time.sleep(0.002)
+
+
 def _live_members(group: int) -> list[str]:
     """Processes of ``group`` still alive (zombies waiting for init to reap them are not)."""
     out = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(group)], capture_output=True, text=True).stdout
@@ -72,8 +88,6 @@ def time_scale(tmp_path_factory) -> float:
     common temporary folder (the first to need it runs the clean run, the others read it)."""
     import fcntl
 
-    import os
-
     base = tmp_path_factory.getbasetemp()
     # under xdist each worker's folder sits in the session's; without it the folder is the session's
     shared = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "signals_time_scale.txt"
@@ -99,6 +113,7 @@ def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
     at, sig = time_scale * (k + 0.5) / MOMENTS, (signal.SIGINT, signal.SIGTERM)[k % 2]
     t0 = time.monotonic()
     proc = _start(tmp_path / f"m{k}")
+    _wait_until_started(proc)
     time.sleep(max(0.0, t0 + at - time.monotonic()))
     sent = time.time()
     proc.send_signal(sig)
@@ -129,3 +144,15 @@ class TestSigtermMoments:
     @pytest.mark.parametrize("k", range(1, MOMENTS, 2))
     def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
         signal_at_moment(k, time_scale, tmp_path)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_the_moment_the_cli_starts_ends_it_in_one_line(sig, tmp_path):
+    """The earliest moment: as soon as the program's first lines run, before its imports. One
+    line, 130 / 143, nothing written (not a KeyboardInterrupt traceback, not a death by SIGTERM)."""
+    before = set(leftover_segments())
+    proc = _start(tmp_path / "early")
+    _wait_until_started(proc)
+    proc.send_signal(sig)
+    assert _outcome(proc, tmp_path / "early", before) == "nothing"
+    assert proc.returncode == 128 + int(sig)
