@@ -133,26 +133,52 @@ def test_a_published_curve_keeps_every_limit_in_the_trace(name, feed, period_ms)
     assert result.metrics["path"]["limit_violations"] == []
 
 
-def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
-    """A program the planner cannot send (1500 control points, more than the card's geometry memory holds; the loader
-    refuses it, so it is built here past the loader) ends the run as a planner fault whose message
-    carries the planner's own exception, not only "the planner process exited"."""
+def _too_long_stella():
+    """stella with 1500 control points, more than the card's geometry memory holds (16384 words,
+    even in parts); the loader refuses it, so it is built here past the loader."""
     from dataclasses import replace
-
-    from cnc_twin import run_scenario
 
     scenario = load_scenario(scenarios_dir() / "published" / "stella.yaml")
     prog = scenario.program
     x0, y0, z0 = prog.control_points[0]
-    n = 1500  # beyond the card's geometry memory (16384 words), even in parts
+    n = 1500
     points = tuple((x0 + 1e-5 * i, y0 + 1e-3 * math.sin(i / 200), z0) for i in range(n))
     knots = (0.0,) * 3 + tuple(float(k) for k in range(1, n - 2)) + (float(n - 2),) * 3
-    too_long = replace(prog, control_points=points, weights=(1.0,) * n, knots=knots)
-    result = run_scenario(replace(scenario, program=too_long))
+    return replace(scenario, program=replace(prog, control_points=points, weights=(1.0,) * n, knots=knots))
+
+
+def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
+    """A program the planner cannot send ends the run as a planner fault whose message carries
+    the planner's own exception, not only "the planner process exited"."""
+    from cnc_twin import run_scenario
+
+    result = run_scenario(_too_long_stella())
     fault = result.metrics["fault"]
     assert result.status == "fault" and fault["code"] in ("PLANNER_START", "PLANNER_LOST")
     assert "ValueError: curve of 1500 control points exceeds the card's geometry memory" in fault["message"], fault["message"]
     assert "\n" not in fault["message"]
+
+
+def test_a_planner_failure_is_named_on_stderr_and_in_the_run_directory(tmp_path, monkeypatch):
+    """The same failure through `cnc-twin run` (the scenario handed over past the loader): exit 3,
+    the fault line on stderr carries the planner's own exception, and so does metrics.json."""
+    import contextlib
+    import io
+    import json
+
+    import cnc_twin.scenario.load as loader
+    from cnc_twin.cli import main
+
+    too_long = _too_long_stella()
+    monkeypatch.setattr(loader, "load_scenario", lambda *args, **kwargs: too_long)
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        code = main(["run", str(scenarios_dir() / "published" / "stella.yaml"), "--out", str(tmp_path / "run"),
+                     "--quiet", "--no-rrd"])
+    line = next(line for line in err.getvalue().splitlines() if line.startswith("fault "))
+    assert code == 3 and "ValueError: curve of 1500 control points" in line, err.getvalue()
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert "ValueError: curve of 1500 control points" in metrics["fault"]["message"]
 
 
 @pytest.mark.parametrize("name", ["farfalla", "delfino"])
