@@ -1,0 +1,7 @@
+"""RS274/NGC programs (G-code) as LinuxCNC reads them, checked call for call against its
+interpreter (``scripts/fetch_linuxcnc_oracle.py``).
+
+- :mod:`~cnc_twin.gcode.expressions`   ``[...]`` expressions, functions and parameters
+
+May import: ``core``. Imported by: (the program kind that runs G-code, to come).
+"""

@@ -1,0 +1,276 @@
+"""RS274/NGC expressions as LinuxCNC evaluates them: ``[...]`` with binary operators, unary
+functions, parameters; never Python's ``eval``.
+
+Input is a block's text already normalised the way LinuxCNC reads it (lower case, no spaces or
+tabs outside comments). Semantics, each checked against LinuxCNC's own interpreter
+(``tests/test_gcode_expressions.py``):
+
+- binary operators, tightest first: ``**``; ``* / mod``; ``+ -``; ``eq ne gt ge lt le``;
+  ``and or xor``; each level left to right (``2**3**2`` is 64);
+- a sign belongs to the value after it (``-2**2`` is 4, ``--2`` is 2, ``-[2]``, ``-#1``);
+- ``eq`` / ``ne`` compare within 1e-4; the other comparisons are exact; results are 1 or 0;
+  ``and or xor`` take any non-zero value as true;
+- ``mod`` is never negative for a positive divisor (``-7 mod 3`` is 2);
+- functions ``abs acos asin cos exp fix fup ln round sin sqrt tan`` take ``[...]``, angles in
+  degrees; ``atan[y]/[x]`` is the two-argument arc tangent; ``round`` rounds half away from
+  zero; ``fix`` / ``fup`` are floor / ceiling; ``exists[#<name>]`` is 1 if the parameter exists;
+- numbers are digits with at most one point (no exponent: ``1e3`` is an error);
+- errors carry LinuxCNC's wording (``Attempt to divide by zero``, ``Negative argument to sqrt``...).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+EQUAL_TOLERANCE = 1e-4
+"""``eq`` / ``ne`` treat values closer than this as equal (LinuxCNC's tolerance)"""
+INTEGER_TOLERANCE = 1e-4
+"""a value this close to a whole number is that number where an integer is needed"""
+MAX_PARAMETER = 5602
+"""highest numbered parameter (``#1`` .. ``#5602``)"""
+
+# binary operators by precedence (higher binds tighter), longest spelling first where they share a start
+_OPERATORS = (("**", 4), ("*", 3), ("/", 3), ("mod", 3), ("+", 2), ("-", 2), ("eq", 1), ("ne", 1), ("gt", 1),
+              ("ge", 1), ("lt", 1), ("le", 1), ("and", 0), ("or", 0), ("xor", 0))
+_OPERATOR_INITIALS = frozenset(name[0] for name, _ in _OPERATORS if name[0].isalpha())
+_FUNCTIONS = ("abs", "acos", "asin", "atan", "cos", "exists", "exp", "fix", "fup", "ln", "round", "sin", "sqrt",
+              "tan")
+
+
+class ExpressionError(ValueError):
+    """A program's expression LinuxCNC would refuse; the message is its wording."""
+
+
+class Parameters:
+    """The values ``#n`` and ``#<name>`` read: numbered ones default to 0, named ones must exist.
+
+    ``numbered``: index -> value; ``named``: lower-case name -> value.
+    """
+
+    def __init__(self):
+        self.numbered: dict[int, float] = {}
+        self.named: dict[str, float] = {}
+
+    def number(self, index: int) -> float:
+        return self.numbered.get(index, 0.0)
+
+    def name(self, name: str) -> float:
+        try:
+            return self.named[name]
+        except KeyError:
+            raise ExpressionError(f"Named parameter #<{name}> not defined") from None
+
+
+def evaluate(text: str, pos: int, params: Parameters) -> tuple[float, int]:
+    """The value of the bracketed expression starting at ``text[pos]`` (``'['``) and the index
+    just after its closing ``']'``."""
+    return _Reader(text, params).expression(pos)
+
+
+def read_real(text: str, pos: int, params: Parameters) -> tuple[float, int]:
+    """A real value at ``text[pos]`` (a number, ``[...]``, a parameter, a function, with an
+    optional sign) and the index after it: what follows a word's letter."""
+    return _Reader(text, params).real(pos)
+
+
+def integer_of(value: float) -> int:
+    """``value`` as a whole number, or LinuxCNC's error when it is not close to one."""
+    whole = round(value)
+    if abs(value - whole) >= INTEGER_TOLERANCE:
+        raise ExpressionError("Non integer value for integer")
+    return int(whole)
+
+
+class _Reader:
+    def __init__(self, text: str, params: Parameters):
+        self.text, self.params = text, params
+
+    def expression(self, pos: int) -> tuple[float, int]:
+        """``[`` value (operator value)* ``]``, reduced by precedence, left to right."""
+        text = self.text
+        values: list[float] = []
+        ops: list[tuple[str, int]] = []
+        pos += 1  # the '['
+        value, pos = self.real(pos)
+        values.append(value)
+        while True:
+            if pos < len(text) and text[pos] == "]":
+                break
+            op = next(((name, rank) for name, rank in _OPERATORS if text.startswith(name, pos)), None)
+            if op is None:
+                if pos < len(text) and text[pos] in _OPERATOR_INITIALS:
+                    raise ExpressionError(f"Unknown operation name starting with {text[pos]}")
+                raise ExpressionError("Unknown operation")
+            pos += len(op[0])
+            while ops and ops[-1][1] >= op[1]:
+                self._reduce(values, ops)
+            ops.append(op)
+            value, pos = self.real(pos)
+            values.append(value)
+        while ops:
+            self._reduce(values, ops)
+        # checked once per bracket, as LinuxCNC does: a NaN inside may still compare to 0 or 1
+        return _finite(values[0]), pos + 1
+
+    @staticmethod
+    def _reduce(values: list[float], ops: list[tuple[str, int]]) -> None:
+        right, left = values.pop(), values.pop()
+        values.append(binary(ops.pop()[0], left, right))
+
+    def real(self, pos: int) -> tuple[float, int]:
+        text = self.text
+        c = text[pos] if pos < len(text) else ""
+        if c == "[":
+            return self.expression(pos)
+        if c in "+-":
+            value, pos = self.real(pos + 1)
+            return (-value if c == "-" else value), pos
+        if c == "#":
+            return self.parameter(pos)
+        if c.isalpha():
+            return self.function(pos)
+        return self.number(pos)
+
+    def number(self, pos: int) -> tuple[float, int]:
+        text = self.text
+        end = pos
+        while end < len(text) and (text[end].isdigit() or text[end] == "."):
+            end += 1
+        token = text[pos:end]
+        if token.count(".") > 1:
+            raise ExpressionError(f"bad number format (trailing characters) parsing '{token}'")
+        if not any(ch.isdigit() for ch in token):
+            raise ExpressionError(f"bad number format (conversion failed) parsing '{token}'")
+        return float(token), end
+
+    def parameter(self, pos: int) -> tuple[float, int]:
+        text = self.text
+        if pos + 1 < len(text) and text[pos + 1] == "<":
+            end = text.find(">", pos + 2)
+            if end < 0:
+                raise ExpressionError("Named parameter not terminated")
+            return self.params.name(text[pos + 2:end]), end + 1
+        value, pos = self.real(pos + 1)
+        index = integer_of(value)
+        if not 1 <= index <= MAX_PARAMETER:
+            raise ExpressionError("Parameter number out of range")
+        return self.params.number(index), pos
+
+    def function(self, pos: int) -> tuple[float, int]:
+        text = self.text
+        name = next((f for f in _FUNCTIONS if text.startswith(f, pos)), None)
+        if name is None:
+            raise ExpressionError(f"Unknown operation name starting with {text[pos]}")
+        pos += len(name)
+        if pos >= len(text) or text[pos] != "[":
+            raise ExpressionError("Left bracket missing after unary operation name")
+        if name == "exists":
+            return self.exists(pos)
+        value, pos = self.expression(pos)
+        if name == "atan":
+            if pos >= len(text) or text[pos] != "/":
+                raise ExpressionError("Slash missing after first atan argument")
+            if pos + 1 >= len(text) or text[pos + 1] != "[":
+                raise ExpressionError("Left bracket missing after slash with atan")
+            x, pos = self.expression(pos + 1)
+            return math.atan2(value, x) * 180.0 / math.pi, pos
+        return unary(name, value), pos
+
+    def exists(self, pos: int) -> tuple[float, int]:
+        text = self.text
+        if text[pos + 1:pos + 2] != "#":
+            raise ExpressionError("Expected # reading parameter")
+        if text[pos + 2:pos + 3] == "<":
+            end = text.find(">", pos + 3)
+            if end < 0 or text[end + 1:end + 2] != "]":
+                raise ExpressionError("Unknown operation")
+            return (1.0 if text[pos + 3:end] in self.params.named else 0.0), end + 2
+        _, end = self.parameter(pos + 1)  # a numbered parameter always exists
+        if text[end:end + 1] != "]":
+            raise ExpressionError("Unknown operation")
+        return 1.0, end + 1
+
+
+def binary(op: str, a: float, b: float) -> float:
+    """``a op b`` as LinuxCNC computes it (comparisons and logic give 1.0 / 0.0); a NaN or an
+    infinity is left for the enclosing bracket to refuse."""
+    if op == "**":
+        if a < 0 and b != math.floor(b):
+            raise ExpressionError("Attempt to raise negative to non integer power")
+        try:
+            result = math.pow(a, b)
+        except OverflowError:
+            result = math.inf
+        except ValueError:  # 0 ** negative (C's pow gives an infinity); NaN operands
+            result = math.inf if a == 0.0 else math.nan
+    elif op == "*":
+        result = a * b
+    elif op == "/":
+        if b == 0.0:
+            raise ExpressionError("Attempt to divide by zero")
+        result = a / b
+    elif op == "mod":
+        result = math.fmod(a, b) if b != 0.0 and math.isfinite(a) else math.nan
+        if result < 0.0:
+            result += abs(b)
+    elif op == "+":
+        result = a + b
+    elif op == "-":
+        result = a - b
+    elif op == "eq":
+        result = float(abs(a - b) < EQUAL_TOLERANCE)
+    elif op == "ne":
+        result = float(not abs(a - b) < EQUAL_TOLERANCE)
+    elif op == "gt":
+        result = float(a > b)
+    elif op == "ge":
+        result = float(a >= b)
+    elif op == "lt":
+        result = float(a < b)
+    elif op == "le":
+        result = float(a <= b)
+    elif op == "and":
+        result = float(a != 0.0 and b != 0.0)
+    elif op == "or":
+        result = float(a != 0.0 or b != 0.0)
+    else:  # xor
+        result = float((a != 0.0) != (b != 0.0))
+    return result
+
+
+_UNARY: dict[str, Callable[[float], float]] = {
+    "abs": abs,
+    "cos": lambda x: math.cos(x * math.pi / 180.0),  # in that order, as the C reference computes it
+    "sin": lambda x: math.sin(x * math.pi / 180.0),
+    "tan": lambda x: math.tan(x * math.pi / 180.0),
+    "exp": lambda x: math.exp(x) if x < 709.0 else math.inf,
+    "fix": lambda x: float(math.floor(x)),
+    "fup": lambda x: float(math.ceil(x)),
+    "round": lambda x: math.copysign(math.floor(abs(x) + 0.5), x),
+}
+
+
+def unary(name: str, x: float) -> float:
+    """A unary function of LinuxCNC's (angles in degrees)."""
+    if name == "acos" or name == "asin":
+        if not -1.0 <= x <= 1.0:
+            raise ExpressionError(f"Argument to {name} out of range")
+        return (math.acos(x) if name == "acos" else math.asin(x)) * 180.0 / math.pi
+    if name == "ln":
+        if x <= 0.0:
+            raise ExpressionError("Zero or negative argument to ln")
+        return math.log(x)
+    if name == "sqrt":
+        if x < 0.0:
+            raise ExpressionError("Negative argument to sqrt")
+        return math.sqrt(x)
+    return _finite(_UNARY[name](x))
+
+
+def _finite(value: float) -> float:
+    if math.isnan(value):
+        raise ExpressionError("Calculation resulted in 'not a number'")
+    if math.isinf(value):
+        raise ExpressionError("Calculation resulted in 'infinity'")
+    return value

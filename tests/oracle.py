@@ -1,0 +1,48 @@
+"""LinuxCNC's interpreter as the G-code reader's oracle (``scripts/fetch_linuxcnc_oracle.py``
+unpacks it into ``.oracle/linuxcnc``): run ``rs274`` on a program, read its canonical calls."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+from pathlib import Path
+
+ROOT = Path(os.environ.get("CNC_TWIN_ORACLE", Path(__file__).resolve().parents[1] / ".oracle" / "linuxcnc"))
+RS274 = ROOT / "usr" / "bin" / "rs274"
+ABSENT = (f"the LinuxCNC oracle is not unpacked at {ROOT}: run `python scripts/fetch_linuxcnc_oracle.py` "
+          "(it needs apt-get and a Debian 12 mirror)")
+TOOL_TABLE = "T1 P1 Z0.511 D0.125\nT2 P2 Z0.1 D0.0625\n"
+CALL = re.compile(r"^\s*\d+ N\.\.\.\.\. (\w+)\((.*)\)$")
+
+
+def available() -> bool:
+    return RS274.is_file()
+
+
+def require() -> None:
+    """In a test that compares with the oracle: without it, the test does not run and the summary
+    says why (pytest -ra), never a silent pass. CI always unpacks it first (.ci/run)."""
+    import pytest
+
+    if not available():
+        pytest.skip(ABSENT)
+
+
+def run(program: str, folder: Path) -> tuple[list[tuple[str, str]], list[str]]:
+    """``program`` (text) through ``rs274 -g``: its calls as ``(name, arguments)`` and the other
+    lines it printed (its error messages), in order."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "tool.tbl").write_text(TOOL_TABLE)
+    (folder / "program.ngc").write_text(program)
+    env = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT / 'usr' / 'lib'}:{ROOT / 'usr' / 'lib' / 'x86_64-linux-gnu'}")
+    out = subprocess.run([str(RS274), "-t", "tool.tbl", "-g", "program.ngc"], cwd=folder, env=env,
+                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    calls, other = [], []
+    for line in (out.stdout + out.stderr).splitlines():
+        match = CALL.match(line)
+        if match:
+            calls.append((match.group(1), match.group(2)))
+        elif line.strip() and line.strip() != "executing":
+            other.append(line.strip())
+    return calls, other
