@@ -13,7 +13,7 @@ RS274 = ROOT / "usr" / "bin" / "rs274"
 ABSENT = (f"the LinuxCNC oracle is not unpacked at {ROOT}: run `python scripts/fetch_linuxcnc_oracle.py` "
           "(it needs apt-get and a Debian 12 mirror)")
 TOOL_TABLE = "T1 P1 Z0.511 D0.125\nT2 P2 Z0.1 D0.0625\n"
-CALL = re.compile(r"^\s*\d+ N\.\.\.\.\. (\w+)\((.*)\)$")
+CALL = re.compile(r"^\s*\d+ N\S*\s+(\w+)\((.*)\)$")
 
 
 def available() -> bool:

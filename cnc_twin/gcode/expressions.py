@@ -120,7 +120,9 @@ class _Reader:
 
     def real(self, pos: int) -> tuple[float, int]:
         text = self.text
-        c = text[pos] if pos < len(text) else ""
+        if pos >= len(text):
+            raise ExpressionError("No characters found in reading real value")
+        c = text[pos]
         if c == "[":
             return self.expression(pos)
         if c in "+-":
