@@ -19,7 +19,7 @@ from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
-from cnc_twin.run.signals import Interrupted, SignalGuard, exit_code
+from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
 from cnc_twin.scenario.resources import default_scenario
 
 EXIT_OK = 0
@@ -99,9 +99,17 @@ def main(argv: list[str] | None = None) -> int:
         # cleanup (planner processes, shared memory), not by an immediate exit. run and sweep
         # keep the start handlers until their SignalGuard takes over (nothing to clean before).
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _terminate)
+        signal.signal(signal.SIGTERM, terminate)
     try:
-        return handlers[args.command](args)
+        try:
+            return handlers[args.command](args)
+        except ImportError as exc:
+            # a signal while an extension module initialises (mujoco, numpy...) surfaces as that
+            # import failing, the interruption its cause: it is the interruption
+            cause = interruption_in(exc)
+            if cause is None:
+                raise
+            raise cause from None
     except ScenarioError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -114,16 +122,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the program is, so that its ``finally`` blocks and context managers
-    clean up as for Ctrl-C."""
-
-
-def _terminate(signum, frame):
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup itself is not interrupted again
-    raise Terminated
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -156,3 +156,23 @@ def test_a_signal_the_moment_the_cli_starts_ends_it_in_one_line(sig, tmp_path):
     proc.send_signal(sig)
     assert _outcome(proc, tmp_path / "early", before) == "nothing"
     assert proc.returncode == 128 + int(sig)
+
+
+def test_a_signal_inside_an_extension_module_import_is_the_interruption(monkeypatch, tmp_path, capsys):
+    """A signal while an extension module initialises (seen in CI: SIGINT during `import mujoco`)
+    surfaces as an ImportError caused by the interruption; the CLI reports the interruption in
+    one line with its exit code, not the import's traceback."""
+    import cnc_twin.cli as cli
+    from cnc_twin.run.signals import Interrupted
+
+    def interrupted_import(*args, **kwargs):
+        try:
+            raise Interrupted("SIGINT")
+        except Interrupted as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(cli, "check_writable_parent", interrupted_import)
+    code = cli.main(["run", str(SCENARIO), "--out", str(tmp_path / "run"), "--no-rrd"])
+    err = capsys.readouterr().err
+    assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"
+    assert not (tmp_path / "run").exists()

@@ -98,3 +98,24 @@ class SignalGuard:
 
 def _note(_name: str) -> None:
     """A signal that only needs noting (``SignalGuard.received`` holds it)."""
+
+
+def interruption_in(exc: BaseException) -> BaseException | None:
+    """The Interrupted or KeyboardInterrupt in ``exc``'s chain of causes, if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, (Interrupted, KeyboardInterrupt)):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, so that its ``finally`` blocks and context managers
+    clean up as for Ctrl-C."""
+
+
+def terminate(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup itself is not interrupted again
+    raise Terminated
