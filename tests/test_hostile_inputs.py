@@ -209,7 +209,7 @@ odd_but_plausible = st.one_of(st.floats(-1e3, 1e4, allow_nan=False), st.integers
 RUN_BUDGET_S = 8.0
 
 
-@settings(max_examples=4, deadline=None, derandomize=True,
+@settings(max_examples=3, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.filter_too_much])
 @given(key=st.sampled_from(NUMERIC_KEYS), value=odd_but_plausible)
 def test_fuzzed_scenarios_that_validate_also_run_cleanly(tmp_path, key, value):
