@@ -132,22 +132,16 @@ def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
         assert outcome == "run", f"at {at:.2f} s: {outcome}"
 
 
-# The ten moments are three classes of tests, so that the suite's workers share them (loadscope
-# keeps a class on one worker; the clean run is made once, by the first to need it).
-class TestMomentsA:
-    @pytest.mark.parametrize("k", range(0, MOMENTS, 3))
+# The ten moments are two classes of tests, so that two workers share them (loadscope keeps a
+# class on one worker; the clean run is made once, by the first to need it).
+class TestSigintMoments:
+    @pytest.mark.parametrize("k", range(0, MOMENTS, 2))
     def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
         signal_at_moment(k, time_scale, tmp_path)
 
 
-class TestMomentsB:
-    @pytest.mark.parametrize("k", range(1, MOMENTS, 3))
-    def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
-        signal_at_moment(k, time_scale, tmp_path)
-
-
-class TestMomentsC:
-    @pytest.mark.parametrize("k", range(2, MOMENTS, 3))
+class TestSigtermMoments:
+    @pytest.mark.parametrize("k", range(1, MOMENTS, 2))
     def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
         signal_at_moment(k, time_scale, tmp_path)
 
