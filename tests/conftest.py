@@ -100,3 +100,21 @@ def pytest_xdist_auto_num_workers(config):
     import os
 
     return len(os.sched_getaffinity(0)) + 1
+
+
+def pytest_configure(config):
+    """With workers (xdist), the controller has numba compile the twin's kernels once before the
+    workers start, when a fresh install has none cached: otherwise every worker compiles them at
+    once (about 10 s of CPU each, on the same cores)."""
+    if getattr(config, "workerinput", None) is not None or not config.getoption("numprocesses", None):
+        return
+    from cnc_twin.run.period_kernel import kernels_cached
+
+    if kernels_cached():
+        return
+    from cnc_twin.run.twin import run_scenario
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    for name in ("jog_axes.yaml", "nurbs_circle.yaml"):  # the point and curve kernels
+        run_scenario(load_scenario(scenarios_dir() / name, overrides={"max_time": 0.5}))
