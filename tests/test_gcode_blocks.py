@@ -41,6 +41,13 @@ def test_a_parameter_set_on_a_line_takes_effect_after_it():
     assert [b.words.get("x") for b in blocks] == [None, 5.0, 7.0, None, 4.0]
 
 
+def test_a_named_parameter_exists_from_its_setting_on_and_holds_its_value_after_the_line():
+    blocks = _read(["#<new>=-3 Z#<new>", "Z#<new>", "#<e>=[#<e>+1]", "Z#<e>"])
+    assert [b.words.get("z") for b in blocks] == [0.0, -3.0, None, 1.0]
+    with pytest.raises(BlockError, match="Named parameter #<later> not defined"):
+        _read(["G1 Z#<later> #<later>=-3"])
+
+
 REFUSED = [
     ("G1 X1 (a (b) c) F100", "Nested comment found"),
     ("G1 X1 F100 )", "Bad character ')' used"),
@@ -72,7 +79,8 @@ def test_refusals_are_what_linuxcnc_says(tmp_path):
 
 
 MOTION = ["G21 G90 F100", "G1 X1 0 Y 2", "x[1+2] (comment) y#1", "#1=7 X#1", "X#1 ; y99", "/X4 Y5",
-          "N20 X[sin[30]] Y[atan[1]/[1]]", "#<Depth>=-3", "Z#<depth>", "z[#<depth>*2]", "X 1 2 . 5"]
+          "N20 X[sin[30]] Y[atan[1]/[1]]", "#<Depth>=-3", "Z#<depth>", "z[#<depth>*2]", "X 1 2 . 5",
+          "#<new>=-3 Z#<new>", "#<depth>=5 Z#<depth>", "#<e>=[#<e>+1] Z#<e>", "Z#<e>"]
 
 
 def test_motion_lines_read_as_linuxcnc_moves(tmp_path):

@@ -126,6 +126,9 @@ def _assignment(norm: str, pos: int, params: Parameters, block: Block) -> int:
             raise BlockError("Named parameter not terminated")
         key: int | str = norm[pos + 2:end]
         pos = end + 1
+        # the name exists from here on in the line (0 until the line's settings apply), as in
+        # LinuxCNC: `#<d>=-3 Z#<d>` reads 0, `#<e>=[#<e>+1]` sets 1; read before it, not defined
+        params.named.setdefault(key, 0.0)
     else:
         value, pos = read_real(norm, pos + 1, params)
         key = integer_of(value)
