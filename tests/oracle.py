@@ -3,9 +3,11 @@ unpacks it into ``.oracle/linuxcnc``): run ``rs274`` on a program, read its cano
 
 from __future__ import annotations
 
+import fcntl
 import os
 import re
 import subprocess
+import tempfile
 from pathlib import Path
 
 ROOT = Path(os.environ.get("CNC_TWIN_ORACLE", Path(__file__).resolve().parents[1] / ".oracle" / "linuxcnc"))
@@ -36,8 +38,14 @@ def run(program: str, folder: Path) -> tuple[list[tuple[str, str]], list[str]]:
     (folder / "tool.tbl").write_text(TOOL_TABLE)
     (folder / "program.ngc").write_text(program)
     env = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT / 'usr' / 'lib'}:{ROOT / 'usr' / 'lib' / 'x86_64-linux-gnu'}")
-    out = subprocess.run([str(RS274), "-t", "tool.tbl", "-g", "program.ngc"], cwd=folder, env=env,
-                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    # One rs274 at a time on the machine: instances running at once share state and some die
+    # with a bus error (seen with the suite's parallel workers), their messages lost.
+    with open(Path(tempfile.gettempdir()) / "cnc_twin_rs274.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        out = subprocess.run([str(RS274), "-t", "tool.tbl", "-g", "program.ngc"], cwd=folder, env=env,
+                             stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    if out.returncode < 0 or out.returncode > 128:
+        raise RuntimeError(f"rs274 died (exit {out.returncode}): {out.stderr.strip()[-200:]}")
     calls, other = [], []
     for line in (out.stdout + out.stderr).splitlines():
         match = CALL.match(line)
