@@ -270,8 +270,8 @@ def _sweep(args: argparse.Namespace) -> int:
     from contextlib import closing
 
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.sweep import (CONFIRM_CASES, INTERRUPTED, MAX_CASES, best_row, case_count, cases, parse_param,
-                                        run_dask, run_local, write_table)
+    from cnc_twin.studies.sweep import (CONFIRM_CASES, DEFAULT_WORKERS, INTERRUPTED, MAX_CASES, best_row, case_count,
+                                        cases, parse_param, run_dask, run_local, write_table)
     from cnc_twin.studies.sweep_stop import SweepStop
 
     params = []
@@ -281,12 +281,12 @@ def _sweep(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise ScenarioError("--param", text, str(exc)) from None
     count = case_count(params, random=args.random)
-    workers = args.workers or 2
+    workers = args.workers or DEFAULT_WORKERS
+    sized_by = "--random" if args.random else "--param"
     if count < 1 or count > MAX_CASES:
-        raise ScenarioError("--param" if not args.random else "--random", "",
-                            f"the sweep has {count} cases; expected 1 to {MAX_CASES}")
+        raise ScenarioError(sized_by, "", f"the sweep has {count} cases; expected 1 to {MAX_CASES}")
     if count > CONFIRM_CASES and not args.yes:
-        raise ScenarioError("--param" if not args.random else "--random", "",
+        raise ScenarioError(sized_by, "",
                             f"the sweep has {count} cases (about {count * 2.0 / 3600 / workers:.3g} h at 2 s a run on "
                             f"{workers} workers); pass --yes to run it, or narrow the ranges")
     print(f"sweep: {count} cases on {f'the Dask cluster {args.scheduler}' if args.scheduler else f'{workers} workers'}",

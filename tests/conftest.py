@@ -29,6 +29,19 @@ def single_move(axis: str, target: float, *, settle: float = 0.5, **extra) -> di
             **extra}
 
 
+def run_cli(*args: str) -> tuple[int, str, str]:
+    """``cnc-twin ARGS`` called in this process: (exit code, stdout, stderr)."""
+    import contextlib
+    import io
+
+    from cnc_twin.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(arg) for arg in args])
+    return code, out.getvalue(), err.getvalue()
+
+
 @pytest.fixture(scope="session")
 def warm_planners():
     """One planner pool for the session's runs in this process: a run takes the planner the last

@@ -54,3 +54,8 @@ def run(program: str, folder: Path) -> tuple[list[tuple[str, str]], list[str]]:
         elif line.strip() and line.strip() != "executing":
             other.append(line.strip())
     return calls, other
+
+
+def straight_feeds(calls: list[tuple[str, str]]) -> list[list[str]]:
+    """The arguments of each STRAIGHT_FEED among ``calls``, as printed (x, y, z, a, b, c)."""
+    return [args.split(", ") for name, args in calls if name == "STRAIGHT_FEED"]

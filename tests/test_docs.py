@@ -106,15 +106,12 @@ RUNS = sorted({command for _, command in quoted_commands() if command.split()[1]
 def test_quoted_run_commands_run(command, tmp_path, monkeypatch):
     """Each distinct `cnc-twin run ...` the docs quote runs to a complete run directory (in a
     scratch folder holding scenarios/, recording skipped: the small-input version of it)."""
-    import contextlib
-    import io
     import json
 
-    from cnc_twin.cli import main
+    from conftest import run_cli
 
     (tmp_path / "scenarios").symlink_to(ROOT / "scenarios")
     monkeypatch.chdir(tmp_path)
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
-        code = main(shlex.split(command)[1:] + ["--out", "run", "--quiet", "--no-rrd"])
-    assert code == 0, err.getvalue()
+    code, _, err = run_cli(*shlex.split(command)[1:], "--out", "run", "--quiet", "--no-rrd")
+    assert code == 0, err
     assert json.loads((tmp_path / "run" / "metrics.json").read_text())["status"] == "complete"

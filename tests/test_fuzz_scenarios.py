@@ -3,14 +3,12 @@ traceback (the CLI's contract: one line and exit 2 for bad input)."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_twin.cli import main
+from conftest import run_cli
 from cnc_twin.scenario.resources import scenarios_dir
 
 BUNDLED = [p.read_text() for p in sorted(scenarios_dir().glob("*.yaml"))]
@@ -25,12 +23,10 @@ documents = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_si
 def _validate(tmp_path, text: str) -> int:
     path = tmp_path / "fuzz.yaml"
     path.write_text(text, encoding="utf-8", errors="surrogatepass")
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = main(["validate", str(path)])  # any uncaught exception fails the test
+    code, _, err = run_cli("validate", path)  # any uncaught exception fails the test
     assert code in (0, 2)
     if code == 2:
-        assert len(err.getvalue().strip().splitlines()) == 1 and "Traceback" not in err.getvalue()
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     return code
 
 

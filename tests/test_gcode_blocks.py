@@ -75,7 +75,7 @@ def test_refusals_are_what_linuxcnc_says(tmp_path):
     oracle.require()
     for k, (text, message) in enumerate(REFUSED):
         calls, said = oracle.run(f"G21 G90\n{text}\nM2\n", tmp_path / str(k))
-        assert not [c for c in calls if c[0] == "STRAIGHT_FEED"] and said and said[0] == message, (text, said)
+        assert not oracle.straight_feeds(calls) and said and said[0] == message, (text, said)
 
 
 MOTION = ["G21 G90 F100", "G1 X1 0 Y 2", "x[1+2] (comment) y#1", "#1=7 X#1", "X#1 ; y99", "/X4 Y5",
@@ -95,5 +95,5 @@ def test_motion_lines_read_as_linuxcnc_moves(tmp_path):
         if moved:
             expected.append(f"{position['x']:.4f}, {position['y']:.4f}, {position['z']:.4f}")
     calls, said = oracle.run("\n".join(MOTION) + "\nM2\n", tmp_path)
-    theirs = [", ".join(args.split(", ")[:3]) for name, args in calls if name == "STRAIGHT_FEED"]
+    theirs = [", ".join(feed[:3]) for feed in oracle.straight_feeds(calls)]
     assert said == [] and theirs == expected

@@ -70,8 +70,8 @@ def test_expression_table(expression, expected):
 
 
 def _oracle_x(calls) -> float | None:
-    feeds = [args for name, args in calls if name == "STRAIGHT_FEED"]
-    return float(feeds[0].split(",")[0]) if feeds else None
+    feeds = oracle.straight_feeds(calls)
+    return float(feeds[0][0]) if feeds else None
 
 
 def test_the_table_is_what_linuxcnc_says(tmp_path):
@@ -81,7 +81,7 @@ def test_the_table_is_what_linuxcnc_says(tmp_path):
     values = [(e, v) for e, v in TABLE if not isinstance(v, str)]
     calls, said = oracle.run("G21 G90\n" + SETUP + "".join(f"G1 X[{e}] F100\n" for e, _ in values) + "M2\n",
                              tmp_path / "values")
-    xs = [float(args.split(",")[0]) for name, args in calls if name == "STRAIGHT_FEED"]
+    xs = [float(feed[0]) for feed in oracle.straight_feeds(calls)]
     assert said == [] and len(xs) == len(values)
     assert [(e, x) for (e, _), x in zip(values, xs) if f"{_ours(e):.4f}" != f"{x:.4f}"] == []
     for k, (expression, message) in enumerate((e, v) for e, v in TABLE if isinstance(v, str)):
@@ -121,7 +121,7 @@ def test_random_expressions_agree_with_linuxcnc(tmp_path):
             good.append((expression, ours))
     program = "G21 G90\n" + SETUP + "".join(f"G1 X[{e}] F100\n" for e, _ in good) + "M2\n"
     calls, said = oracle.run(program, tmp_path / "good")
-    xs = [float(args.split(",")[0]) for name, args in calls if name == "STRAIGHT_FEED"]
+    xs = [float(feed[0]) for feed in oracle.straight_feeds(calls)]
     assert said == [] and len(xs) == len(good)
     differing = [(e, v, x) for (e, v), x in zip(good, xs) if f"{v:.4f}" != f"{x:.4f}"]
     assert differing == []

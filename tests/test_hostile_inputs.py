@@ -4,8 +4,6 @@ anything runs; nothing is written anywhere."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import subprocess
 import sys
@@ -16,7 +14,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_twin.cli import main
+from conftest import run_cli
 from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES
 
@@ -87,10 +85,8 @@ DOC_ROWS = (Path(__file__).parents[1] / "docs" / "hostile_inputs.md").read_text(
 
 
 def _validate(path: Path) -> tuple[int, str]:
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = main(["validate", str(path)])
-    return code, err.getvalue()
+    code, _, err = run_cli("validate", path)
+    return code, err
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
@@ -146,6 +142,17 @@ def test_an_unwritable_out_is_refused_before_the_run(tmp_path, out):
     assert proc.returncode == 2 and "--out" in proc.stderr and "running" not in proc.stderr, proc.stderr
 
 
+def _good_with_key(key: str, value) -> dict:
+    """The good scenario with ``value`` at ``key`` (a dotted path, numbers index lists)."""
+    raw = yaml.safe_load(GOOD)
+    node = raw
+    parts = [int(p) if p.isdigit() else p for p in key.split(".")]
+    for part in parts[:-1]:
+        node = node[part] if isinstance(part, int) else node.setdefault(part, {})
+    node[parts[-1]] = value
+    return raw
+
+
 numbers = st.one_of(st.floats(allow_nan=False), st.sampled_from([1e308, -1e308, 5e-324, 1e9 + 1, 0.0, -0.0]),
                     st.integers(-2**80, 2**80))
 NUMERIC_KEYS = ["seed", "max_time", "timing.interpolation_period", "timing.servo_period", "timing.physics_timestep",
@@ -160,12 +167,7 @@ NUMERIC_KEYS = ["seed", "max_time", "timing.interpolation_period", "timing.servo
 def test_fuzzed_numbers_names_nesting_and_duplicates_never_escape(tmp_path, key, value, name, depth, duplicate):
     """Huge and tiny numbers at real keys, any name, nesting and duplicate keys: exit 0 or exit 2
     with one printable line; never a traceback, never a file written."""
-    raw = yaml.safe_load(GOOD)
-    node = raw
-    parts = [int(p) if p.isdigit() else p for p in key.split(".")]
-    for part in parts[:-1]:
-        node = node[part] if isinstance(part, int) else node.setdefault(part, {})
-    node[parts[-1]] = value
+    raw = _good_with_key(key, value)
     raw["name"] = name
     if depth:
         raw["description"] = json.loads("[" * depth + "]" * depth)
@@ -224,12 +226,7 @@ def test_fuzzed_scenarios_that_validate_also_run_cleanly(tmp_path, key, value):
 
     from hypothesis import assume
 
-    raw = yaml.safe_load(GOOD)
-    node = raw
-    parts = [int(p) if p.isdigit() else p for p in key.split(".")]
-    for part in parts[:-1]:
-        node = node[part] if isinstance(part, int) else node.setdefault(part, {})
-    node[parts[-1]] = value
+    raw = _good_with_key(key, value)
     folder = tmp_path / "f"
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir()

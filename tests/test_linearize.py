@@ -85,15 +85,9 @@ def test_the_verification_step_goes_the_way_that_stays_inside_the_soft_limits():
 
 
 def _tune(*args: str) -> tuple[int, str, str]:
-    import contextlib
-    import io
+    from conftest import run_cli
 
-    from cnc_twin.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["tune", str(default_scenario()), *args])
-    return code, out.getvalue(), err.getvalue()
+    return run_cli("tune", default_scenario(), *args)
 
 
 def _row(text: str, name: str) -> dict[str, float]:

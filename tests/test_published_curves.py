@@ -162,21 +162,17 @@ def test_a_planner_failure_reaches_the_metrics_with_its_own_reason():
 def test_a_planner_failure_is_named_on_stderr_and_in_the_run_directory(tmp_path, monkeypatch):
     """The same failure through `cnc-twin run` (the scenario handed over past the loader): exit 3,
     the fault line on stderr carries the planner's own exception, and so does metrics.json."""
-    import contextlib
-    import io
     import json
 
     import cnc_twin.scenario.load as loader
-    from cnc_twin.cli import main
+    from conftest import run_cli
 
     too_long = _too_long_stella()
     monkeypatch.setattr(loader, "load_scenario", lambda *args, **kwargs: too_long)
-    err = io.StringIO()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main(["run", str(scenarios_dir() / "published" / "stella.yaml"), "--out", str(tmp_path / "run"),
-                     "--quiet", "--no-rrd"])
-    line = next(line for line in err.getvalue().splitlines() if line.startswith("fault "))
-    assert code == 3 and "ValueError: curve of 1500 control points" in line, err.getvalue()
+    code, _, err = run_cli("run", scenarios_dir() / "published" / "stella.yaml", "--out", tmp_path / "run",
+                           "--quiet", "--no-rrd")
+    line = next(line for line in err.splitlines() if line.startswith("fault "))
+    assert code == 3 and "ValueError: curve of 1500 control points" in line, err
     metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert "ValueError: curve of 1500 control points" in metrics["fault"]["message"]
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from cnc_twin.gcode.expressions import ExpressionError, MAX_PARAMETER, Parameters, integer_of, read_real
+from cnc_twin.gcode.expressions import ExpressionError, Parameters, read_parameter_key, read_real
 
 WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz") - {"n", "o"}
 """letters that start a word (``n`` is the line number, ``o`` an O-word, read apart)"""
@@ -120,20 +120,11 @@ def read_block(text: str, line: int, params: Parameters) -> Block:
 
 def _assignment(norm: str, pos: int, params: Parameters, block: Block) -> int:
     """``#index=value`` or ``#<name>=value`` at ``norm[pos]``; the index after it."""
-    if norm.startswith("#<", pos):
-        end = norm.find(">", pos + 2)
-        if end < 0:
-            raise BlockError("Named parameter not terminated")
-        key: int | str = norm[pos + 2:end]
-        pos = end + 1
+    key, pos = read_parameter_key(norm, pos, params)
+    if isinstance(key, str):
         # the name exists from here on in the line (0 until the line's settings apply), as in
         # LinuxCNC: `#<d>=-3 Z#<d>` reads 0, `#<e>=[#<e>+1]` sets 1; read before it, not defined
         params.named.setdefault(key, 0.0)
-    else:
-        value, pos = read_real(norm, pos + 1, params)
-        key = integer_of(value)
-        if not 1 <= key <= MAX_PARAMETER:
-            raise BlockError("Parameter number out of range")
     if not norm.startswith("=", pos):
         raise BlockError("Equal sign missing in parameter setting")
     value, pos = read_real(norm, pos + 1, params)

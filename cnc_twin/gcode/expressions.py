@@ -74,6 +74,12 @@ def read_real(text: str, pos: int, params: Parameters) -> tuple[float, int]:
     return _Reader(text, params).real(pos)
 
 
+def read_parameter_key(text: str, pos: int, params: Parameters) -> tuple[int | str, int]:
+    """The parameter ``#n`` or ``#<name>`` at ``text[pos]`` (``'#'``) names, and the index after
+    it: what a parameter setting assigns to."""
+    return _Reader(text, params).key(pos)
+
+
 def integer_of(value: float) -> int:
     """``value`` as a whole number, or LinuxCNC's error when it is not close to one."""
     whole = round(value)
@@ -146,18 +152,23 @@ class _Reader:
             raise ExpressionError(f"bad number format (conversion failed) parsing '{token}'")
         return float(token), end
 
-    def parameter(self, pos: int) -> tuple[float, int]:
+    def key(self, pos: int) -> tuple[int | str, int]:
+        """The parameter named at ``text[pos]`` (``'#'``): a name, or an index in range."""
         text = self.text
         if pos + 1 < len(text) and text[pos + 1] == "<":
             end = text.find(">", pos + 2)
             if end < 0:
                 raise ExpressionError("Named parameter not terminated")
-            return self.params.name(text[pos + 2:end]), end + 1
+            return text[pos + 2:end], end + 1
         value, pos = self.real(pos + 1)
         index = integer_of(value)
         if not 1 <= index <= MAX_PARAMETER:
             raise ExpressionError("Parameter number out of range")
-        return self.params.number(index), pos
+        return index, pos
+
+    def parameter(self, pos: int) -> tuple[float, int]:
+        key, pos = self.key(pos)
+        return (self.params.name(key) if isinstance(key, str) else self.params.number(key)), pos
 
     def function(self, pos: int) -> tuple[float, int]:
         text = self.text

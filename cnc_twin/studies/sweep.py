@@ -97,6 +97,8 @@ def _number(text: str) -> Any:
     return text
 
 
+DEFAULT_WORKERS = 2
+"""local worker processes when none are asked for"""
 MAX_CASES = 1_000_000
 """most cases a sweep runs (a larger grid is an error, not a week of computing)"""
 CONFIRM_CASES = 1000
@@ -218,7 +220,7 @@ def run_local(scenario_file: str, todo: list[dict[str, Any]], *, workers: int | 
     try:
         queue, failed = deque(range(len(todo))), []
         while queue and stop.reason is None:
-            failed += _run_pool(scenario_file, todo, queue, rows, workers or 2, case_fn, stop, done)
+            failed += _run_pool(scenario_file, todo, queue, rows, workers or DEFAULT_WORKERS, case_fn, stop, done)
         for i in sorted(failed):
             if stop.reason is not None:
                 break
