@@ -1,4 +1,4 @@
-"""``cnc-twin`` command line: run | validate | bench.
+"""``cnc-twin`` command line: run | view | validate | tune | sweep | bench | gcode.
 
 Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 3 the run ended by a
 fault (the run directory is complete and says which); 130 interrupted by SIGINT (Ctrl-C), 143 by
@@ -19,6 +19,7 @@ from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
+from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
 from cnc_twin.scenario.resources import default_scenario
 
@@ -80,6 +81,13 @@ def build_parser() -> argparse.ArgumentParser:
     validate = sub.add_parser("validate", help="check scenario files without running them")
     validate.add_argument("scenarios", nargs="+", type=Path)
 
+    gcode = sub.add_parser("gcode", help="read an NC program as LinuxCNC reads it and list what it makes")
+    gcode.add_argument("program", type=Path, help="RS274/NGC program (.ngc)")
+    gcode.add_argument("--canon", action="store_true",
+                       help="print the canonical machine calls in the text form of LinuxCNC's rs274 -g")
+    gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: none)")
+    gcode.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
+
     bench = sub.add_parser("bench", help="twin wall time against bare MuJoCo stepping, in one process")
     bench.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
     bench.add_argument("--repeat", type=int, default=3, help="measurements of each side; the best counts")
@@ -92,7 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
-    handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune}
+    handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
+                "gcode": _gcode}
     if args.whole_process and args.command not in ("run", "sweep"):
         # The program's start handlers (cnc_twin/entry.py) end it at once; from here Ctrl-C is a
         # KeyboardInterrupt and SIGTERM ends these commands as Ctrl-C does: through the runs'
@@ -393,6 +402,17 @@ def _validate(args: argparse.Namespace) -> int:
     return EXIT_BAD_INPUT if bad else EXIT_OK
 
 
+def _gcode(args: argparse.Namespace) -> int:
+    from cnc_twin.gcode.listing import list_program
+
+    lines, error = list_program(args.program, args.tool_table, args.tool_units, args.canon)
+    print("\n".join(lines))
+    if error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return EXIT_OK
+
+
 def describe_program(program) -> str:
     """One line on what a program does."""
     from cnc_twin.run.program_kinds import kind_of
@@ -452,52 +472,6 @@ def _default_run_dir(parent: Path, name: str) -> Path:
         candidate = parent / f"{name}-{stamp}-{n}"
         n += 1
     return candidate
-
-
-def summary_table(metrics: dict) -> str:
-    """The terminal summary: timing line and one row per axis."""
-    lines = [
-        f"{metrics['scenario']}: {metrics['sim_time_s']:.3f} s simulated in {metrics['wall_time_s']:.2f} s "
-        f"({metrics['real_time_factor']:.1f}x real time), {metrics['physics_steps']} physics steps",
-    ]
-    # analog output: ticks each DAC spent clamped; pulse output: ticks at the pulse rate limit
-    limited = metrics.get("pulse_limited_ticks") or metrics["dac_saturation_ticks"]
-    lines.append(f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}"
-                 f"{'rate lim' if 'pulse_limited_ticks' in metrics else 'DAC sat':>9}")
-    for axis, fe in metrics["following_error"].items():
-        final = metrics["final_following_error"][axis]
-        unit = fe["unit"]
-        lines.append(
-            f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
-            f"{limited[axis]:>9d}"
-        )
-    wb = metrics.get("whiteboard")
-    if wb:
-        lat = wb["exchange_latency_us"]
-        lines.append(
-            f"whiteboard ({metrics['mode']}): {wb['exchanges']} exchanges, {wb['missed_exchanges']} missed, "
-            f"{wb['records_accepted']} records accepted, {wb['records_rejected']} rejected, "
-            f"{wb['underrun_periods']} underrun periods"
-            + (f", answer latency median {lat['median']:.1f} us" if lat["median"] is not None else "")
-        )
-    path = metrics.get("path")
-    if path and "contour_error_um" in path:
-        lines.append(
-            f"path: {path['length_mm']:.1f} mm, contour error max {path['contour_error_um']['max']:.2f} um "
-            f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
-            f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
-        )
-    for v in (path or {}).get("limit_violations", []):
-        lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
-                     f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
-    if metrics.get("contour"):
-        from cnc_twin.run.contour_metrics import format_passes
-
-        lines.append(format_passes(metrics["contour"]))
-    lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")
-    if metrics.get("mujoco_warnings"):
-        lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
-    return "\n".join(lines)
 
 
 class _NullStream:

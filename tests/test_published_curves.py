@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cnc_twin import ScenarioError, load_scenario
-from cnc_twin.cli import summary_table
+from cnc_twin.run.summary import summary_table
 from cnc_twin.planner.curve_program import curve_setup
 from cnc_twin.planner.feed import plan_feed, plan_feed_windows
 from cnc_twin.scenario.load import scenario_from_text

@@ -5,6 +5,16 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 - :mod:`~cnc_twin.gcode.blocks`        one line read into a block: words, comments, N, ``/``, O-words,
   parameter settings applied after the line
 - :mod:`~cnc_twin.gcode.modal`         G and M codes into modal groups, refused as LinuxCNC refuses them
+- :mod:`~cnc_twin.gcode.source`        a file's lines, ``%`` markers, O-word lines for jumps
+- :mod:`~cnc_twin.gcode.flow`          O-word control flow: subroutines, branches, loops
+- :mod:`~cnc_twin.gcode.comments`      ``(msg,...)``, ``(debug,...)``, ``(print,...)``, ``(log,...)``
+- :mod:`~cnc_twin.gcode.state`         modes, current point, work offsets, tool table, read-only parameters
+- :mod:`~cnc_twin.gcode.arcs`          G2 / G3 geometry and checks, bit for bit as LinuxCNC
+- :mod:`~cnc_twin.gcode.nurbs`         G5.2 / G5.3 and G6.2 curves into NURBS
+- :mod:`~cnc_twin.gcode.motion`        the motion step of a block
+- :mod:`~cnc_twin.gcode.interpreter`   a whole program run into canonical calls
+- :mod:`~cnc_twin.gcode.canon`         canonical calls and their rs274 text
+- :mod:`~cnc_twin.gcode.listing`       ``cnc-twin gcode``
 
-May import: ``core``. Imported by: (the program kind that runs G-code, to come).
+May import: ``core``, ``geometry``. Imported by: ``cli`` (and the program kind that runs G-code).
 """

@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 
 from cnc_twin.gcode.expressions import ExpressionError, Parameters, read_parameter_key, read_real
 
-WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz") - {"n", "o"}
-"""letters that start a word (``n`` is the line number, ``o`` an O-word, read apart)"""
+WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz@^") - {"n", "o"}
+"""letters that start a word (``n`` is the line number, ``o`` an O-word, read apart; ``@`` and
+``^`` are the polar radius and angle)"""
 REPEATABLE = frozenset("gm")
 """letters a block may hold more than once"""
 

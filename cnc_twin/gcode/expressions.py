@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
+
 EQUAL_TOLERANCE = 1e-4
 """``eq`` / ``ne`` treat values closer than this as equal (LinuxCNC's tolerance)"""
 INTEGER_TOLERANCE = 1e-4
@@ -51,15 +53,28 @@ class Parameters:
     def __init__(self):
         self.numbered: dict[int, float] = {}
         self.named: dict[str, float] = {}
+        self.live_numbered: dict[int, Callable[[], float]] = {}
+        """read-only parameters computed from the interpreter's state when read (``#5420``...)"""
+        self.live_named: dict[str, Callable[[], float]] = {}
+        """read-only named parameters computed when read (``#<_x>``, ``#<_metric>``...)"""
 
     def number(self, index: int) -> float:
+        live = self.live_numbered.get(index)
+        if live is not None:
+            return live()
         return self.numbered.get(index, 0.0)
 
     def name(self, name: str) -> float:
+        live = self.live_named.get(name)
+        if live is not None:
+            return live()
         try:
             return self.named[name]
         except KeyError:
             raise ExpressionError(f"Named parameter #<{name}> not defined") from None
+
+    def has_name(self, name: str) -> bool:
+        return name in self.named or name in self.live_named
 
 
 def evaluate(text: str, pos: int, params: Parameters) -> tuple[float, int]:
@@ -187,7 +202,7 @@ class _Reader:
             if pos + 1 >= len(text) or text[pos + 1] != "[":
                 raise ExpressionError("Left bracket missing after slash with atan")
             x, pos = self.expression(pos + 1)
-            return math.atan2(value, x) * 180.0 / math.pi, pos
+            return to_degrees(math.atan2(value, x)), pos
         return unary(name, value), pos
 
     def exists(self, pos: int) -> tuple[float, int]:
@@ -198,7 +213,7 @@ class _Reader:
             end = text.find(">", pos + 3)
             if end < 0 or text[end + 1:end + 2] != "]":
                 raise ExpressionError("Unknown operation")
-            return (1.0 if text[pos + 3:end] in self.params.named else 0.0), end + 2
+            return (1.0 if self.params.has_name(text[pos + 3:end]) else 0.0), end + 2
         _, end = self.parameter(pos + 1)  # a numbered parameter always exists
         if text[end:end + 1] != "]":
             raise ExpressionError("Unknown operation")
@@ -252,11 +267,28 @@ def binary(op: str, a: float, b: float) -> float:
     return result
 
 
+PI_LONG = np.longdouble("3.141592653589793238462643383279502884")
+"""M_PIl: LinuxCNC converts angles with the C ``long double`` pi, in long double arithmetic"""
+_DEGREES = np.longdouble(180.0)
+
+
+def _trig(function) -> Callable[[float], float]:
+    """``function`` of an angle in degrees as LinuxCNC computes it: ``sin((x * M_PIl) / 180.0)``
+    in long double (C++ picks ``sinl`` for a long double argument), rounded to double at the end;
+    ``sin[-180]`` is then +5e-20, not -1.2e-16, and the sign shows in four decimals."""
+    return lambda x: float(function(np.longdouble(x) * PI_LONG / _DEGREES))
+
+
+def to_degrees(radians: float) -> float:
+    """``(r * 180.0) / M_PIl`` as LinuxCNC writes it: a double product, a long double quotient."""
+    return float(np.longdouble(radians * 180.0) / PI_LONG)
+
+
 _UNARY: dict[str, Callable[[float], float]] = {
     "abs": abs,
-    "cos": lambda x: math.cos(x * math.pi / 180.0),  # in that order, as the C reference computes it
-    "sin": lambda x: math.sin(x * math.pi / 180.0),
-    "tan": lambda x: math.tan(x * math.pi / 180.0),
+    "cos": _trig(np.cos),
+    "sin": _trig(np.sin),
+    "tan": _trig(np.tan),
     "exp": lambda x: math.exp(x) if x < 709.0 else math.inf,
     "fix": lambda x: float(math.floor(x)),
     "fup": lambda x: float(math.ceil(x)),
@@ -269,7 +301,7 @@ def unary(name: str, x: float) -> float:
     if name == "acos" or name == "asin":
         if not -1.0 <= x <= 1.0:
             raise ExpressionError(f"Argument to {name} out of range")
-        return (math.acos(x) if name == "acos" else math.asin(x)) * 180.0 / math.pi
+        return to_degrees(math.acos(x) if name == "acos" else math.asin(x))
     if name == "ln":
         if x <= 0.0:
             raise ExpressionError("Zero or negative argument to ln")

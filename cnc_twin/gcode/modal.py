@@ -15,7 +15,7 @@ G_GROUPS: dict[int, int] = {}
 for _group, _codes in {
     0: (40, 100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923),
     1: (0, 10, 20, 30, 50, 51, 52, 53, 330, 331, 382, 383, 384, 385, 730, 740, 760, 800, 810, 820, 830, 840, 850,
-        860, 870, 880, 890),
+        860, 870, 880, 890, 700, 710, 711, 712, 720, 721, 722),
     2: (170, 171, 180, 181, 190, 191),
     3: (900, 910),
     4: (901, 911),
@@ -31,6 +31,11 @@ for _group, _codes in {
 }.items():
     for _code in _codes:
         G_GROUPS[_code] = _group
+
+EXTENSIONS = {62: 1}
+"""codes the twin reads that LinuxCNC 2.9 does not know -> group: G6.2, the Fanuc-style NURBS
+block (explicit knots and weights) of the published benchmark curves"""
+G_GROUPS.update(EXTENSIONS)
 
 M_GROUPS: dict[int, int] = {}
 """M code -> its modal group"""

@@ -1,0 +1,86 @@
+"""Canonical machine calls: what the reader makes of a program, in the text form of LinuxCNC's
+``rs274 -g`` so the two can be diffed line for line.
+
+A :class:`Call` keeps its arguments as values (program units: mm or inch as the program's
+G20 / G21 says, degrees for A B C) and formats them only when printed: four decimals for
+positions, feeds, times and offsets, six for the path tolerance, as rs274 prints them. The twin
+reads the same calls (:mod:`~cnc_twin.gcode.toolpath`), so what a user diffs is what runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cnc_twin.gcode.arcs import arc_feed_text
+
+PLANES = {170: "CANON_PLANE_XY", 180: "CANON_PLANE_XZ", 190: "CANON_PLANE_YZ"}
+"""G17 / G18 / G19 (tenths) -> rs274's plane name"""
+UNITS = {200: "CANON_UNITS_INCHES", 210: "CANON_UNITS_MM"}
+"""G20 / G21 (tenths) -> rs274's unit name"""
+
+
+def _f4(values) -> str:
+    return ", ".join(f"{v:.4f}" for v in values)
+
+
+def _quoted(values) -> str:
+    return f'"{values[0]}"'
+
+
+def _plain(values) -> str:
+    return ", ".join(str(v) for v in values)
+
+
+_FORMATS = {
+    "STRAIGHT_TRAVERSE": _f4,
+    "STRAIGHT_FEED": _f4,
+    "SET_FEED_RATE": _f4,
+    "DWELL": _f4,
+    "SET_XY_ROTATION": _f4,
+    "SET_NAIVECAM_TOLERANCE": _f4,
+    "SET_G92_OFFSET": _f4,
+    "SET_G5X_OFFSET": lambda v: f"{v[0]}, " + _f4(v[1:]),
+    "USE_LENGTH_UNITS": lambda v: UNITS[v[0]],
+    "SELECT_PLANE": lambda v: PLANES[v[0]],
+    "SET_MOTION_CONTROL_MODE": lambda v: v[0] if len(v) == 1 else f"{v[0]}, {v[1]:.6f}",
+    "SET_SPINDLE_SPEED": lambda v: f"0, {v[0]:.4f}",
+    "SET_SPINDLE_MODE": lambda v: f"0 {v[0]:.4f}",
+    "SET_FEED_MODE": lambda v: f"0, {v[0]}",
+    "USE_TOOL_LENGTH_OFFSET": lambda v: ", ".join(" ".join(f"{x:.4f}" for x in v[k:k + 3]) for k in (0, 3, 6)),
+    "COMMENT": _quoted,
+    "MESSAGE": _quoted,
+    "LOG": _quoted,
+    "LOGOPEN": _quoted,
+    "LOGAPPEND": _quoted,
+    "NURBS_FEED": lambda v: f"{v[0]}, ...",
+}
+"""call name -> its arguments' text; names absent here print their values plainly"""
+
+
+@dataclass(frozen=True)
+class Call:
+    """One canonical call.
+
+    ``name``: rs274's name; ``values``: the arguments (see :data:`_FORMATS` for each name's
+    form); ``line``: the program line (1-based) that made it, 0 for the interpreter's own
+    start-up calls; ``number``: the block's N word as written (``"0030"``), or None;
+    ``payload``: what the twin needs beyond the printed text (an arc's or a curve's geometry).
+    """
+
+    name: str
+    values: tuple = ()
+    line: int = 0
+    number: str | None = None
+    payload: object = None
+
+    @property
+    def arguments(self) -> str:
+        """The text between the parentheses, as rs274 prints it."""
+        if self.name == "ARC_FEED":
+            return arc_feed_text(self.payload, *self.values)
+        return _FORMATS.get(self.name, _plain)(self.values)
+
+    def text(self, sequence: int) -> str:
+        """The whole line as ``rs274 -g`` prints it, ``sequence`` being the call's 1-based count."""
+        number = "....." if self.number is None else self.number
+        return f"{sequence:5d} N{number:<5} {self.name}({self.arguments})"

@@ -1,0 +1,229 @@
+"""The motion step of a block, as LinuxCNC's interpreter makes it: the end point from the axis
+words (absolute, incremental or, with G53, machine coordinates), then a traverse, a feed, an
+arc, a NURBS curve (G5.2 ... G5.3, or the Fanuc-style G6.2), a dwell or a return to a stored
+position (G28 / G30).
+
+Positions are program coordinates in the program's units (see :mod:`~cnc_twin.gcode.state`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cnc_twin.gcode.arcs import arc_move, glibc_hypot
+from cnc_twin.gcode.blocks import Block, BlockError
+from cnc_twin.gcode.expressions import PI_LONG
+from cnc_twin.gcode.nurbs import G52Collector, G62Collector
+from cnc_twin.gcode.state import HOME_PARAMETERS
+
+if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed here
+    from cnc_twin.gcode.interpreter import Interpreter
+
+AXIS_LETTERS = "xyzabc"
+NURBS_STARTS = {52: G52Collector, 62: G62Collector}
+"""G5.2 / G6.2 (tenths) -> what gathers their blocks into one curve"""
+NURBS_END = 53
+"""G5.3 ends a G5.2 curve"""
+
+
+class MotionRunner:
+    """Motion for one :class:`~cnc_twin.gcode.interpreter.Interpreter`; ``nurbs`` is the curve
+    being gathered, or None."""
+
+    def __init__(self, interpreter: "Interpreter"):
+        self.interpreter = interpreter
+        self.state = interpreter.state
+        self.nurbs = None
+        self.nurbs_kind = None
+
+    def ends(self, block: Block, machine: bool = False) -> list[float]:
+        """The programmed end point: axes without a word keep the current value."""
+        s = self.state
+        end = list(s.position)
+        for axis, letter in enumerate(AXIS_LETTERS):
+            if letter in block.words:
+                value = block.words[letter]
+                if machine:  # G53: machine coordinates of the tool tip
+                    end[axis] = s.from_machine(axis, value)
+                elif s.distance == 910:
+                    end[axis] = s.position[axis] + value
+                else:
+                    end[axis] = value
+        if "@" in block.words or "^" in block.words:
+            self._polar(block, end)
+        return end
+
+    def _polar(self, block: Block, end: list[float]) -> None:
+        """``@`` radius and ``^`` angle (degrees) about the program's XY origin, LinuxCNC's polar
+        coordinates (its find_ends): absolute (G90), or in G91 the radius added first and then
+        the angle turned, each from the point the step before left."""
+        s = self.state
+        words = block.words
+        if "x" in words or "y" in words:
+            raise BlockError("Cannot specify X or Y words with polar coordinate")
+        x, y = s.position[0], s.position[1]
+        if s.distance == 900:
+            if "@" in words and "^" in words:
+                radius, theta = words["@"], _radians(words["^"])
+            elif "@" in words:
+                if x == 0 and y == 0:
+                    raise BlockError("Must specify angle in polar coordinate if at the origin")
+                radius, theta = words["@"], math.atan2(y, x)
+            else:
+                radius, theta = glibc_hypot(y, x), _radians(words["^"])
+            end[0], end[1] = radius * math.cos(theta), radius * math.sin(theta)
+            return
+        if "@" in words:
+            if x == 0 and y == 0:
+                raise BlockError("Incremental motion with polar coordinates is indeterminate when at the origin")
+            theta = math.atan2(y, x)
+            radius = glibc_hypot(y, x) + words["@"]
+            x, y = radius * math.cos(theta), radius * math.sin(theta)
+        if "^" in words:
+            if x == 0 and y == 0:
+                raise BlockError("G91 motion with polar coordinates is indeterminate when at the origin")
+            theta = math.atan2(y, x) + _radians(words["^"])
+            radius = glibc_hypot(y, x)
+            x, y = radius * math.cos(theta), radius * math.sin(theta)
+        end[0], end[1] = x, y
+
+    def _check_feed(self, block: Block, name: str) -> None:
+        s = self.state
+        if s.feed_mode == 930:
+            if "f" not in block.words:
+                raise BlockError(f"F word missing with inverse time {name} move")
+        elif s.feed <= 0.0:
+            raise BlockError(f"Cannot do {name} with zero feed rate")
+
+    def move(self, motion: int, block: Block, machine: bool) -> None:
+        """The block's motion in mode ``motion`` (tenths: 0, 10, 20, 30, 52, 53, 62)."""
+        s = self.state
+        emit = self.interpreter.emit
+        if self.nurbs is not None and motion not in (self.nurbs_kind, NURBS_END):
+            raise BlockError(f"G{self.nurbs_kind / 10:g} curve not ended before another motion")
+        if motion in NURBS_STARTS or motion == NURBS_END:
+            self._nurbs(motion, block)
+            return
+        end = self.ends(block, machine)
+        if motion == 0:
+            emit("STRAIGHT_TRAVERSE", *end)
+        elif motion == 10:
+            self._check_feed(block, "g1")
+            if s.feed_mode == 930:
+                self._inverse_time(block, straight_length(s.position, end))
+            emit("STRAIGHT_FEED", *end)
+        else:
+            # LinuxCNC checks the feed in the middle of the arc's own checks
+            feed_error = None
+            if s.feed_mode == 930 and "f" not in block.words:
+                feed_error = "F word missing with inverse time arc move"
+            elif s.feed_mode != 930 and s.feed <= 0.0:
+                feed_error = "Cannot make arc with zero feed rate"
+            arc = arc_move(s.plane, motion == 20, tuple(s.position[:3]), tuple(end[:3]), block.words,
+                           s.ijk_distance == 901, s.units == 210, feed_error=feed_error)
+            if s.feed_mode == 930:
+                self._inverse_time(block, arc_length(s.plane, s.position, arc))
+            emit("ARC_FEED", *end[3:], payload=arc)
+        s.position = end
+
+    def _inverse_time(self, block: Block, length: float) -> None:
+        """G93: the move's feed in units per minute is its length times F (at least 0.1)."""
+        self.state.feed = max(0.1, length * block.words["f"])
+        self.interpreter.emit("SET_FEED_RATE", self.state.feed)
+
+    def _nurbs(self, motion: int, block: Block) -> None:
+        """A block of a NURBS curve. G5.2 points are all relative to the point before the curve
+        (LinuxCNC moves its current point only at G5.3); G6.2 points follow one another."""
+        s = self.state
+        line = block.line
+        feed = s.feed if s.feed_mode == 940 else None
+        if motion == NURBS_END:
+            if self.nurbs is None or self.nurbs_kind != 52:
+                raise BlockError("Cannot use G5.3 without G5.2 first")
+            self._finish(line)
+            return
+        point = tuple(self.ends(block)[:3])
+        if self.nurbs is None or (motion == 52 and any(round(g * 10) == 52 for g in block.g)):
+            self.nurbs = NURBS_STARTS[motion](tuple(s.position[:3]), s.plane, block.words, point, line, feed)
+            self.nurbs_kind = motion
+        else:
+            self.nurbs.add(block.words, point, line, feed)
+        if motion == 62:
+            s.position[:3] = list(point)
+            if self.nurbs.complete:
+                self._finish(line)
+
+    def _finish(self, line: int) -> None:
+        curve = self.nurbs.finish(line)
+        self.nurbs = self.nurbs_kind = None
+        end = [float(v) for v in curve.control_points[-1]]
+        self.state.position[:3] = end
+        self.interpreter.emit("NURBS_FEED", len(curve.control_points), payload=curve)
+
+    def dwell(self, block: Block) -> None:
+        seconds = block.words["p"]
+        if seconds < 0:
+            raise BlockError("Negative dwell time (G4 P)")
+        self.interpreter.emit("DWELL", seconds)
+
+    def home(self, code: int, block: Block, given: list[int]) -> None:
+        """G28 / G30: through the programmed point, then to the stored position (#5161.. /
+        #5181.., machine coordinates): the named axes, or all of them when none is named."""
+        s = self.state
+        emit = self.interpreter.emit
+        middle = self.ends(block)
+        emit("STRAIGHT_TRAVERSE", *middle)
+        base = HOME_PARAMETERS[code]
+        end = list(middle)
+        for axis in (given or range(6)):
+            end[axis] = s.from_machine(axis, self.interpreter.params.number(base + axis))
+        emit("STRAIGHT_TRAVERSE", *end)
+        s.position = end
+
+
+def _radians(degrees: float) -> float:
+    """LinuxCNC's D2R."""
+    return degrees * math.pi / 180.0
+
+
+PLANE_AXES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+"""plane (G17 / G18 / G19 in tenths) -> indices of its first, second and normal axes"""
+
+
+STRAIGHT_TINY = 1e-7
+"""an axis moving less than this does not count in LinuxCNC's inverse-time length"""
+
+
+def straight_length(start, end) -> float:
+    """LinuxCNC's length of a straight move for inverse time: the XYZ distance, or the ABC
+    distance (degrees) for a move of rotary axes only."""
+    if any(abs(start[k] - end[k]) > STRAIGHT_TINY for k in range(3)):
+        return math.sqrt((end[0] - start[0]) ** 2 + (end[1] - start[1]) ** 2 + (end[2] - start[2]) ** 2)
+    return math.sqrt((end[3] - start[3]) ** 2 + (end[4] - start[4]) ** 2 + (end[5] - start[5]) ** 2)
+
+
+def arc_length(plane: int, start, arc) -> float:
+    """LinuxCNC's length of an arc or helix for inverse time (its find_arc_length / find_turn)."""
+    first, second, normal = PLANE_AXES[plane]
+    x1, y1 = start[first], start[second]
+    radius = math.hypot(arc.first_center - x1, arc.second_center - y1)
+    turn = arc.rotation
+    theta = 0.0
+    if turn != 0:
+        alpha = math.atan2(y1 - arc.second_center, x1 - arc.first_center)
+        beta = math.atan2(arc.second_end - arc.second_center, arc.first_end - arc.first_center)
+        # as find_turn writes it: 2 * M_PIl in long double, each result rounded to double
+        if turn > 0:
+            if beta <= alpha:
+                beta = float(beta + 2 * PI_LONG)
+            theta = float(np.longdouble(beta - alpha) + (turn - 1) * (2 * PI_LONG))
+        else:
+            if alpha <= beta:
+                alpha = float(alpha + 2 * PI_LONG)
+            theta = float(np.longdouble(beta - alpha) + (turn + 1) * (2 * PI_LONG))
+    if arc.axis_end == start[normal]:
+        return radius * abs(theta)
+    return math.hypot(radius * theta, arc.axis_end - start[normal])

@@ -1,0 +1,115 @@
+"""A program's text as LinuxCNC's interpreter walks it: its lines, where it ends, and its O-word
+lines, so control flow can jump without reading the program twice.
+
+- A program whose first non-blank line is ``%`` ends at the next ``%`` line (the interpreter's
+  ``FINISH``); lines after it are never read. Without a leading ``%``, the program must end with
+  M2 / M30 before the file does (``File ended with no percent sign or program end``).
+- An O-word line is ``o<name> keyword [argument...]`` or ``o123 keyword ...``: the name is lower
+  case without spaces (as every line outside comments), the keyword one of :data:`KEYWORDS`.
+  Control flow finds its partner lines (``endsub``, ``else``, ``endwhile`` ...) by name, as
+  LinuxCNC does, not by nesting.
+"""
+
+from __future__ import annotations
+
+import bisect
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from cnc_twin.gcode.blocks import BlockError, normalise
+
+KEYWORDS = ("sub", "endsub", "call", "return", "if", "elseif", "else", "endif", "while", "endwhile", "do",
+            "repeat", "endrepeat", "break", "continue")
+"""O-word keywords, LinuxCNC's set"""
+_O_LINE = re.compile(r"^(?:n[\d.]*)?o(<[^>]*>|\d+)([a-z]*)(.*)$")
+_BLOCK_DELETE = re.compile(r"^\s*/")
+
+
+class SourceError(ValueError):
+    """A program file that cannot be read at all (not text); ``line`` is 0 when it is the file."""
+
+    def __init__(self, line: int, message: str):
+        self.line = line
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class OLine:
+    """An O-word line: ``name`` (``<name>`` or the number's digits), ``keyword``, ``rest`` (the
+    normalised text after the keyword: arguments or a condition), ``index`` (0-based line)."""
+
+    name: str
+    keyword: str
+    rest: str
+    index: int
+
+
+class Source:
+    """The lines of one program.
+
+    ``lines``: the raw lines (no newline characters); ``first``, ``end``: the range of 0-based
+    line indices the interpreter reads (after a leading ``%``, up to a closing one);
+    ``percent_end``: whether ``end`` is a closing ``%`` line; ``o_lines``: 0-based index -> OLine
+    for every O-word line in that range.
+    """
+
+    def __init__(self, text: str, name: str = "program.ngc"):
+        self.name = name
+        self.lines = text.splitlines()
+        self.first, self.end, self.percent_end = 0, len(self.lines), False
+        for k, line in enumerate(self.lines):
+            if line.strip():
+                if line.strip() == "%":
+                    self.first = k + 1
+                    closing = next((j for j in range(k + 1, len(self.lines)) if self.lines[j].strip().startswith("%")),
+                                   None)
+                    if closing is not None:
+                        self.end, self.percent_end = closing, True
+                break
+        self.o_lines: dict[int, OLine] = {}
+        for k in range(self.first, self.end):
+            text_k = self.lines[k]
+            if "o" not in text_k and "O" not in text_k:
+                continue
+            o_line = self._o_line(k)
+            if o_line is not None:
+                self.o_lines[k] = o_line
+        self._o_order = sorted(self.o_lines)
+
+    @classmethod
+    def read(cls, path: Path) -> "Source":
+        """The program in ``path``; a file that is not text is refused in one line."""
+        data = Path(path).read_bytes()
+        if b"\0" in data:
+            raise SourceError(0, "not a text file (it contains NUL bytes)")
+        return cls(data.decode("utf-8", errors="replace"), Path(path).name)
+
+    def _o_line(self, k: int) -> OLine | None:
+        text = self.lines[k]
+        if _BLOCK_DELETE.match(text):
+            return None
+        try:
+            norm, _ = normalise(text)
+        except BlockError:
+            return None  # the line's own reading reports it
+        match = _O_LINE.match(norm)
+        if match is None:
+            return None
+        return OLine(match.group(1), match.group(2), match.group(3), k)
+
+    def find_forward(self, start: int, name: str, keywords: tuple[str, ...]) -> OLine | None:
+        """The first O-word line after index ``start`` with ``name`` and one of ``keywords``."""
+        for k in self._o_order[bisect.bisect_right(self._o_order, start):]:
+            o_line = self.o_lines[k]
+            if o_line.name == name and o_line.keyword in keywords:
+                return o_line
+        return None
+
+    def find_backward(self, start: int, name: str, keywords: tuple[str, ...]) -> OLine | None:
+        """The nearest O-word line before index ``start`` with ``name`` and one of ``keywords``."""
+        for k in reversed(self._o_order[:bisect.bisect_left(self._o_order, start)]):
+            o_line = self.o_lines[k]
+            if o_line.name == name and o_line.keyword in keywords:
+                return o_line
+        return None

@@ -1,0 +1,50 @@
+"""The terminal summary of a finished run: timing, following error per axis, whiteboard and
+path figures, limit warnings."""
+
+from __future__ import annotations
+
+
+def summary_table(metrics: dict) -> str:
+    """The terminal summary: timing line and one row per axis."""
+    lines = [
+        f"{metrics['scenario']}: {metrics['sim_time_s']:.3f} s simulated in {metrics['wall_time_s']:.2f} s "
+        f"({metrics['real_time_factor']:.1f}x real time), {metrics['physics_steps']} physics steps",
+    ]
+    # analog output: ticks each DAC spent clamped; pulse output: ticks at the pulse rate limit
+    limited = metrics.get("pulse_limited_ticks") or metrics["dac_saturation_ticks"]
+    lines.append(f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}"
+                 f"{'rate lim' if 'pulse_limited_ticks' in metrics else 'DAC sat':>9}")
+    for axis, fe in metrics["following_error"].items():
+        final = metrics["final_following_error"][axis]
+        unit = fe["unit"]
+        lines.append(
+            f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
+            f"{limited[axis]:>9d}"
+        )
+    wb = metrics.get("whiteboard")
+    if wb:
+        lat = wb["exchange_latency_us"]
+        lines.append(
+            f"whiteboard ({metrics['mode']}): {wb['exchanges']} exchanges, {wb['missed_exchanges']} missed, "
+            f"{wb['records_accepted']} records accepted, {wb['records_rejected']} rejected, "
+            f"{wb['underrun_periods']} underrun periods"
+            + (f", answer latency median {lat['median']:.1f} us" if lat["median"] is not None else "")
+        )
+    path = metrics.get("path")
+    if path and "contour_error_um" in path:
+        lines.append(
+            f"path: {path['length_mm']:.1f} mm, contour error max {path['contour_error_um']['max']:.2f} um "
+            f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
+            f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
+        )
+    for v in (path or {}).get("limit_violations", []):
+        lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
+                     f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
+    if metrics.get("contour"):
+        from cnc_twin.run.contour_metrics import format_passes
+
+        lines.append(format_passes(metrics["contour"]))
+    lines.append(f"final state: {metrics['final_state']}" if "final_state" in metrics else "")
+    if metrics.get("mujoco_warnings"):
+        lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
+    return "\n".join(lines)
