@@ -54,29 +54,28 @@ class Block:
 def normalise(text: str) -> tuple[str, list[str]]:
     """``text`` (one line, no newline) as LinuxCNC reads it: lower case without spaces outside
     comments, and the comments' texts apart."""
-    out: list[str] = []
     comments: list[str] = []
-    k = 0
-    while k < len(text):
-        c = text[k]
-        if c == "(":
-            end = text.find(")", k + 1)
-            if end < 0:
-                raise BlockError("Unclosed comment found")
-            inner = text[k + 1:end]
-            if "(" in inner:
-                raise BlockError("Nested comment found")
-            comments.append(inner.lstrip(" \t"))
-            k = end + 1
-            continue
-        if c == ";":
-            break
-        if c == ")":
+    out: list[str] = []
+    k, n = 0, len(text)
+    while k < n:
+        # whole stretches between comments at a time: a program is mostly such stretches
+        opening, semicolon = text.find("(", k), text.find(";", k)
+        end = min(x for x in (opening, semicolon, n) if x >= 0)
+        chunk = text[k:end]
+        if ")" in chunk:
             raise BlockError("Bad character ')' used")
-        if c not in " \t\r":
-            out.append(c.lower())
-        k += 1
-    return "".join(out), comments
+        out.append(chunk)
+        if end == n or end == semicolon:
+            break
+        close = text.find(")", end + 1)
+        if close < 0:
+            raise BlockError("Unclosed comment found")
+        inner = text[end + 1:close]
+        if "(" in inner:
+            raise BlockError("Nested comment found")
+        comments.append(inner.lstrip(" \t"))
+        k = close + 1
+    return "".join(out).replace(" ", "").replace("\t", "").replace("\r", "").lower(), comments
 
 
 def read_block(text: str, line: int, params: Parameters) -> Block:

@@ -21,6 +21,7 @@ tabs outside comments). Semantics, each checked against LinuxCNC's own interpret
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 
 import numpy as np
@@ -86,6 +87,9 @@ def evaluate(text: str, pos: int, params: Parameters) -> tuple[float, int]:
 def read_real(text: str, pos: int, params: Parameters) -> tuple[float, int]:
     """A real value at ``text[pos]`` (a number, ``[...]``, a parameter, a function, with an
     optional sign) and the index after it: what follows a word's letter."""
+    plain = _PLAIN.match(text, pos)
+    if plain is not None and (plain.end() == len(text) or text[plain.end()] != "."):
+        return float(plain.group()), plain.end()  # most words are a plain number: read it at once
     return _Reader(text, params).real(pos)
 
 
@@ -103,6 +107,22 @@ def integer_of(value: float) -> int:
     return int(whole)
 
 
+_PLAIN = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)")
+"""a signed number with at most one point"""
+_DIGITS = re.compile(r"[0-9.]*")
+_RANKS = dict(_OPERATORS)
+
+
+def _operator_at(text: str, pos: int) -> tuple[str, int] | None:
+    """The binary operator at ``text[pos]`` (the longest spelling that fits), or None."""
+    for width in (3, 2, 1):
+        name = text[pos:pos + width]
+        rank = _RANKS.get(name)
+        if rank is not None:
+            return name, rank
+    return None
+
+
 class _Reader:
     def __init__(self, text: str, params: Parameters):
         self.text, self.params = text, params
@@ -118,7 +138,7 @@ class _Reader:
         while True:
             if pos < len(text) and text[pos] == "]":
                 break
-            op = next(((name, rank) for name, rank in _OPERATORS if text.startswith(name, pos)), None)
+            op = _operator_at(text, pos)
             if op is None:
                 if pos < len(text) and text[pos] in _OPERATOR_INITIALS:
                     raise ExpressionError(f"Unknown operation name starting with {text[pos]}")
@@ -146,6 +166,9 @@ class _Reader:
         c = text[pos]
         if c == "[":
             return self.expression(pos)
+        plain = _PLAIN.match(text, pos)
+        if plain is not None and (plain.end() == len(text) or text[plain.end()] != "."):
+            return float(plain.group()), plain.end()
         if c in "+-":
             value, pos = self.real(pos + 1)
             return (-value if c == "-" else value), pos
@@ -157,9 +180,7 @@ class _Reader:
 
     def number(self, pos: int) -> tuple[float, int]:
         text = self.text
-        end = pos
-        while end < len(text) and (text[end].isdigit() or text[end] == "."):
-            end += 1
+        end = _DIGITS.match(text, pos).end()
         token = text[pos:end]
         if token.count(".") > 1:
             raise ExpressionError(f"bad number format (trailing characters) parsing '{token}'")
