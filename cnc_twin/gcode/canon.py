@@ -52,7 +52,6 @@ _FORMATS = {
     "LOG": _quoted,
     "LOGOPEN": _quoted,
     "LOGAPPEND": _quoted,
-    "NURBS_FEED": lambda v: f"{v[0]}, ...",
 }
 """call name -> its arguments' text; names absent here print their values plainly"""
 
@@ -78,6 +77,8 @@ class Call:
         """The text between the parentheses, as rs274 prints it."""
         if self.name == "ARC_FEED":
             return arc_feed_text(self.payload, *self.values)
+        if self.name == "NURBS_FEED":
+            return self.payload.canon_text()
         return _FORMATS.get(self.name, _plain)(self.values)
 
     def text(self, sequence: int) -> str:

@@ -87,10 +87,8 @@ def evaluate(text: str, pos: int, params: Parameters) -> tuple[float, int]:
 def read_real(text: str, pos: int, params: Parameters) -> tuple[float, int]:
     """A real value at ``text[pos]`` (a number, ``[...]``, a parameter, a function, with an
     optional sign) and the index after it: what follows a word's letter."""
-    plain = _PLAIN.match(text, pos)
-    if plain is not None and (plain.end() == len(text) or text[plain.end()] != "."):
-        return float(plain.group()), plain.end()  # most words are a plain number: read it at once
-    return _Reader(text, params).real(pos)
+    plain = _plain_number(text, pos)  # most words are a plain number: read it without a reader
+    return plain if plain is not None else _Reader(text, params).real(pos)
 
 
 def read_parameter_key(text: str, pos: int, params: Parameters) -> tuple[int | str, int]:
@@ -110,6 +108,15 @@ def integer_of(value: float) -> int:
 _PLAIN = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)")
 """a signed number with at most one point"""
 _DIGITS = re.compile(r"[0-9.]*")
+
+
+def _plain_number(text: str, pos: int) -> tuple[float, int] | None:
+    """A signed number at ``text[pos]`` and the index after it, or None when what is there is
+    more (an expression, a parameter...) or a malformed number (the reader then says why)."""
+    plain = _PLAIN.match(text, pos)
+    if plain is None or (plain.end() < len(text) and text[plain.end()] == "."):
+        return None
+    return float(plain.group()), plain.end()
 _RANKS = dict(_OPERATORS)
 
 
@@ -166,9 +173,9 @@ class _Reader:
         c = text[pos]
         if c == "[":
             return self.expression(pos)
-        plain = _PLAIN.match(text, pos)
-        if plain is not None and (plain.end() == len(text) or text[plain.end()] != "."):
-            return float(plain.group()), plain.end()
+        plain = _plain_number(text, pos)
+        if plain is not None:
+            return plain
         if c in "+-":
             value, pos = self.real(pos + 1)
             return (-value if c == "-" else value), pos

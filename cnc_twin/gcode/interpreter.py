@@ -208,8 +208,7 @@ class Interpreter:
             s.ijk_distance = g[4]
             self.emit("COMMENT", "interpreter: IJK distance mode changed to " +
                       ("absolute" if g[4] == 901 else "incremental"))
-        if g.get(15) == 80:
-            pass  # G8, radius mode: what a mill always is
+        # G8 (group 15), radius mode, is what a mill always is: nothing to do (G7 is refused)
         if 10 in g:
             s.retract = g[10]
             self.emit("COMMENT", "interpreter: retract mode set to " + ("old_z" if g[10] == 980 else "r_plane"))

@@ -16,7 +16,7 @@ import numpy as np
 from cnc_twin.gcode.arcs import arc_move, glibc_hypot
 from cnc_twin.gcode.blocks import Block, BlockError
 from cnc_twin.gcode.expressions import PI_LONG
-from cnc_twin.gcode.nurbs import G52Collector, G62Collector
+from cnc_twin.gcode.nurbs import G52Collector, G62Collector, NurbsBlock, g53
 from cnc_twin.gcode.state import HOME_PARAMETERS
 
 if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed here
@@ -90,13 +90,13 @@ class MotionRunner:
             x, y = radius * math.cos(theta), radius * math.sin(theta)
         end[0], end[1] = x, y
 
-    def _check_feed(self, block: Block, name: str) -> None:
+    def _feed_error(self, block: Block, missing: str, zero: str) -> str | None:
+        """LinuxCNC's refusal of the block's feed, or None: ``missing`` in inverse time without
+        an F, ``zero`` in units per minute at feed 0."""
         s = self.state
         if s.feed_mode == 930:
-            if "f" not in block.words:
-                raise BlockError(f"F word missing with inverse time {name} move")
-        elif s.feed <= 0.0:
-            raise BlockError(f"Cannot do {name} with zero feed rate")
+            return missing if "f" not in block.words else None
+        return zero if s.feed <= 0.0 else None
 
     def move(self, motion: int, block: Block, machine: bool) -> None:
         """The block's motion in mode ``motion`` (tenths: 0, 10, 20, 30, 52, 53, 62)."""
@@ -111,17 +111,16 @@ class MotionRunner:
         if motion == 0:
             emit("STRAIGHT_TRAVERSE", *end)
         elif motion == 10:
-            self._check_feed(block, "g1")
+            error = self._feed_error(block, "F word missing with inverse time g1 move", "Cannot do g1 with zero feed rate")
+            if error:
+                raise BlockError(error)
             if s.feed_mode == 930:
                 self._inverse_time(block, straight_length(s.position, end))
             emit("STRAIGHT_FEED", *end)
         else:
             # LinuxCNC checks the feed in the middle of the arc's own checks
-            feed_error = None
-            if s.feed_mode == 930 and "f" not in block.words:
-                feed_error = "F word missing with inverse time arc move"
-            elif s.feed_mode != 930 and s.feed <= 0.0:
-                feed_error = "Cannot make arc with zero feed rate"
+            feed_error = self._feed_error(block, "F word missing with inverse time arc move",
+                                          "Cannot make arc with zero feed rate")
             arc = arc_move(s.plane, motion == 20, tuple(s.position[:3]), tuple(end[:3]), block.words,
                            s.ijk_distance == 901, s.units == 210, feed_error=feed_error)
             if s.feed_mode == 930:
@@ -141,9 +140,7 @@ class MotionRunner:
         line = block.line
         feed = s.feed if s.feed_mode == 940 else None
         if motion == NURBS_END:
-            if self.nurbs is None or self.nurbs_kind != 52:
-                raise BlockError("Cannot use G5.3 without G5.2 first")
-            self._finish(line)
+            self._finish(g53(self.nurbs, line))
             return
         point = tuple(self.ends(block)[:3])
         if self.nurbs is None or (motion == 52 and any(round(g * 10) == 52 for g in block.g)):
@@ -154,14 +151,12 @@ class MotionRunner:
         if motion == 62:
             s.position[:3] = list(point)
             if self.nurbs.complete:
-                self._finish(line)
+                self._finish(self.nurbs.finish(line))
 
-    def _finish(self, line: int) -> None:
-        curve = self.nurbs.finish(line)
+    def _finish(self, curve: NurbsBlock) -> None:
         self.nurbs = self.nurbs_kind = None
-        end = [float(v) for v in curve.control_points[-1]]
-        self.state.position[:3] = end
-        self.interpreter.emit("NURBS_FEED", len(curve.control_points), payload=curve)
+        self.state.position[:3] = list(curve.end)
+        self.interpreter.emit("NURBS_FEED", payload=curve)
 
     def dwell(self, block: Block) -> None:
         seconds = block.words["p"]
