@@ -11,6 +11,7 @@ from pathlib import Path
 
 from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
+from cnc_twin.core.gcode_config import GcodeProgram
 
 
 @dataclass(frozen=True)
@@ -473,7 +474,7 @@ class Scenario:
     axes: tuple[AxisConfig, ...]
     """in X Y Z A B C order"""
     force_sensor: ForceSensorConfig
-    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram | GcodeProgram
     home: tuple[float, ...]
     """start position of every axis [m | rad]: the MJCF home keyframe"""
     planner: PlannerConfig

@@ -37,7 +37,7 @@ Step contours (StepContour records, the older cards' point-by-point and DDA inte
 each element runs its own clock along its S-curve (:mod:`cnc_twin.dsp.step_interpolator`) and
 hands the servo task a lattice point for every tick (``tick_commands``); hold and override
 scale that clock like a move's (capped at 1: the S-curve already runs at the programmed feed).
-Mark records set ``mark``, which the trace records.
+Mark records set ``mark``, which the trace records; a G-code path sets it to the line it runs.
 
 Motion-chip commands (ChipCommand, :mod:`cnc_twin.dsp.chip`) run one chip cycle per period from
 where the axes are commanded when they start; they read the switch ``inputs`` and the encoder
@@ -270,8 +270,7 @@ class SegmentInterpolator:
         """Commanded position at the end of the coming period [counts], shape ``(6,)``."""
         force = self.force
         depth = force.update(self.measured_force, self.path_s) if force.state != ForceState.OFF else 0.0
-        self.tick_commands = None
-        self.events = []
+        self.tick_commands, self.events = None, []
         if self._current is None:
             self._start_next()
         self.path_ds = 0.0
@@ -505,6 +504,8 @@ class SegmentInterpolator:
         if isinstance(curve, SurfaceRun):
             self._axis = curve.axis
             self.path_s += ds
+        elif curve.line_us:  # a G-code path joins several program lines: the one it runs now
+            self.mark = curve.line_at(stepper.u)
         return self._counts_of(pose)
 
     def _counts_of(self, positions) -> list[float]:

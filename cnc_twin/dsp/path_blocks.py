@@ -50,6 +50,7 @@ ramped speed each period, on top of every C setpoint.
 
 from __future__ import annotations
 
+import bisect
 import math
 
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
@@ -74,6 +75,9 @@ class Curve:
         stepper = CompiledCurveStepper if compiled else CurveStepper
         self.stepper = stepper(curve.span_evaluator(), curve.domain[0])
         self.hold = tuple(record.hold)
+        self.line_us = [u for u, _ in record.lines]
+        """where the curve's program lines start [u], increasing; empty: no line marks"""
+        self.line_numbers = [line for _, line in record.lines]
         self.axis = None
         if record.axis is not None:
             ac = record.axis
@@ -81,6 +85,10 @@ class Curve:
             self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
         end = curve.point(curve.domain[1])[0].tolist()
         self.end = self.pose(end, curve.domain[1])
+
+    def line_at(self, u: float) -> int:
+        """The program line the curve runs at parameter ``u`` (``line_us`` not empty)."""
+        return self.line_numbers[max(bisect.bisect_right(self.line_us, u) - 1, 0)]
 
     def pose(self, point: list[float], u: float) -> tuple[float, ...]:
         """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""

@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cnc_twin.core.config import (
-    AxisConfig, ContourProgram, FaultInjection, MotionChipProgram, NurbsProgram, PointToPoint, SurfaceProgram,
+    AxisConfig, ContourProgram, FaultInjection, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint,
+    SurfaceProgram,
 )
 from cnc_twin.motion.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.planner.ptp import plan_point_to_point
@@ -21,7 +22,7 @@ from cnc_twin.whiteboard.records import CurveBlock, Dwell, EndOfProgram, Move, R
 class PlannerJob:
     """Everything the planner process needs, as plain picklable data."""
 
-    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram
+    program: PointToPoint | NurbsProgram | SurfaceProgram | ContourProgram | MotionChipProgram | GcodeProgram
     axes: tuple[AxisConfig, ...]
     home: tuple[float, ...]
     period: float
@@ -85,6 +86,10 @@ def plan_for(job: PlannerJob):
         from cnc_twin.planner.surface_program import SurfacePlan
 
         return SurfacePlan(prog, job.axes, job.home, job.period)
+    if isinstance(prog, GcodeProgram):
+        from cnc_twin.planner.gcode_program import GcodePlan
+
+        return GcodePlan(prog, job.axes, job.home, job.period, window=job.window)
     if isinstance(prog, NurbsProgram):
         from cnc_twin.planner.curve_program import CurvePlan
 

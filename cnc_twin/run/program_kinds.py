@@ -15,7 +15,9 @@ Hooks, each with a default that serves a point-to-point program:
   look-ahead must always cover on a path program;
 - :meth:`ProgramKind.warm_up`: compile what the run will call, while the planner starts;
 - :meth:`ProgramKind.metrics`: the kind's own figures, added to ``metrics.json``;
-- :meth:`ProgramKind.describe`: one line on what the program does (``cnc-twin validate``).
+- :meth:`ProgramKind.describe`: one line on what the program does (``cnc-twin validate``);
+- :meth:`ProgramKind.run_files`: files the run directory keeps beside ``scenario.yaml`` (a G-code
+  program).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cnc_twin.core.config import (
-    ContourProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
+    ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
 )
 from cnc_twin.machine.plant import Plant, add_obstacles, load_model_with_obstacles
 
@@ -63,6 +65,11 @@ class ProgramKind:
     def describe(self, program) -> str:
         """One line on what the program does."""
         return f"{len(program.moves)} moves"
+
+    def run_files(self, program) -> dict[str, str]:
+        """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
+        (name -> text): the program a scenario names."""
+        return {}
 
 
 class _PathKind(ProgramKind):
@@ -170,12 +177,37 @@ class MotionChipKind(ProgramKind):
         return f"{len(program.commands)} motion-chip command(s), {program.profile} profiles"
 
 
+class GcodeKind(ProgramKind):
+    """An NC program: its feed paths are curves (the compiled stepper), measured path by path."""
+
+    def stop_time(self, program: GcodeProgram) -> float | None:
+        times = [_PathKind.stop_time(self, path.curve) for path in program.paths]
+        return max(times) if times else None
+
+    def warm_up(self, twin: Twin) -> None:
+        CurveKind.warm_up(self, twin)
+
+    def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        from cnc_twin.run.gcode_metrics import gcode_metrics
+
+        return {"path": gcode_metrics(trace, twin.scenario)}
+
+    def run_files(self, program: GcodeProgram) -> dict[str, str]:
+        return {program.file.name: program.text}
+
+    def describe(self, program: GcodeProgram) -> str:
+        moves = len(program.steps) - len(program.paths)
+        return (f"{program.file.name}: {program.lines} lines, {len(program.paths)} feed path(s), "
+                f"{moves} other step(s)")
+
+
 KINDS: dict[type, ProgramKind] = {
     PointToPoint: ProgramKind(),
     NurbsProgram: CurveKind(),
     ContourProgram: ContourKind(),
     SurfaceProgram: SurfaceKind(),
     MotionChipProgram: MotionChipKind(),
+    GcodeProgram: GcodeKind(),
 }
 """the run side of every program kind, by the type of its validated program"""
 

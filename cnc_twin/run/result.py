@@ -45,7 +45,8 @@ class RunResult:
         return pd.DataFrame(self.trace.columns())
 
     def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
-        """Write ``scenario.yaml``, ``trace.parquet``, ``metrics.json`` and, unless
+        """Write ``scenario.yaml`` (and the files it names that a re-run needs: a G-code program),
+        ``trace.parquet``, ``metrics.json`` and, unless
         ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``, exported now.
 
         ``recording`` may instead be a callable, called once the trace is written, that returns
@@ -53,6 +54,10 @@ class RunResult:
         :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
         system), or None to export it now after all."""
         def extra(folder: Path) -> None:
+            from cnc_twin.run.program_kinds import kind_of
+
+            for name, text in kind_of(self.scenario.program).run_files(self.scenario.program).items():
+                (folder / name).write_text(text, encoding="utf-8")
             if self.removal is not None:
                 self.removal.save(folder)
             finished = recording() if callable(recording) else None

@@ -26,10 +26,11 @@ from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import ForceSensorConfig, PlannerConfig, Scenario, WhiteboardConfig
 from cnc_twin.core.errors import ScenarioError, format_key_path
 from cnc_twin.machine.plant import load_model, model_info
-from cnc_twin.scenario import chip, contour, curve, points, surface
+from cnc_twin.scenario import chip, contour, curve, gcode, points, surface
 from cnc_twin.scenario.chip import MotionChipProgramSpec
 from cnc_twin.scenario.contour import ContourProgramSpec
 from cnc_twin.scenario.curve import NurbsCurveProgram
+from cnc_twin.scenario.gcode import GcodeProgramSpec
 from cnc_twin.scenario.faults import FaultSpec, SupervisorSpec, convert_fault, convert_supervisor
 from cnc_twin.scenario.machine import (
     HEARTBEAT_DEFAULT_MS, AxesSpec, ForceSensorSpec, MachineParameters, MachineRef, PlannerSpec, TimingSpec,
@@ -47,7 +48,7 @@ MAX_NAME_LENGTH = 100
 """[characters] of a scenario name"""
 
 ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec,
-                              MotionChipProgramSpec],
+                              MotionChipProgramSpec, GcodeProgramSpec],
                         Field(discriminator="type")]
 
 
@@ -100,6 +101,8 @@ def load_scenario(path: str | Path, *, overrides: dict[str, Any] | None = None) 
         override too).
     """
     path = Path(path)
+    if path.suffix.lower() in NC_SUFFIXES:
+        return _program_scenario(path, overrides)
     text = read_text(path)
     if not overrides:
         return scenario_from_text(text, source_file=path)
@@ -117,6 +120,24 @@ def load_scenario(path: str | Path, *, overrides: dict[str, Any] | None = None) 
         if hit is None:
             raise
         raise ScenarioError(f"{path} (override {hit!r})", exc.key_path, exc.message) from None
+
+
+NC_SUFFIXES = (".ngc", ".nc", ".gcode", ".tap")
+"""files read as an NC program on the bundled machine's defaults, not as a scenario"""
+
+
+def _program_scenario(path: Path, overrides: dict[str, Any] | None) -> Scenario:
+    """``cnc-twin run part.ngc``: the program on the bundled machine, every other key its default.
+
+    The scenario is named after the file (``part``), and written out in the run directory as
+    the YAML that would give the same run."""
+    stem = path.stem if path.stem and not path.stem.startswith(".") else "program"
+    raw: dict[str, Any] = {"name": stem[:MAX_NAME_LENGTH], "program": {"type": "gcode", "file": path.name}}
+    if overrides:
+        from cnc_twin.scenario.overrides import apply_overrides
+
+        raw = apply_overrides(raw, overrides, label=f"{path} (overrides)")
+    return scenario_from_dict(raw, source_file=path, source_text=yaml.safe_dump(raw, sort_keys=False))
 
 
 def _override_for(key_path: str, overrides: dict[str, Any]) -> str | None:
@@ -176,7 +197,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     axes = convert_axes(spec.axes, info, label)
     if spec.command_output == "pulse":
         check_pulse_rates(axes, label)
-    program = convert_program(spec.program, axes, model, model_path, info, label)
+    program = convert_program(spec.program, axes, model, model_path, info, label, folder)
     if source_text is None:
         source_text = yaml.safe_dump(raw, sort_keys=False)
     return Scenario(
@@ -205,8 +226,9 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     )
 
 
-def convert_program(spec, axes, model, model_path: Path, info, label: Path):
-    """The program in SI, by its kind: the one place a program kind's schema meets the loader."""
+def convert_program(spec, axes, model, model_path: Path, info, label: Path, folder: Path | None = None):
+    """The program in SI, by its kind: the one place a program kind's schema meets the loader
+    (``folder``: the scenario's, where files it names are looked for)."""
     if isinstance(spec, PointToPointProgram):
         return points.convert(spec, axes, info, label)
     if isinstance(spec, NurbsCurveProgram):
@@ -220,6 +242,8 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path):
             return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{AXES[i].lower()}_home") >= 0
 
         return chip.convert(spec, axes, has_home_switch, label)
+    if isinstance(spec, GcodeProgramSpec):
+        return gcode.convert(spec, axes, model, label, folder)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
 
 

@@ -31,7 +31,8 @@ type   record           payload                                                 
                         control points f64 x 3n (X, Y, Z axis space; or, when n2 > 0,
                         tool-tip positions, world frame); if n2 > 0: pivot f64 x3,
                         tool offset f64 x3, then the tool-axis curve's knots,
-                        weights and direction control points
+                        weights and direction control points; then, optionally, program
+                        line marks: (u, line) f64 pairs to the record's end
 9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6      24
 10     SurfaceGeometry  degree_u, degree_v, nu, nv u16 x4; lead, tilt [rad]; pivot,   varies
                         tool offset f64 x3 each; knots_u, knots_v, weights (nu nv),
@@ -159,6 +160,8 @@ def _payload(record: Record) -> bytes:
             parts += [np.asarray(record.pivot, "<f8"), np.asarray(record.offset, "<f8"),
                       np.asarray(ac.knots, "<f8"), np.asarray(ac.weights, "<f8"),
                       np.asarray(ac.control_points, "<f8").ravel()]
+        if record.lines:  # after everything else: the count follows from the record's length
+            parts.append(np.asarray(record.lines, "<f8").ravel())
         body = _CURVE_HEAD.pack(record.degree, n, degree2, n2, *record.hold) + np.concatenate(parts).tobytes()
         return _checked_size(body, f"curve of {n} control points", MAX_GEOMETRY_WORDS)
     if isinstance(record, CurveBlock):
@@ -326,7 +329,10 @@ def _decode_curve(payload: bytes) -> CurveGeometry:
     degree, n, degree2, n2, *hold = _head(_CURVE_HEAD, payload, "curve")
     n_knots, n_knots2 = n + degree + 1, (n2 + degree2 + 1 if n2 else 0)
     expected = n_knots + 4 * n + (6 + n_knots2 + 4 * n2 if n2 else 0)
-    values = _f64s(payload, _CURVE_HEAD.size, expected, "curve")
+    values = np.frombuffer(payload, dtype="<f8", offset=_CURVE_HEAD.size)
+    extra = len(values) - expected  # program line marks, (u, line) pairs
+    if extra < 0 or extra % 2:
+        raise RecordError(f"curve record of {len(values)} values, expected {expected} plus (u, line) pairs")
 
     def take(count: int) -> np.ndarray:
         nonlocal values
@@ -340,8 +346,9 @@ def _decode_curve(payload: bytes) -> CurveGeometry:
         pivot, offset = tuple(take(3).tolist()), tuple(take(3).tolist())
         axis = AxisCurve(degree=degree2, knots=tuple(take(n_knots2).tolist()), weights=tuple(take(n2).tolist()),
                          control_points=tuple(tuple(p) for p in take(3 * n2).reshape(n2, 3).tolist()))
+    lines = tuple((u, int(line)) for u, line in take(extra).reshape(-1, 2).tolist())
     return CurveGeometry(degree=degree, knots=knots, weights=weights, control_points=points, hold=tuple(hold),
-                         axis=axis, pivot=pivot, offset=offset)
+                         axis=axis, pivot=pivot, offset=offset, lines=lines)
 
 
 def _decode_surface(payload: bytes) -> SurfaceGeometry:

@@ -111,6 +111,9 @@ class CurveGeometry:
     """the tool-axis curve (directions), or None when A/B are held"""
     pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    lines: tuple[tuple[float, int], ...] = ()
+    """``(u, line)``, u increasing: from parameter ``u`` on the curve runs program line ``line``
+    (a G-code path joins several blocks into one curve; the card shows the line in ``mark``)"""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,65 @@
+"""The G-code program kind's validated program in SI (built by :mod:`cnc_twin.scenario.gcode`):
+the machine steps an NC program becomes. Re-exported by :mod:`cnc_twin.core.config`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # config imports this module: the curve's type only for annotations
+    from cnc_twin.core.config import NurbsProgram
+
+
+@dataclass(frozen=True)
+class GcodeMove:
+    """A coordinated move of the six axes to ``end`` (G0, or a G1 that turns A / B / C)."""
+
+    end: tuple[float, ...]
+    """[m | rad], axis space, shape ``(6,)``"""
+    feed: float | None
+    """X/Y/Z speed cap [m/s] (or A/B/C [rad/s] when ``rotary_only``); None = rapid"""
+    rotary_only: bool
+    line: int
+    """program line (1-based)"""
+
+
+@dataclass(frozen=True)
+class GcodePath:
+    """Consecutive feed moves as one curve the card interpolates directly, rest to rest."""
+
+    curve: NurbsProgram
+    lines: tuple[tuple[float, int], ...]
+    """``(u, line)``: from parameter ``u`` on, the curve runs the block of program line ``line``"""
+    line: int
+
+
+@dataclass(frozen=True)
+class GcodePause:
+    seconds: float
+    line: int
+
+
+@dataclass(frozen=True)
+class GcodeSpindle:
+    speed: float
+    """[rad/s], signed (M4 negative); 0 = stopped"""
+    line: int
+
+
+@dataclass(frozen=True)
+class GcodeProgram:
+    """An NC program read whole (:mod:`cnc_twin.gcode`), as machine steps in SI."""
+
+    file: Path
+    text: str
+    """the program as read (the run directory keeps it)"""
+    steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle, ...]
+    lines: int
+    """lines in the file"""
+    settle: float
+    """[s] simulated after the program end"""
+
+    @property
+    def paths(self) -> tuple[GcodePath, ...]:
+        return tuple(s for s in self.steps if isinstance(s, GcodePath))

@@ -1,0 +1,409 @@
+"""Canonical calls -> the operations a machine runs, in workpiece coordinates (mm, deg, s).
+
+The calls carry program coordinates in the program's units; as LinuxCNC's canon does
+(``rotate_and_offset_pos``), a point on the machine is the program's point plus the G92 offset,
+the G5x work offset and the tool length offset, each converted from the units it was given in.
+The twin's machine coordinates are the tool tip's in the workpiece frame (the bundled machine's
+head kinematics carries the pad): so work offsets put the program's zero onto the workpiece.
+
+Operations, in program order:
+
+- :class:`Traverse`: a coordinated move of all six axes to ``end`` (G0 rapid: ``feed`` None;
+  a G1 that turns A, B or C, which the card runs as a linear move in axis space as LinuxCNC does
+  without tool-centre-point control; G28 / G30 / G53);
+- :class:`FeedPath`: consecutive feed moves with A, B, C held (G1 lines, G2 / G3 arcs and
+  helices, G5.2 / G6.2 curves), each element an exact rational Bezier chain; corners between
+  lines are blended within the G64 ``P`` tolerance, others (and all in G61 / G61.1) stop;
+- :class:`Pause` (G4, M0, M1), :class:`SpindleChange` (M3 M4 M5 S), :class:`ForceChange`
+  (M100 P / M101).
+
+Geometry of each element in :class:`Element`; corner blending in :func:`_blend_corners`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cnc_twin.gcode.canon import Call
+from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, piece_length
+
+INCH = 25.4
+"""[mm]"""
+TANGENT_ANGLE = 1e-4
+"""[rad] a join turning less than this is tangent: the path runs through it without a blend"""
+BLEND_MAX_ANGLE = math.radians(120.0)
+"""[rad] a corner turning more than this is not blended (a reversal): the path stops there"""
+DEFAULT_BLEND = 0.01
+"""[mm] blend tolerance of G64 without P (LinuxCNC: "as fast as possible", no limit)"""
+
+
+class ToolpathError(ValueError):
+    """A program the machine cannot run although it reads: ``line`` (1-based) and the message."""
+
+    def __init__(self, line: int, message: str):
+        super().__init__(message)
+        self.line, self.message = line, message
+
+
+@dataclass
+class Element:
+    """One programmed feed element (or a corner blend) in workpiece mm: its rational Bezier
+    ``pieces`` (each ``(degree + 1, 4)`` homogeneous), the program ``line`` that made it."""
+
+    pieces: list[np.ndarray]
+    line: int
+    kind: str
+    """line, arc, curve or blend"""
+
+    @property
+    def start(self) -> np.ndarray:
+        q = self.pieces[0][0]
+        return q[:3] / q[3]
+
+    @property
+    def end(self) -> np.ndarray:
+        q = self.pieces[-1][-1]
+        return q[:3] / q[3]
+
+    def direction(self, at_end: bool) -> np.ndarray:
+        """Unit tangent at the start or the end (the first control point off the end point)."""
+        piece = self.pieces[-1][::-1] if at_end else self.pieces[0]
+        xyz = piece[:, :3] / piece[:, 3:4]
+        for q in xyz[1:]:
+            d = (xyz[0] - q) if at_end else (q - xyz[0])
+            norm = float(np.linalg.norm(d))
+            if norm > 1e-12:
+                return d / norm
+        return np.zeros(3)
+
+    @property
+    def length(self) -> float:
+        return sum(piece_length(p) for p in self.pieces)
+
+
+@dataclass
+class Traverse:
+    end: tuple[float, ...]
+    """X, Y, Z [mm] (tip, workpiece frame), A, B, C [deg]"""
+    feed: float | None
+    """[mm/min] (X/Y/Z), or [deg/min] for a move of the rotary axes alone; None: rapid"""
+    line: int
+    rotary_only: bool = False
+    """only A, B, C move (the feed is in deg/min)"""
+
+
+@dataclass
+class FeedPath:
+    elements: list[Element]
+    feed: float
+    """[mm/min]"""
+    hold: tuple[float, float, float]
+    """A, B, C [deg]"""
+    line: int
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.elements[0].start
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.elements[-1].end
+
+
+@dataclass
+class Pause:
+    seconds: float
+    line: int
+    """G4 P seconds; M0 / M1 pause the twin 0 s (an exact stop: no operator to press start)"""
+
+
+@dataclass
+class SpindleChange:
+    rpm: float
+    """signed: + M3 (clockwise), - M4; 0 stopped"""
+    line: int
+
+
+@dataclass
+class ForceChange:
+    setpoint: float | None
+    """[N]; None: the force loop off (M101)"""
+    line: int
+
+
+Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange
+
+
+# -- element geometry ---------------------------------------------------------------------------
+
+def line_element(start: np.ndarray, end: np.ndarray, line: int) -> Element:
+    return Element([homogeneous([start, end], [1.0, 1.0])], line, "line")
+
+
+def _arc_piece_points(center, e1, e2, radius, a0, sweep, n, z0, dz, normal):
+    """Rational quadratic pieces of a circle (helix: the normal coordinate linear in each piece's
+    control points) from angle ``a0`` through ``sweep`` [rad] in ``n`` equal pieces."""
+    half = 0.5 * sweep / n
+    w = math.cos(abs(half))
+    pieces = []
+    for i in range(n):
+        t0, tm, t1 = a0 + 2 * i * half, a0 + (2 * i + 1) * half, a0 + (2 * i + 2) * half
+        z_a, z_b = z0 + dz * i / n, z0 + dz * (i + 1) / n
+        p0 = center + radius * (math.cos(t0) * e1 + math.sin(t0) * e2) + z_a * normal
+        pm = center + radius / w * (math.cos(tm) * e1 + math.sin(tm) * e2) + 0.5 * (z_a + z_b) * normal
+        p1 = center + radius * (math.cos(t1) * e1 + math.sin(t1) * e2) + z_b * normal
+        pieces.append(homogeneous([p0, pm, p1], [1.0, w, 1.0]))
+    return pieces
+
+
+def _helix_error(half: float) -> float:
+    """Largest error of a rational quadratic helix piece of half-angle ``half`` [rad] in its
+    normal coordinate, as a fraction of the piece's rise (the rational parameter is not the angle)."""
+    w = math.cos(half)
+    t = np.linspace(0.0, 1.0, 65)
+    d = (1 - t) ** 2 + 2 * w * t * (1 - t) + t ** 2
+    rise = (w * t * (1 - t) + t ** 2) / d  # z of control points 0, 1/2, 1
+    x = ((1 - t) ** 2 * math.cos(-half) + 2 * w * t * (1 - t) / w + t ** 2 * math.cos(half)) / d
+    y = ((1 - t) ** 2 * math.sin(-half) + t ** 2 * math.sin(half)) / d
+    angle = (np.arctan2(y, x) + half) / (2 * half)
+    return float(np.max(np.abs(rise - angle)))
+
+
+def arc_element(start: np.ndarray, arc, offset: np.ndarray, scale: float, tolerance: float, line: int) -> Element:
+    """An ARC_FEED's arc (:class:`~cnc_twin.gcode.arcs.ArcMove`, program units) in workpiece mm,
+    from ``start`` (mm); a helix within ``tolerance`` [mm] in its normal coordinate."""
+    from cnc_twin.gcode.arcs import PLANE_AXES
+
+    first, second, normal = {2: PLANE_AXES[170], 1: PLANE_AXES[180], 0: PLANE_AXES[190]}[arc.normal]
+    e1, e2, en = np.eye(3)[first], np.eye(3)[second], np.eye(3)[normal]
+    center = np.asarray(arc.center, dtype=float) * scale + offset
+    center = center - center[normal] * en  # in the plane through the origin; the normal part goes in z
+    end = start.copy()
+    end[first] = arc.first_end * scale + offset[first]
+    end[second] = arc.second_end * scale + offset[second]
+    end[normal] = arc.axis_end * scale + offset[normal]
+    r_start = math.hypot(start[first] - center[first], start[second] - center[second])
+    a0 = math.atan2(start[second] - center[second], start[first] - center[first])
+    a1 = math.atan2(end[second] - center[second], end[first] - center[first])
+    turns = abs(arc.rotation)
+    if arc.rotation > 0:
+        sweep = (a1 - a0) % (2 * math.pi)
+    else:
+        sweep = (a0 - a1) % (2 * math.pi)
+    if sweep <= 1e-12:
+        sweep = 2 * math.pi
+    sweep += 2 * math.pi * (turns - 1)
+    signed = sweep if arc.rotation > 0 else -sweep
+    rise = end[normal] - start[normal]
+    n = max(1, math.ceil(sweep / (math.pi / 2) - 1e-9))
+    while rise != 0.0 and abs(rise) / n * _helix_error(0.5 * sweep / n) > 0.25 * tolerance and n < 4096:
+        n *= 2
+    pieces = _arc_piece_points(center, e1, e2, r_start, a0, signed, n, start[normal], rise, en)
+    # the programmed end exactly, so elements join bit for bit (the radius may differ within
+    # LinuxCNC's tolerance; that difference goes into the last piece)
+    pieces[0][0] = np.append(start, 1.0)
+    pieces[-1][-1] = np.append(end, 1.0)
+    return Element(pieces, line, "arc")
+
+
+def curve_element(block, offset: np.ndarray, scale: float, line: int) -> Element:
+    """A NURBS_FEED's curve (:class:`~cnc_twin.gcode.nurbs.NurbsBlock`) in workpiece mm."""
+    points = np.asarray(block.control_points, dtype=float) * scale + offset
+    return Element(bezier_pieces(points, block.weights, block.knots, block.degree), line, "curve")
+
+
+# -- calls -> operations ------------------------------------------------------------------------
+
+@dataclass
+class _Canon:
+    """What LinuxCNC's canon keeps between calls: units, offsets (mm / deg), feed, modes."""
+
+    scale: float = 1.0
+    g5x: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    g92: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    tool: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    feed: float = 0.0
+    """[mm/min] (or deg/min)"""
+    control: tuple = ("CANON_CONTINUOUS", 0.0)
+    spindle_speed: float = 0.0
+    spindle_direction: int = 0
+
+    def to_mm(self, values) -> np.ndarray:
+        """Program values x y z a b c -> mm / deg, unoffset."""
+        v = np.asarray(values[:6], dtype=float).copy()
+        v[:3] *= self.scale
+        return v
+
+    def machine(self, values) -> np.ndarray:
+        """Program point x y z a b c -> the machine's (workpiece frame) point, mm / deg."""
+        return self.to_mm(values) + self.g92 + self.g5x + self.tool
+
+    @property
+    def offset(self) -> np.ndarray:
+        return (self.g92 + self.g5x + self.tool)
+
+
+def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> list[Operation]:
+    """The operations of a program read whole (:func:`~cnc_twin.gcode.interpreter.read_program`).
+
+    Raises :class:`ToolpathError` for what reads but cannot run: an arc or a curve as the first
+    motion (the tool's place is not known to the program before its first G0 / G1).
+    """
+    canon = _Canon()
+    ops: list[Operation] = []
+    here: np.ndarray | None = None  # machine point, mm / deg; None until the first move
+    path: list[tuple[Element, tuple]] = []  # elements of the open feed path, with their modes
+
+    def close() -> None:
+        if path:
+            ops.extend(_feed_paths(path, default_blend))
+            path.clear()
+
+    for call in calls:
+        name, v = call.name, call.values
+        if name == "USE_LENGTH_UNITS":
+            canon.scale = INCH if v[0] == 200 else 1.0
+        elif name == "SET_G5X_OFFSET":
+            canon.g5x = canon.to_mm(v[1:7])
+        elif name == "SET_G92_OFFSET":
+            canon.g92 = canon.to_mm(v[:6])
+        elif name == "USE_TOOL_LENGTH_OFFSET":
+            canon.tool = canon.to_mm(v[:6])
+        elif name == "SET_FEED_RATE":
+            canon.feed = v[0] * canon.scale
+        elif name == "SET_MOTION_CONTROL_MODE":
+            canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+            end = canon.machine(v)
+            rotary = here is not None and np.any(end[3:] != here[3:])
+            if name == "STRAIGHT_FEED" and here is not None and not rotary:
+                if np.any(end[:3] != here[:3]):
+                    path.append((line_element(here[:3], end[:3], call.line), _modes(canon, here)))
+            else:
+                close()
+                rotary_only = here is not None and not np.any(end[:3] != here[:3])
+                feed = None
+                if name == "STRAIGHT_FEED":
+                    feed = canon.feed / canon.scale if rotary_only else canon.feed
+                ops.append(Traverse(tuple(float(x) for x in end), feed, call.line, rotary_only))
+            here = end
+        elif name in ("ARC_FEED", "NURBS_FEED"):
+            if here is None:
+                raise ToolpathError(call.line, "an arc or a curve as the program's first motion: the tool's place "
+                                    "is not known yet (start with a G0 or G1 to the start point)")
+            offset = canon.offset[:3]
+            if name == "ARC_FEED":
+                tol = canon.control[1] or default_blend
+                element = arc_element(here[:3], call.payload, offset, canon.scale, tol, call.line)
+            else:
+                element = curve_element(call.payload, offset, canon.scale, call.line)
+                first = element.pieces[0][0]
+                first[:3] = here[:3] * first[3]  # the curve starts where the tool is, bit for bit
+            path.append((element, _modes(canon, here)))
+            here = np.concatenate([element.end, here[3:]])
+        elif name == "DWELL":
+            close()
+            ops.append(Pause(float(v[0]), call.line))
+        elif name in ("PROGRAM_STOP", "OPTIONAL_PROGRAM_STOP"):
+            close()
+            ops.append(Pause(0.0, call.line))
+        elif name == "SET_SPINDLE_SPEED":
+            canon.spindle_speed = float(v[0])
+            if canon.spindle_direction:
+                close()
+                ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+        elif name in ("START_SPINDLE_CLOCKWISE", "START_SPINDLE_COUNTERCLOCKWISE", "STOP_SPINDLE_TURNING"):
+            close()
+            canon.spindle_direction = {"START_SPINDLE_CLOCKWISE": 1, "START_SPINDLE_COUNTERCLOCKWISE": -1}.get(name, 0)
+            ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+        elif name == "FORCE_CONTROL_ON":
+            close()
+            ops.append(ForceChange(float(v[0]), call.line))
+        elif name == "FORCE_CONTROL_OFF":
+            close()
+            ops.append(ForceChange(None, call.line))
+        elif name == "PROGRAM_END":
+            close()
+            break
+    close()
+    return ops
+
+
+def _modes(canon: _Canon, here: np.ndarray) -> tuple:
+    """What a feed element carries that may end a path: feed, held A B C, control mode."""
+    return (canon.feed, tuple(float(x) for x in here[3:]), canon.control)
+
+
+def _feed_paths(path: list[tuple[Element, tuple]], default_blend: float) -> list[FeedPath]:
+    """Consecutive feed elements -> feed paths: a new path where the feed, the held axes or the
+    control mode change, and at corners that are not blended."""
+    out: list[FeedPath] = []
+    run: list[Element] = []
+    modes = None
+    for element, m in path:
+        if run and (m != modes or not _joins(run[-1], element, m[2])):
+            out.append(_finish(run, modes, default_blend))
+            run = []
+        run.append(element)
+        modes = m
+    if run:
+        out.append(_finish(run, modes, default_blend))
+    return out
+
+
+def _turn(a: Element, b: Element) -> float:
+    """Angle [rad] the path turns from ``a``'s end to ``b``'s start."""
+    c = float(np.clip(np.dot(a.direction(True), b.direction(False)), -1.0, 1.0))
+    return math.acos(c)
+
+
+def _joins(a: Element, b: Element, control: tuple) -> bool:
+    """``b`` continues ``a``'s path: tangent, or (in G64) a line-line corner that can be blended."""
+    turn = _turn(a, b)
+    if turn <= TANGENT_ANGLE:
+        return True
+    return control[0] == "CANON_CONTINUOUS" and a.kind == b.kind == "line" and turn <= BLEND_MAX_ANGLE
+
+
+def _finish(run: list[Element], modes: tuple, default_blend: float) -> FeedPath:
+    feed, hold, control = modes
+    tolerance = control[1] or default_blend
+    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line)
+
+
+def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:
+    """Each corner between two lines replaced by a cubic Bezier ``(P0, C, C, P3)`` that leaves the
+    incoming line at ``P0`` and joins the outgoing one at ``P3``, both ``d`` from the corner ``C``.
+
+    The blend is tangent to both lines with zero curvature where it meets them (its second
+    derivative at each end lies along the line), so feed and acceleration stay continuous. Its
+    farthest point from the corner is ``d sin(theta / 2) / 4`` (``theta``: the turn), which the
+    tolerance bounds; ``d`` is also at most half of either line, so blends never overlap.
+    """
+    lines = [e.start.copy() for e in run] + [run[-1].end.copy()]
+    cuts = [0.0] * (len(run) + 1)  # how far each corner's blend reaches along its lines
+    for k in range(1, len(run)):
+        a, b = run[k - 1], run[k]
+        turn = _turn(a, b)
+        if turn > TANGENT_ANGLE:
+            la, lb = a.length, b.length
+            cuts[k] = min(4.0 * tolerance / math.sin(0.5 * turn), 0.5 * la, 0.5 * lb)
+    out: list[Element] = []
+    for k, e in enumerate(run):
+        if e.kind != "line" or (cuts[k] == 0.0 and cuts[k + 1] == 0.0):
+            out.append(e)
+        else:
+            s, t = lines[k], lines[k + 1]
+            u = (t - s) / np.linalg.norm(t - s)
+            p0, p1 = s + cuts[k] * u, t - cuts[k + 1] * u
+            if np.linalg.norm(p1 - p0) > 1e-9:
+                out.append(line_element(p0, p1, e.line))
+        if k + 1 < len(run) and cuts[k + 1] > 0.0:
+            corner = lines[k + 1]
+            d_in, d_out = run[k].direction(True), run[k + 1].direction(False)
+            p0, p3 = corner - cuts[k + 1] * d_in, corner + cuts[k + 1] * d_out
+            out.append(Element([homogeneous([p0, corner, corner, p3], [1.0] * 4)], run[k + 1].line, "blend"))
+    return out

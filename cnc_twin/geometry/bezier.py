@@ -1,0 +1,95 @@
+"""Rational Bezier pieces: a NURBS cut into its pieces, raised to a common degree, and pieces
+joined back into one NURBS (the G-code program kind joins lines, arcs, blends and NURBS blocks of
+one path run into the one curve the card interpolates).
+
+A piece is an array of homogeneous control points, shape ``(degree + 1, 4)``: ``(w x, w y, w z, w)``
+(points in any length unit, the same for every piece of one curve). Cutting and raising act on the
+homogeneous points, so the pieces are the exact curve, weights and all (The NURBS Book, A5.1 knot
+insertion and the Bezier degree elevation of section 5.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def homogeneous(points, weights) -> np.ndarray:
+    """``(n, 4)`` homogeneous points of ``points`` ``(n, 3)`` with ``weights`` ``(n,)``."""
+    P = np.asarray(points, dtype=np.float64)
+    W = np.asarray(weights, dtype=np.float64)
+    return np.hstack([P * W[:, None], W[:, None]])
+
+
+def _insert_knot(Pw: np.ndarray, knots: np.ndarray, degree: int, u: float) -> tuple[np.ndarray, np.ndarray]:
+    """Boehm's insertion of ``u`` once: the same curve with one more control point."""
+    k = int(np.searchsorted(knots, u, side="right")) - 1  # knots[k] <= u < knots[k + 1]
+    n = len(Pw)
+    out = np.empty((n + 1, Pw.shape[1]))
+    out[:k - degree + 1] = Pw[:k - degree + 1]
+    out[k + 1:] = Pw[k:]
+    for i in range(k - degree + 1, k + 1):
+        alpha = (u - knots[i]) / (knots[i + degree] - knots[i])
+        out[i] = alpha * Pw[i] + (1.0 - alpha) * Pw[i - 1]
+    return out, np.insert(knots, k + 1, u)
+
+
+def bezier_pieces(points, weights, knots, degree: int) -> list[np.ndarray]:
+    """A clamped NURBS cut at its interior knots into rational Bezier pieces, in order (pieces of
+    no parameter length are dropped), each ``(degree + 1, 4)`` homogeneous."""
+    Pw = homogeneous(points, weights)
+    U = np.asarray(knots, dtype=np.float64)
+    p = int(degree)
+    for u in np.unique(U[p + 1:len(U) - p - 1]):
+        for _ in range(p - int(np.count_nonzero(U == u))):
+            Pw, U = _insert_knot(Pw, U, p, float(u))
+    return [Pw[i * p:i * p + p + 1].copy() for i in range(len(Pw) // p) if i * p + p < len(Pw)]
+
+
+def elevate(piece: np.ndarray, degree: int) -> np.ndarray:
+    """The same Bezier piece written with degree ``degree`` (>= its own)."""
+    Q = piece
+    while len(Q) - 1 < degree:
+        n = len(Q) - 1
+        up = np.empty((n + 2, Q.shape[1]))
+        up[0], up[-1] = Q[0], Q[-1]
+        for i in range(1, n + 1):
+            a = i / (n + 1)
+            up[i] = a * Q[i - 1] + (1.0 - a) * Q[i]
+        Q = up
+    return Q
+
+
+def piece_length(piece: np.ndarray, samples: int = 16) -> float:
+    """Length of a rational Bezier piece [its points' unit], by a polyline of ``samples`` chords
+    (a parameter span for the joined curve: close to the length keeps the parameter speed near
+    one across joins, which the card's stepper and the feed planner like)."""
+    t = np.linspace(0.0, 1.0, samples + 1)
+    p = len(piece) - 1
+    basis = np.array([[math.comb(p, i) * ti ** i * (1 - ti) ** (p - i) for i in range(p + 1)] for ti in t])
+    h = basis @ piece
+    xyz = h[:, :3] / h[:, 3:4]
+    return float(np.sum(np.linalg.norm(np.diff(xyz, axis=0), axis=1)))
+
+
+def join(pieces: list[np.ndarray], spans: list[float]) -> tuple[int, list[float], list[float], list[list[float]]]:
+    """One clamped NURBS ``(degree, knots, weights, control_points)`` through ``pieces`` in order,
+    each raised to the highest degree among them and given the parameter span ``spans[i]`` (> 0).
+
+    Consecutive pieces must share their joining point (the caller's job); the joined knot vector
+    repeats each interior knot ``degree`` times, so the curve is exactly the pieces.
+    """
+    p = max(len(q) - 1 for q in pieces)
+    raised = [elevate(q, p) for q in pieces]
+    # a piece's end and the next's start are the same point but may carry different weights
+    # (homogeneous scale): scale each piece so its first weight equals the previous piece's last
+    rows = [raised[0]]
+    for q in raised[1:]:
+        rows.append(q[1:] * (rows[-1][-1, 3] / q[0, 3]))
+    Pw = np.vstack(rows)
+    u = np.concatenate([[0.0], np.cumsum(spans)])
+    knots = [0.0] * (p + 1) + [float(x) for x in u[1:-1] for _ in range(p)] + [float(u[-1])] * (p + 1)
+    weights = Pw[:, 3]
+    points = Pw[:, :3] / weights[:, None]
+    return p, knots, weights.tolist(), points.tolist()

@@ -1,0 +1,97 @@
+"""The G-code program's plan: its steps in order, records handed out in chunks.
+
+Per step (:class:`~cnc_twin.core.config.GcodeProgram`)::
+
+    GcodeMove     Mark line, Move (a synchronised trapezoid, the feed capping X/Y/Z, or A/B/C alone)
+    GcodePath     Mark line, CurveGeometry (with the program line of each part of the curve, which
+                  the card shows in the trace's ``mark`` as it runs them), its CurveBlocks planned
+                  window by window (rest to rest)
+    GcodePause    Mark line, Dwell
+    GcodeSpindle  Mark line, Spindle
+then Dwell (settle), EndOfProgram.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from cnc_twin.core.config import AxisConfig
+from cnc_twin.core.gcode_config import GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
+from cnc_twin.planner.ptp import dwell_chunk, plan_move
+from cnc_twin.whiteboard.records import CurveBlock, EndOfProgram, Mark, Move, Spindle
+
+
+def _move_records(here: tuple[float, ...], step: GcodeMove, axes, period: float):
+    """``([Move], [periods])`` of a G-code move (the feed caps X/Y/Z, or A/B/C when only they turn)."""
+    if step.rotary_only and step.feed is not None:
+        # plan_move caps only X/Y/Z by the feed: give the rotary axes' own cap through their limits
+        axes = tuple(dataclasses.replace(a, max_velocity=min(a.max_velocity, step.feed)) if a.rotary else a
+                     for a in axes)
+        seg = plan_move(here, step.end, axes, feed=None, period=period)
+    else:
+        seg = plan_move(here, step.end, axes, feed=step.feed, period=period)
+    if seg is None:
+        return [], []
+    return [Move(end=seg.end, profile=seg.profile, periods=seg.periods)], [seg.periods]
+
+
+class GcodePlan:
+    """A G-code program, planned step by step as :meth:`chunks` is asked (``window`` [m] of curve
+    per feed-planning window)."""
+
+    def __init__(self, prog: GcodeProgram, axes: tuple[AxisConfig, ...], home: tuple[float, ...], period: float,
+                 *, window: float):
+        self.prog, self.axes, self.home, self.period, self.window = prog, axes, tuple(home), period, window
+
+    @property
+    def estimated_periods(self) -> int:
+        """Program length [periods], estimated: moves at their planned time, feed paths at 1.5x
+        their length at feed (corners and curvature slow them), pauses, the settle."""
+        T, here, total = self.period, self.home, 0.0
+        for step in self.prog.steps:
+            if isinstance(step, GcodeMove):
+                total += sum(_move_records(here, step, self.axes, T)[1]) * T
+                here = step.end
+            elif isinstance(step, GcodePath):
+                c = step.curve
+                length = sum(math.dist(p, q) for p, q in zip(c.control_points, c.control_points[1:]))
+                total += 1.5 * length / c.limits.feed + 0.05
+                here = (*c.control_points[-1], *c.hold)
+            elif isinstance(step, GcodePause):
+                total += step.seconds + T
+        return math.ceil((total + self.prog.settle) / T)
+
+    def chunks(self):
+        """Successive ``(records, periods)`` chunks, planned as they are asked for."""
+        from cnc_twin.planner.curve_program import curve_setup
+        from cnc_twin.planner.feed import plan_feed_windows
+
+        T = self.period
+        here = self.home
+        for step in self.prog.steps:
+            mark = Mark(step.line)
+            if isinstance(step, GcodeMove):
+                records, periods = _move_records(here, step, self.axes, T)
+                yield [mark] + records, [0] + periods
+                here = step.end
+            elif isinstance(step, GcodePath):
+                curve, start, _, _, geometry = curve_setup(step.curve)
+                records, periods = [mark], [0]
+                if any(abs(a - b) > 1e-12 for a, b in zip(start, here)):  # a path never starts off the tool
+                    seg = plan_move(here, start, self.axes, feed=step.curve.limits.feed, period=T)
+                    if seg is not None:
+                        records.append(Move(end=seg.end, profile=seg.profile, periods=seg.periods))
+                        periods.append(seg.periods)
+                yield records + [dataclasses.replace(geometry, lines=step.lines)], periods + [0]
+                for blocks in plan_feed_windows(curve, step.curve.limits, period=T, window=self.window):
+                    yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
+                here = (*curve.point(curve.domain[1])[0].tolist(), *step.curve.hold)
+            elif isinstance(step, GcodePause):
+                records, periods = dwell_chunk(max(step.seconds, T), T)
+                yield [mark] + records, [0] + periods
+            elif isinstance(step, GcodeSpindle):
+                yield [mark, Spindle(on=step.speed != 0.0, speed=step.speed)], [0, 0]
+        settle = dwell_chunk(self.prog.settle, T)
+        yield settle[0] + [EndOfProgram()], settle[1] + [0]
+

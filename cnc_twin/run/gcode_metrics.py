@@ -1,0 +1,87 @@
+"""Path metrics of a G-code run: each feed path measured from the trace as a curve run is
+(:func:`cnc_twin.run.path_metrics.path_metrics`), then the figures over the whole program.
+
+The trace's periods on a curve (``path_u >= 0``) fall into runs, one per card curve, in program
+order: a run ends where the tool leaves the curve or the parameter starts again from the next
+curve's beginning. Each run is measured against its own curve.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from cnc_twin.core.config import GcodeProgram, Scenario
+from cnc_twin.trace.trace import Trace
+
+
+class _PathTrace:
+    """The trace seen by one path: it ends with the path's last period (so what follows, a rapid
+    move's start, is not counted in the path's axis peaks), and ``path_u`` is -1 before the path."""
+
+    def __init__(self, trace: Trace, first: int, stop: int):
+        """``first``, ``stop``: the path's first and one-past-last servo tick."""
+        u = trace.period_signals["path_u"][:stop].copy()
+        u[:first] = -1.0
+        self.period_signals = {"path_u": u, "path_ds": trace.period_signals["path_ds"][:stop]}
+        self.command, self.actual = trace.command[:stop], trace.actual[:stop]
+        self.counts_per_unit = trace.counts_per_unit
+
+
+def curve_runs(u: np.ndarray) -> list[tuple[int, int]]:
+    """``[(first, stop)]`` period ranges of ``u`` (one value per period) on one curve each."""
+    on = u >= 0.0
+    runs, start = [], None
+    for k in range(len(u)):
+        if on[k] and (start is None or u[k] < u[k - 1]):
+            if start is not None:
+                runs.append((start, k))
+            start = k
+        elif not on[k] and start is not None:
+            runs.append((start, k))
+            start = None
+    if start is not None:
+        runs.append((start, len(u)))
+    return runs
+
+
+def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
+    """Chord error, feed fluctuation, contour error [um] and axis peaks over the program's feed
+    paths, and each path's own (``paths``: the program line it starts at, length, errors)."""
+    from cnc_twin.run.path_metrics import path_metrics
+
+    prog: GcodeProgram = scenario.program
+    tpp = scenario.timing.ticks_per_period
+    u_ticks = trace.period_signals["path_u"]
+    u = u_ticks[tpp - 1::tpp]
+    per_path = []
+    for path, (first, stop) in zip(prog.paths, curve_runs(u)):
+        m = path_metrics(_PathTrace(trace, first * tpp, stop * tpp), dataclasses.replace(scenario, program=path.curve))
+        per_path.append((path, m))
+    out: dict[str, Any] = {"file": str(prog.file), "feed_paths": len(prog.paths), "paths_run": len(per_path)}
+    measured = [(p, m) for p, m in per_path if "chord_error_um" in m]
+    out["length_mm"] = float(sum(m["length_mm"] for _, m in per_path))
+    if not measured:
+        return out
+    out["chord_error_um"] = {"max": max(m["chord_error_um"]["max"] for _, m in measured),
+                             "tolerance": measured[0][1]["chord_error_um"]["tolerance"]}
+    out["feed_fluctuation"] = {"max": max(m["feed_fluctuation"]["max"] for _, m in measured)}
+    out["contour_error_um"] = {"max": max(m["contour_error_um"]["max"] for _, m in measured),
+                               "rms": float(np.sqrt(np.mean([m["contour_error_um"]["rms"] ** 2 for _, m in measured])))}
+    peaks: dict[str, dict[str, float]] = {}
+    for _, m in measured:
+        for axis, values in m["axis_peaks"].items():
+            best = peaks.setdefault(axis, dict(values))
+            for q in ("velocity", "acceleration", "jerk"):
+                if values[q] > best[q]:
+                    best[q], best[f"{q}_ratio"] = values[q], values[f"{q}_ratio"]
+    out["axis_peaks"] = peaks
+    out["axis_peaks_units"] = measured[0][1]["axis_peaks_units"]
+    out["limit_violations"] = [dict(v, line=p.line) for p, m in measured for v in m["limit_violations"]]
+    out["paths"] = [{"line": p.line, "length_mm": m["length_mm"],
+                     "chord_error_um": m.get("chord_error_um", {}).get("max"),
+                     "contour_error_um": m.get("contour_error_um", {}).get("max"),
+                     "feed_fluctuation": m.get("feed_fluctuation", {}).get("max")} for p, m in per_path]
+    return out
