@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cnc_twin.gcode.canon import Call
-from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, piece_length
+from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans, piece_length
 
 INCH = 25.4
 """[mm]"""
@@ -57,6 +57,8 @@ class Element:
     line: int
     kind: str
     """line, arc, curve or blend"""
+    spans: list[float] | None = None
+    """each piece's parameter span relative to the others (a curve's own knot spans); None: equal"""
 
     @property
     def start(self) -> np.ndarray:
@@ -212,7 +214,8 @@ def arc_element(start: np.ndarray, arc, offset: np.ndarray, scale: float, tolera
 def curve_element(block, offset: np.ndarray, scale: float, line: int) -> Element:
     """A NURBS_FEED's curve (:class:`~cnc_twin.gcode.nurbs.NurbsBlock`) in workpiece mm."""
     points = np.asarray(block.control_points, dtype=float) * scale + offset
-    return Element(bezier_pieces(points, block.weights, block.knots, block.degree), line, "curve")
+    return Element(bezier_pieces(points, block.weights, block.knots, block.degree), line, "curve",
+                   knot_spans(block.knots, block.degree))
 
 
 # -- calls -> operations ------------------------------------------------------------------------
@@ -299,7 +302,8 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> li
                 tol = canon.control[1] or default_blend
                 element = arc_element(here[:3], call.payload, offset, canon.scale, tol, call.line)
             else:
-                element = curve_element(call.payload, offset, canon.scale, call.line)
+                # the line of the block that started the curve (the call comes at its last block)
+                element = curve_element(call.payload, offset, canon.scale, call.payload.line)
                 first = element.pieces[0][0]
                 first[:3] = here[:3] * first[3]  # the curve starts where the tool is, bit for bit
             path.append((element, _modes(canon, here)))

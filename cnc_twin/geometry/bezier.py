@@ -36,8 +36,8 @@ def _insert_knot(Pw: np.ndarray, knots: np.ndarray, degree: int, u: float) -> tu
 
 
 def bezier_pieces(points, weights, knots, degree: int) -> list[np.ndarray]:
-    """A clamped NURBS cut at its interior knots into rational Bezier pieces, in order (pieces of
-    no parameter length are dropped), each ``(degree + 1, 4)`` homogeneous."""
+    """A clamped NURBS cut at its interior knots into rational Bezier pieces, in order, each
+    ``(degree + 1, 4)`` homogeneous; one per knot span of non-zero length (see :func:`knot_spans`)."""
     Pw = homogeneous(points, weights)
     U = np.asarray(knots, dtype=np.float64)
     p = int(degree)
@@ -45,6 +45,23 @@ def bezier_pieces(points, weights, knots, degree: int) -> list[np.ndarray]:
         for _ in range(p - int(np.count_nonzero(U == u))):
             Pw, U = _insert_knot(Pw, U, p, float(u))
     return [Pw[i * p:i * p + p + 1].copy() for i in range(len(Pw) // p) if i * p + p < len(Pw)]
+
+
+def knot_spans(knots, degree: int) -> list[float]:
+    """The non-zero knot spans of a clamped knot vector: the parameter span of each piece
+    :func:`bezier_pieces` gives (joined with these spans, the curve keeps its own parametrisation,
+    so its parametric continuity at the cuts)."""
+    U = np.unique(np.asarray(knots, dtype=np.float64))
+    return np.diff(U).tolist()
+
+
+def end_speed(piece: np.ndarray, at_end: bool) -> float:
+    """``|dC/dt|`` of a rational Bezier piece at ``t = 0`` (or 1) on its own ``t in [0, 1]``:
+    ``p (w1 / w0) |P1 - P0|`` (0 when the first two points coincide)."""
+    q = piece[::-1] if at_end else piece
+    p = len(piece) - 1
+    a, b = q[0][:3] / q[0][3], q[1][:3] / q[1][3]
+    return p * float(q[1][3] / q[0][3]) * float(np.linalg.norm(b - a))
 
 
 def elevate(piece: np.ndarray, degree: int) -> np.ndarray:

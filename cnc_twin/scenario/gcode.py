@@ -145,26 +145,42 @@ def _move(op, axes: tuple[AxisConfig, ...], model, where: _Where) -> GcodeMove:
 
 
 def _pieces_in_cards(path) -> list[list[tuple]]:
-    """The path's Bezier pieces, ``(piece, line)``, cut into lists that each fit one card curve."""
+    """The path's Bezier pieces, ``(piece, span, line)``, cut into lists that each fit one card
+    curve. The spans keep the parameter speed continuous where elements join tangentially (each
+    element's spans scaled so it starts as fast as the last one ended): the card's stepper then
+    meets no jump in ``|dC/du|`` at a join."""
+    from cnc_twin.geometry.bezier import end_speed
+
     degree = max(len(q) - 1 for e in path.elements for q in e.pieces)
     per_curve = max(1, (CARD_CONTROL_POINTS - 1) // degree)
-    flat = [(q, e.line) for e in path.elements for q in e.pieces]
+    flat: list[tuple] = []
+    speed = None  # |dC/du| where the last element ended
+    for e in path.elements:
+        relative = e.spans or [1.0] * len(e.pieces)
+        start = end_speed(e.pieces[0], False) / relative[0]
+        if speed is None or start <= 0.0 or speed <= 0.0:
+            scale = max(e.length, 1e-6) / sum(relative)  # about unit speed
+        else:
+            scale = start / speed
+        spans = [r * scale for r in relative]
+        flat += [(q, h, e.line) for q, h in zip(e.pieces, spans)]
+        speed = end_speed(e.pieces[-1], True) / spans[-1]
     return [flat[k:k + per_curve] for k in range(0, len(flat), per_curve)]
 
 
 def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) -> list[GcodePath]:
     """A feed path as one or more card curves (each Bezier piece's parameter span its length)."""
-    from cnc_twin.geometry.bezier import join, piece_length
+    from cnc_twin.geometry.bezier import join
 
     out = []
     if op.feed <= 0.0:
         raise where(op.line, "feed rate 0")
     for chunk in _pieces_in_cards(op):
-        spans = [max(piece_length(q), 1e-6) for q, _ in chunk]
-        degree, knots, weights, points = join([q for q, _ in chunk], spans)
+        spans = [h for _, h, _ in chunk]
+        degree, knots, weights, points = join([q for q, _, _ in chunk], spans)
         u = np.concatenate([[0.0], np.cumsum(spans)])
         lines: list[tuple[float, int]] = []
-        for k, (_, line) in enumerate(chunk):
+        for k, (_, _, line) in enumerate(chunk):
             if not lines or lines[-1][1] != line:
                 lines.append((float(u[k]), line))
         curve_spec = validate(NurbsCurveProgram, {
@@ -174,6 +190,6 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
         try:
             curve = convert_curve(curve_spec, axes, model, label)
         except ScenarioError as exc:
-            raise where(chunk[0][1], exc.message) from None
-        out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][1]))
+            raise where(chunk[0][2], exc.message) from None
+        out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2]))
     return out
