@@ -37,7 +37,8 @@ def blocks(language: str) -> list[tuple[str, str]]:
 def test_python_blocks_run_as_written(where, code, tmp_path, monkeypatch):
     """In a scratch folder holding the repository's scenarios/ (as in a clone), in a namespace of
     its own: a block that needs a name defined by another block fails here."""
-    (tmp_path / "scenarios").symlink_to(ROOT / "scenarios")
+    for folder in ("scenarios", "programs"):
+        (tmp_path / folder).symlink_to(ROOT / folder)
     monkeypatch.chdir(tmp_path)
     exec(compile(code, where, "exec"), {"__name__": "__main__"})
 
@@ -105,12 +106,13 @@ RUNS = sorted({command for _, command in quoted_commands() if command.split()[1]
 @pytest.mark.parametrize("command", RUNS)
 def test_quoted_run_commands_run(command, tmp_path, monkeypatch):
     """Each distinct `cnc-twin run ...` the docs quote runs to a complete run directory (in a
-    scratch folder holding scenarios/, recording skipped: the small-input version of it)."""
+    scratch folder holding scenarios/ and programs/, recording skipped: the small-input version of it)."""
     import json
 
     from conftest import run_cli
 
-    (tmp_path / "scenarios").symlink_to(ROOT / "scenarios")
+    for folder in ("scenarios", "programs"):
+        (tmp_path / folder).symlink_to(ROOT / folder)
     monkeypatch.chdir(tmp_path)
     code, _, err = run_cli(*shlex.split(command)[1:], "--out", "run", "--quiet", "--no-rrd")
     assert code == 0, err
