@@ -10,8 +10,12 @@ effect), the weights and the knot vector exactly as written, degree = order - 1.
 placed as programmed in the XY plane, ``LIFT`` mm above the workpiece top (the programs cut at
 Z0 .. Z-1 on their own machine's work offset; the twin only needs the path).
 
+Each curve is also written as an NC program in the authors' G6.2 form (``--programs``, default
+``programs/published``): the same numbers, the same plane and feed, reached by rapids from a
+safe height, for ``cnc-twin run programs/published/NAME.ngc``.
+
 This reads the numbers only; the output files cite their source and do not copy the programs.
-Run by a developer when the source changes; the scenarios it writes are committed.
+Run by a developer when the source changes; the scenarios and programs it writes are committed.
 """
 
 from __future__ import annotations
@@ -37,6 +41,12 @@ CURVES = {
 # themselves once the G-code reader reads them.
 LIFT = 10.0
 """height of the curve's plane above the workpiece top [mm]"""
+FEED = 2400
+"""feed along the curve [mm/min], the scenarios' and the programs'"""
+SAFE_Z = 20.0
+"""the programs' traverse height above the workpiece top [mm]"""
+SETTLE = 0.2
+"""the scenarios' settle before the curve [s]: the programs' dwell at the start"""
 CITATION = ("Lo Valvo, E. and Drago, S., \"An Efficient NURBS Path Generator for a Open Source CNC\"; "
             "the programs as LinuxCNC ships them (nc_files/nurbs/G6, LinuxCNC repository commit 5c41560, "
             "modified for LinuxCNC by J. Franek, 2023-01-20)")
@@ -95,7 +105,7 @@ def scenario_text(name: str, source: str, title: str, curve: dict) -> str:
         f"# the curve lies in the program's XY plane at its cutting depth raised by {LIFT:g} mm (above the workpiece top).",
         "# Written by scripts/transcribe_published_curves.py. Units: mm, mm/min, mm/s^2, mm/s^3, deg, s.",
         f"name: published_{name}",
-        f"description: {title} (Lo Valvo & Drago) at 2400 mm/min, 1 um chord tolerance, tool axis vertical.",
+        f"description: {title} (Lo Valvo & Drago) at {FEED} mm/min, 1 um chord tolerance, tool axis vertical.",
         "program:",
         "  type: nurbs_curve",
         f"  degree: {curve['order'] - 1}",
@@ -105,13 +115,47 @@ def scenario_text(name: str, source: str, title: str, curve: dict) -> str:
     lines.append(f"  weights: [{', '.join(number(w) for w in curve['weights'])}]")
     lines.append(f"  knots: [{', '.join(number(k) for k in curve['knots'])}]")
     lines += [
-        "  feed: 2400                  # mm/min",
+        f"  feed: {FEED:<22}# mm/min",
         "  chord_tolerance: 0.001      # mm",
         "  limits: {path_acceleration: 2000, path_jerk: 50000, normal_acceleration: 2000, normal_jerk: 50000}",
         "  tool_axis: {A: 0, B: 0}",
         "  approach_feed: 12000",
-        "  settle: 0.2",
+        f"  settle: {SETTLE:g}",
     ]
+    return "\n".join(lines) + "\n"
+
+
+def program_text(name: str, source: str, title: str, curve: dict) -> str:
+    """The curve as an NC program in the authors' G6.2 form (``;`` comments: the citation holds
+    parentheses): rapids to the curve's start in the scenario's plane, a dwell of the scenario's
+    settle (the rapid's last micrometres die out before the curve), the feed, the control point
+    blocks ``X Y R<weight> K<knot>`` (``P<order>`` on the first), the closing ``G6.2 K`` blocks,
+    back up and M2. The numbers are written as :func:`scenario_text` writes them."""
+    pts = curve["points"]
+    z = pts[0][2] + LIFT
+    if any(p[2] + LIFT != z for p in pts):
+        raise ValueError(f"{name}: the control points do not share one Z")
+    knots = curve["knots"]
+    lines = [
+        f"; {title}: a published NURBS benchmark curve, degree {curve['order'] - 1}, {len(pts)} control points.",
+        f"; Source: {CITATION}, file '{source}'.",
+        "; The control points, weights and knots are transcribed from the numbers of that program (mm), not a",
+        "; copy of the file; the curve lies in the program's XY plane at its cutting depth raised by",
+        f"; {LIFT:g} mm (above the workpiece top), as in scenarios/published/{name}.yaml, at the same feed.",
+        "; Written by scripts/transcribe_published_curves.py.",
+        "; X Y Z: the tool tip in the workpiece frame [mm], origin at the workpiece top centre.",
+        "G21 G90 G17 G94 G64 P0.001",
+        f"G0 Z{number(SAFE_Z)}",
+        f"G0 X{number(pts[0][0])} Y{number(pts[0][1])}",
+        f"G0 Z{number(z)}",
+        f"G4 P{number(SETTLE)}    ; settle before the curve, as the scenario's settle",
+        f"F{FEED}",
+    ]
+    for k, ((x, y, _), w, knot) in enumerate(zip(pts, curve["weights"], knots)):
+        block = f"X{number(x)} Y{number(y)} R{number(w)} K{number(knot)}"
+        lines.append(f"G6.2 {block} P{curve['order']}" if k == 0 else f"     {block}")
+    lines += [f"G6.2 K{number(knot)}" for knot in knots[len(pts):]]
+    lines += [f"G0 Z{number(SAFE_Z)}", "M2"]
     return "\n".join(lines) + "\n"
 
 
@@ -120,13 +164,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source", nargs="?", type=Path, default=here.parent / "shared/data/linuxcnc-nurbs/G6")
     parser.add_argument("--out", type=Path, default=here / "scenarios/published")
+    parser.add_argument("--programs", type=Path, default=here / "programs/published")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    args.programs.mkdir(parents=True, exist_ok=True)
     for name, (file, title) in CURVES.items():
         curve = first_curve((args.source / file).read_text(encoding="utf-8", errors="replace"))
         out = args.out / f"{name}.yaml"
         out.write_text(scenario_text(name, file, title, curve), encoding="utf-8")
         print(f"{out}: degree {curve['order'] - 1}, {len(curve['points'])} points, {len(curve['knots'])} knots")
+        program = args.programs / f"{name}.ngc"
+        program.write_text(program_text(name, file, title, curve), encoding="utf-8")
+        print(f"{program}: G6.2 P{curve['order']}")
     return 0
 
 

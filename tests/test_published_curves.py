@@ -255,3 +255,74 @@ def test_a_curve_longer_than_one_record_runs_and_a_flipped_part_is_resent():
     for name, column in clean.trace.columns().items():
         if name not in ("records_rejected", "fifo_fill"):
             assert np.array_equal(column, flipped.trace.columns()[name]), name
+
+
+# --- the same curves as NC programs (programs/published/*.ngc, the authors' G6.2 form) ----------
+
+from conftest import REPO  # noqa: E402  (the programs are the checkout's, not a bundled resource)
+
+PROGRAMS = sorted((REPO / "programs" / "published").glob("*.ngc"))
+
+
+def _read_calls(path):
+    from cnc_twin.gcode.interpreter import read_program
+    from cnc_twin.gcode.source import Source
+    from cnc_twin.gcode.state import ToolTable
+
+    return read_program(Source.read(path), ToolTable(units=210)).calls
+
+
+def _g62_line(path) -> int:
+    """The 1-based line of the program's first G6.2 block (the curve's start)."""
+    return next(n for n, line in enumerate(path.read_text().splitlines(), start=1) if line.startswith("G6.2 X"))
+
+
+def test_every_published_curve_has_its_program():
+    assert {p.stem for p in PROGRAMS} == {p.stem for p in PUBLISHED}
+
+
+@pytest.mark.parametrize("path", PROGRAMS, ids=[p.stem for p in PROGRAMS])
+def test_the_program_and_the_scenario_transcribe_the_same_curve(path):
+    """The program reads, makes one NURBS_FEED, and its curve is the scenario's number for number:
+    control points (the plane included), weights, knots, degree; at the scenario's feed; and its
+    header cites the same source file."""
+    import re
+
+    import yaml
+
+    text = (scenarios_dir() / "published" / f"{path.stem}.yaml").read_text()
+    raw = yaml.safe_load(text)["program"]
+    calls = _read_calls(path)
+    curves = [k for k, call in enumerate(calls) if call.name == "NURBS_FEED"]
+    assert len(curves) == 1, [call.name for call in calls]
+    block = calls[curves[0]].payload
+    assert block.degree == raw["degree"] and block.line == _g62_line(path)
+    assert block.control_points.tolist() == [[float(v) for v in p] for p in raw["control_points"]]
+    assert block.weights.tolist() == [float(w) for w in raw["weights"]]
+    assert block.knots.tolist() == [float(k) for k in raw["knots"]]
+    feed = next(call for call in reversed(calls[:curves[0]]) if call.name == "SET_FEED_RATE")
+    assert feed.values[0] == raw["feed"]
+    header = path.read_text()
+    source = re.search(r"file '([^']+)'", text).group(1)
+    assert f"file '{source}'" in header and "Lo Valvo" in header and "nc_files/nurbs/G6" in header
+    assert "not a" in header and "copy of the file" in header
+
+
+def test_the_star_runs_as_a_program_and_its_trace_names_the_g62_block():
+    """programs/published/stella.ngc on the bundled machine: the run completes, the curve's chord
+    error is within the tolerance and no limit is broken, one card curve, and while the tool is on
+    the curve (path_u >= 0) the trace's mark is the G6.2 block's line."""
+    from cnc_twin import run_scenario
+
+    path = next(p for p in PROGRAMS if p.stem == "stella")
+    result = run_scenario(load_scenario(path))
+    assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"
+    metrics = result.metrics["path"]
+    assert metrics["feed_paths"] == metrics["paths_run"] == 1
+    assert metrics["chord_error_um"]["max"] <= metrics["chord_error_um"]["tolerance"]
+    assert metrics["limit_violations"] == []
+    line = _g62_line(path)
+    assert [p["line"] for p in metrics["paths"]] == [line]
+    on = result.trace.periods["path_u"] >= 0.0
+    assert on.sum() > 1000
+    assert np.all(result.trace.periods["mark"][on] == line)

@@ -59,6 +59,9 @@ class Element:
     """line, arc, curve or blend"""
     spans: list[float] | None = None
     """each piece's parameter span relative to the others (a curve's own knot spans); None: equal"""
+    nurbs: tuple | None = None
+    """a curve as programmed, ``(degree, knots, weights, control points (n, 3) mm)``: a path of
+    this one element goes to the card as it is (its pieces would hold about degree x the points)"""
 
     @property
     def start(self) -> np.ndarray:
@@ -215,7 +218,8 @@ def curve_element(block, offset: np.ndarray, scale: float, line: int) -> Element
     """A NURBS_FEED's curve (:class:`~cnc_twin.gcode.nurbs.NurbsBlock`) in workpiece mm."""
     points = np.asarray(block.control_points, dtype=float) * scale + offset
     return Element(bezier_pieces(points, block.weights, block.knots, block.degree), line, "curve",
-                   knot_spans(block.knots, block.degree))
+                   knot_spans(block.knots, block.degree),
+                   (block.degree, [float(k) for k in block.knots], [float(w) for w in block.weights], points))
 
 
 # -- calls -> operations ------------------------------------------------------------------------
@@ -306,6 +310,7 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> li
                 element = curve_element(call.payload, offset, canon.scale, call.payload.line)
                 first = element.pieces[0][0]
                 first[:3] = here[:3] * first[3]  # the curve starts where the tool is, bit for bit
+                element.nurbs[3][0] = here[:3]
             path.append((element, _modes(canon, here)))
             here = np.concatenate([element.end, here[3:]])
         elif name == "DWELL":

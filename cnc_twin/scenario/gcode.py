@@ -34,8 +34,9 @@ from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 from cnc_twin.scenario.validation import validate
 
 CARD_CONTROL_POINTS = 600
-"""control points of one curve sent to the card at most: a longer feed path is cut into curves
-(an exact stop between them) so each fits the card's geometry memory with room to spare"""
+"""control points of one joined curve sent to the card at most: a longer feed path is cut into
+curves (an exact stop between them) so each fits the card's geometry memory with room to spare (a
+path of one curve block goes whole whenever the memory holds it)"""
 
 
 class GcodeProgramSpec(Strict):
@@ -175,6 +176,15 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
     out = []
     if op.feed <= 0.0:
         raise where(op.line, "feed rate 0")
+    whole = op.elements[0].nurbs if len(op.elements) == 1 else None
+    if whole is not None:  # one curve block: to the card as programmed, when its memory holds it
+        degree, knots, weights, points = whole
+        try:
+            curve = _card_curve(op, spec, degree, knots, weights, points.tolist(), axes, model, label, where)
+            return [GcodePath(curve=curve, lines=((float(knots[0]), op.line),), line=op.line)]
+        except ScenarioError as exc:
+            if "split the curve" not in exc.message:  # the card's memory: cut it below; else refused
+                raise
     for chunk in _pieces_in_cards(op):
         spans = [h for _, h, _ in chunk]
         degree, knots, weights, points = join([q for q, _, _ in chunk], spans)
@@ -183,13 +193,19 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
         for k, (_, _, line) in enumerate(chunk):
             if not lines or lines[-1][1] != line:
                 lines.append((float(u[k]), line))
-        curve_spec = validate(NurbsCurveProgram, {
-            "type": "nurbs_curve", "degree": degree, "knots": knots, "weights": weights, "control_points": points,
-            "feed": op.feed, "chord_tolerance": spec.chord_tolerance, "limits": spec.limits.model_dump(),
-            "tool_axis": {"A": op.hold[0], "B": op.hold[1]}, "C": op.hold[2], "settle": 0.0}, label, ("program",))
-        try:
-            curve = convert_curve(curve_spec, axes, model, label)
-        except ScenarioError as exc:
-            raise where(chunk[0][2], exc.message) from None
+        curve = _card_curve(op, spec, degree, knots, weights, points, axes, model, label, where, chunk[0][2])
         out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2]))
     return out
+
+
+def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes, model, label: Path, where: _Where,
+                line: int | None = None):
+    """One card curve of a feed path, checked against travel and the card's memory at ``line``."""
+    curve_spec = validate(NurbsCurveProgram, {
+        "type": "nurbs_curve", "degree": degree, "knots": knots, "weights": weights, "control_points": points,
+        "feed": op.feed, "chord_tolerance": spec.chord_tolerance, "limits": spec.limits.model_dump(),
+        "tool_axis": {"A": op.hold[0], "B": op.hold[1]}, "C": op.hold[2], "settle": 0.0}, label, ("program",))
+    try:
+        return convert_curve(curve_spec, axes, model, label)
+    except ScenarioError as exc:
+        raise where(op.line if line is None else line, exc.message) from None
