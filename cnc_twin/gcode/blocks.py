@@ -15,9 +15,12 @@ from dataclasses import dataclass, field
 
 from cnc_twin.gcode.expressions import ExpressionError, Parameters, read_parameter_key, read_real
 
-WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz@^") - {"n", "o"}
+WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz@^$") - {"n", "o"}
 """letters that start a word (``n`` is the line number, ``o`` an O-word, read apart; ``@`` and
-``^`` are the polar radius and angle)"""
+``^`` are the polar radius and angle, ``$`` the spindle number of LinuxCNC 2.9)"""
+NEGATIVE_REFUSED = {"f": "Negative f word used", "s": "Negative spindle speed used",
+                    "t": "Negative tool id (tool not found)"}
+"""words LinuxCNC refuses negative as it reads them -> its message"""
 REPEATABLE = frozenset("gm")
 """letters a block may hold more than once"""
 
@@ -105,6 +108,8 @@ def read_block(text: str, line: int, params: Parameters) -> Block:
                 pos = _assignment(norm, pos, params, block)
             elif c in WORD_LETTERS:
                 value, pos = read_real(norm, pos + 1, params)
+                if value < 0.0 and c in NEGATIVE_REFUSED:
+                    raise BlockError(NEGATIVE_REFUSED[c])
                 if c in REPEATABLE:
                     (block.g if c == "g" else block.m).append(value)
                 elif c in block.words:
@@ -121,6 +126,7 @@ def read_block(text: str, line: int, params: Parameters) -> Block:
 def _assignment(norm: str, pos: int, params: Parameters, block: Block) -> int:
     """``#index=value`` or ``#<name>=value`` at ``norm[pos]``; the index after it."""
     key, pos = read_parameter_key(norm, pos, params)
+    params.check_assignable(key)
     if isinstance(key, str):
         # the name exists from here on in the line (0 until the line's settings apply), as in
         # LinuxCNC: `#<d>=-3 Z#<d>` reads 0, `#<e>=[#<e>+1]` sets 1; read before it, not defined

@@ -30,8 +30,9 @@ EQUAL_TOLERANCE = 1e-4
 """``eq`` / ``ne`` treat values closer than this as equal (LinuxCNC's tolerance)"""
 INTEGER_TOLERANCE = 1e-4
 """a value this close to a whole number is that number where an integer is needed"""
-MAX_PARAMETER = 5602
-"""highest numbered parameter (``#1`` .. ``#5602``)"""
+MAX_PARAMETER = 5601
+"""highest numbered parameter a program may name (``#1`` .. ``#5601``: LinuxCNC keeps 5602, ``#0``
+unused)"""
 
 # binary operators by precedence (higher binds tighter), longest spelling first where they share a start
 _OPERATORS = (("**", 4), ("*", 3), ("/", 3), ("mod", 3), ("+", 2), ("-", 2), ("eq", 1), ("ne", 1), ("gt", 1),
@@ -58,6 +59,17 @@ class Parameters:
         """read-only parameters computed from the interpreter's state when read (``#5420``...)"""
         self.live_named: dict[str, Callable[[], float]] = {}
         """read-only named parameters computed when read (``#<_x>``, ``#<_metric>``...)"""
+        self.read_only_named: set[str] = set()
+        """stored named parameters only the interpreter sets (``#<_value>``...)"""
+
+    def check_assignable(self, key: int | str) -> None:
+        """LinuxCNC's refusal of a program's setting of a read-only parameter: the live ones
+        (``#5420``, ``#<_x>``...) and those the interpreter keeps for itself."""
+        if isinstance(key, str):
+            if key in self.live_named or key in self.read_only_named:
+                raise ExpressionError(f"Cannot assign to read-only parameter #<{key}>")
+        elif key in self.live_numbered:
+            raise ExpressionError("Parameter is readonly")
 
     def number(self, index: int) -> float:
         live = self.live_numbered.get(index)
@@ -146,6 +158,8 @@ class _Reader:
             if pos < len(text) and text[pos] == "]":
                 break
             op = _operator_at(text, pos)
+            if op is None and pos >= len(text):
+                raise ExpressionError("Unclosed expression")
             if op is None:
                 if pos < len(text) and text[pos] in _OPERATOR_INITIALS:
                     raise ExpressionError(f"Unknown operation name starting with {text[pos]}")

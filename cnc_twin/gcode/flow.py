@@ -23,6 +23,12 @@ LOCALS = 30
 """``#1`` .. ``#30`` are a subroutine's own"""
 MAX_CALL_DEPTH = 10
 """LinuxCNC's nesting limit for calls"""
+CONDITIONAL = ("if", "elseif", "while", "repeat")
+"""keywords that must be followed by a bracketed condition (or count)"""
+OPENERS = ("if", "while", "repeat", "do")
+"""keywords whose label LinuxCNC records when it runs them"""
+RETURNED = ("_value", "_value_returned")
+"""the named parameters a subroutine's return sets"""
 MAX_ITERATIONS = 10_000_000
 """loop passes before the reader gives up on a program that never ends"""
 
@@ -67,6 +73,15 @@ class Flow:
     loops: list[Loop] = field(default_factory=list)
     subroutines: dict[str, int] = field(default_factory=dict)
     passes: int = 0
+    labels: list[dict[str, tuple[int, str]]] = field(default_factory=lambda: [{}])
+    """per call level (the program, then each call in progress): the labels of the ``if``,
+    ``while``, ``repeat`` and ``do`` lines run so far -> their line index and keyword"""
+
+    def __post_init__(self):
+        # what the last subroutine returned: 0 until one returns, set by the interpreter only
+        for name in RETURNED:
+            self.params.named.setdefault(name, 0.0)
+        self.params.read_only_named.update(RETURNED)
 
     def _keyword(self, o_line: OLine) -> tuple[str, str]:
         """The keyword and the argument text after it (LinuxCNC reads the longest keyword)."""
@@ -75,13 +90,13 @@ class Flow:
         if keyword is None:
             raise BlockError("Unknown control command in o word")
         rest = text[len(keyword):]
+        if keyword in CONDITIONAL and not rest.startswith("["):
+            raise BlockError(f"Left bracket missing after '{keyword}'")
         if rest and not rest.startswith("["):
             raise BlockError("Unexpected character after O-word")
         return keyword, rest
 
     def _condition(self, rest: str) -> float:
-        if not rest:
-            raise BlockError("expected a condition in brackets after the O-word")
         try:
             value, end = evaluate(rest, 0, self.params)
         except ExpressionError as exc:
@@ -117,9 +132,12 @@ class Flow:
         keyword, rest = self._keyword(o_line)
         name = o_line.name
         shown = self.source.lines[index].strip()
+        if keyword in OPENERS:
+            self._label(index, name, keyword, shown)
+        elif keyword == "endif" and name not in self.labels[-1]:
+            raise BlockError(f"{index + 1}: undefined O-word label: '{shown}'")
         if keyword == "sub":
-            self.subroutines.setdefault(name, index)
-            return self._after(index, name, ("endsub",), shown) + 1
+            return self._define(index, name)
         if keyword == "call":
             return self._call(index, name, rest)
         if keyword in ("endsub", "return"):
@@ -133,6 +151,36 @@ class Flow:
         if keyword == "endif":
             return index + 1
         return self._loop(index, name, keyword, rest, shown)
+
+    def _label(self, index: int, name: str, keyword: str, shown: str) -> None:
+        """LinuxCNC's record of the labels a call level has run: one label names one line (a
+        ``do`` takes a known label, the ``while`` that closes a ``do`` is its partner)."""
+        labels = self.labels[-1]
+        known = labels.get(name)
+        if known is None:
+            labels[name] = (index, keyword)
+            return
+        first, kind = known
+        if first == index or keyword == "do" or (keyword == "while" and kind == "do"):
+            return
+        if keyword == "if":
+            raise BlockError(f"{index + 1}: duplicate O-word label - already defined in line {first + 1}: '{shown}'")
+        raise BlockError(f"{index + 1}: duplicate O-word label: '{shown}' - defined in line {first + 1}")
+
+    def _define(self, index: int, name: str) -> int:
+        """A ``sub`` line met in the flow: its body is skipped to its ``endsub``, as LinuxCNC
+        reads it, refusing a definition inside it or a file that ends first."""
+        known = self.subroutines.get(name)
+        if known is not None and known != index:
+            raise BlockError(f"File:{self.source.name} line:{index + 1} redefining sub: o|{name.strip('<>')}| "
+                             f"already defined in file:{self.source.name}")
+        self.subroutines[name] = index
+        for o_line in self.source.o_lines_after(index):
+            if o_line.keyword == "sub":
+                raise SeekError("Nested subroutine definition", o_line.index + 1)
+            if o_line.keyword == "endsub" and o_line.name == name:
+                return o_line.index + 1
+        raise SeekError(self.source.eof_message, self.source.end)
 
     def _branch(self, index: int, name: str, rest: str, shown: str) -> int:
         condition = self._condition(rest)
@@ -221,6 +269,7 @@ class Flow:
         for k, value in enumerate(args, start=1):
             numbered[k] = value
         self.frames.append(Frame(name, index + 1, saved_numbered, saved_named, len(self.loops)))
+        self.labels.append({})
         return start + 1
 
     def _return(self, index: int, name: str, rest: str, shown: str) -> int | str:
@@ -228,6 +277,7 @@ class Flow:
             raise BlockError(f"{index + 1}: not in a subroutine definition: '{shown}'")
         value = self._condition(rest) if rest else None
         frame = self.frames.pop()
+        self.labels.pop()
         numbered = self.params.numbered
         for k in range(1, LOCALS + 1):
             numbered.pop(k, None)

@@ -3,7 +3,8 @@
 (``tests/test_gcode_corpus.py``).
 
 Each line is read (:mod:`~cnc_twin.gcode.blocks`), its parameter settings applied, its codes
-sorted into modal groups (:mod:`~cnc_twin.gcode.modal`) and its words checked; then the block
+sorted into modal groups (:mod:`~cnc_twin.gcode.modal`) and its words checked
+(:mod:`~cnc_twin.gcode.checks`); then the block
 runs in LinuxCNC's order of execution: comment, feed mode, F, S, T, M6 / M61, spindle, coolant,
 force-control M codes, dwell, plane, units, cutter radius compensation off, tool length offset,
 work system, path control, distance modes, retract mode, G10 / G28 / G30 / G92, motion, stops.
@@ -22,43 +23,17 @@ from dataclasses import dataclass
 
 from cnc_twin.gcode.blocks import Block, BlockError, apply_assignments, read_block
 from cnc_twin.gcode.canon import Call
+from cnc_twin.gcode.checks import (AXIS_CODES, AXIS_LETTERS, FORCE_ON, MOVE_WORDS, UNSUPPORTED_MARK,
+                                   check_words, refuse_unsupported)
 from cnc_twin.gcode.comments import CALLS, read_comment
 from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.modal import modal_codes
 from cnc_twin.gcode.motion import MotionRunner
 from cnc_twin.gcode.source import Source
-from cnc_twin.gcode.state import (G92_PARAMETER, HOME_PARAMETERS, SYSTEM_CODES, SYSTEM_PARAMETER, State,
-                                  ToolTable)
+from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
 
-UNSUPPORTED_MARK = "not supported by cnc-twin"
-"""every refusal of a feature the machine does not have says this"""
-UNSUPPORTED_G = {
-    50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 70: "G7 (lathe diameter mode)",
-    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 382: "G38.2 (probing)",
-    383: "G38.3 (probing)", 384: "G38.4 (probing)", 385: "G38.5 (probing)", 410: "G41 (cutter radius compensation)",
-    411: "G41.1 (cutter radius compensation)", 420: "G42 (cutter radius compensation)",
-    421: "G42.1 (cutter radius compensation)", 432: "G43.2 (additional tool length offset)",
-    730: "G73 (canned cycle)", 740: "G74 (canned cycle)", 760: "G76 (threading cycle)", 950: "G95 (feed per revolution)",
-    960: "G96 (constant surface speed)",
-    **{c: f"G{c / 10:g} (lathe cycle)" for c in (700, 710, 711, 712, 720, 721, 722)}, **{c: f"G{c // 10} (canned cycle)" for c in range(810, 900, 10)},
-}
-"""G codes (tenths) the twin's machine cannot run -> what they are, for the refusal"""
-UNSUPPORTED_M = {19: "M19 (spindle orientation)", 48: "M48 (override switches)", 49: "M49 (override switches)",
-                 50: "M50 (feed override control)", 51: "M51 (spindle override control)",
-                 52: "M52 (adaptive feed)", 53: "M53 (feed stop control)", 62: "M62 (digital output)",
-                 63: "M63 (digital output)", 64: "M64 (digital output)", 65: "M65 (digital output)",
-                 66: "M66 (input wait)", 67: "M67 (analog output)", 68: "M68 (analog output)",
-                 70: "M70 (modal state save)", 71: "M71 (modal state save)", 72: "M72 (modal state restore)",
-                 73: "M73 (modal state save)", 61: "M61 (tool number without a change)"}
-"""M codes the twin's machine cannot run"""
-FORCE_ON, FORCE_OFF = 100, 101
-"""the machine's own M codes: M100 P<newtons> switches the grinding-force loop on with that
-setpoint, M101 switches it off (LinuxCNC's user M-code range)"""
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
-AXIS_LETTERS = "xyzabc"
-MOVE_WORDS = AXIS_LETTERS + "@^"
-"""words that make a block move (``@`` / ``^`` polar radius and angle)"""
 
 
 class ProgramError(ValueError):
@@ -112,7 +87,7 @@ class Interpreter:
                         self.emit("FINISH")
                         break
                     self._line = index  # the last line read (a skipped subroutine's endsub too)
-                    raise BlockError("File ended with no percent sign or program end")
+                    raise BlockError(self.source.eof_message)
                 self._line, self._number = index + 1, None
                 if index in self.source.o_lines:
                     index = self.flow.step(index)
@@ -151,11 +126,11 @@ class Interpreter:
         if block.number is not None:
             self._number = _n_text(self.source.lines[block.line - 1])
         g, m = modal_codes(block)
-        self._refuse_unsupported(block, g, m)
+        refuse_unsupported(block, g, m)
         # axis words move in the current motion mode unless a code of the block owns them
-        owned = g.get(0) in (100, 280, 300, 920) or g.get(8) == 431
+        owned = g.get(0) in AXIS_CODES or g.get(8) == 431
         motion = g.get(1, self.state.motion if any(a in block.words for a in MOVE_WORDS) and not owned else None)
-        self._check_words(block, g, m, motion)
+        check_words(block, g, m, motion, self.state)
         s = self.state
         if block.comments:
             self._comment(block.comments[-1])
@@ -175,7 +150,8 @@ class Interpreter:
             self.emit("STOP_SPINDLE_TURNING", 0)
             s.spindle = "stop"
             self.emit("CHANGE_TOOL", s.selected_tool)
-            s.tool_in_spindle = s.tool_data = s.selected_tool
+            if s.selected_tool != 0:  # T0 M6 leaves the last tool's data in rs274's spindle slot
+                s.tool_in_spindle = s.tool_data = s.selected_tool
         elif m.get(6) == 61:
             self._set_tool_number(block)
         if 7 in m:
@@ -224,56 +200,6 @@ class Interpreter:
             s.resynchronise()
         return self._stop(m.get(4))
 
-    def _refuse_unsupported(self, block: Block, g: dict[int, int], m: dict[int, int]) -> None:
-        for code in g.values():
-            if code in UNSUPPORTED_G:
-                raise BlockError(f"{UNSUPPORTED_G[code]} is {UNSUPPORTED_MARK}'s machine")
-        for code in m.values():
-            if code in UNSUPPORTED_M:
-                raise BlockError(f"{UNSUPPORTED_M[code]} is {UNSUPPORTED_MARK}'s machine")
-            if 100 <= code <= 199 and code not in (FORCE_ON, FORCE_OFF):
-                raise BlockError(f"Unknown m code used: M{code}")
-        if g.get(0) == 100 and round(block.words.get("l", 0)) not in (2, 20):
-            raise BlockError("G10 L1 / L10 / L11 (tool table edits) are not supported by cnc-twin: give tool "
-                             "data in the tool table")
-        for letter in "uvw":
-            if letter in block.words:
-                raise BlockError(f"Bad character '{letter}' used")
-        if "e" in block.words:
-            raise BlockError(f"E word (lathe threading) is {UNSUPPORTED_MARK}'s machine")
-
-    def _check_words(self, block: Block, g: dict[int, int], m: dict[int, int], motion: int | None) -> None:
-        words = block.words
-        arc = motion in (20, 30)
-        g0 = g.get(0)
-        user_m = 10 in m
-        if ("i" in words or "j" in words) and not arc:
-            letter = "I" if "i" in words else "J"
-            raise BlockError(f"{letter} word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it")
-        if "k" in words and not (arc or motion == 62):
-            raise BlockError("K word with no G2, G3, G33, G33.1, G76, or G87 to use it")
-        if "r" in words and not (arc or g0 == 100 or motion == 62):
-            raise BlockError("R word with no g code that uses it")
-        if "p" in words and not (arc or g0 in (40, 100) or g.get(13) == 640 or user_m or motion in (52, 62)):
-            raise BlockError("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 "
-                             "M62 M63 M64 M65 M66 M98 or user M code to use it")
-        if "q" in words and not (g.get(13) == 640 or g0 == 100 or user_m or m.get(6) == 61 or motion == 62):
-            raise BlockError("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code "
-                             "that uses it")
-        if "h" in words and g.get(8) != 430:
-            raise BlockError("H word with no G43 or G76 to use it")
-        if "l" in words and not (g0 == 100 or motion in (52, 62)):
-            raise BlockError("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 "
-                             "or NURBS code")
-        if "d" in words:
-            raise BlockError("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it")
-        if g0 == 40 and "p" not in words:
-            raise BlockError("Dwell time missing with g4")
-        if g0 == 530 and motion not in (0, 10):
-            raise BlockError("Must use G0 or G1 with G53")
-        if g0 == 530 and (g.get(3) == 910 or (3 not in g and self.state.distance == 910)):
-            raise BlockError("Cannot use G53 incremental")
-
     # -- the steps ---------------------------------------------------------------------------
     def _comment(self, text: str) -> None:
         kind, body = read_comment(text, self.params)
@@ -283,7 +209,7 @@ class Interpreter:
             self.printed.append(body)
         elif kind == "logclose":
             self.emit("LOGCLOSE")
-        else:
+        elif kind != "silent":
             self.emit(CALLS[kind], body)
 
     def _feed_mode(self, code: int) -> None:
@@ -353,16 +279,18 @@ class Interpreter:
             self.emit("FORCE_CONTROL_OFF")
 
     def _tool_length(self, code: int, block: Block) -> None:
+        """G43 (H0 or no H: the spindle's tool), G43.1 (the axes not given keep their offset)
+        and G49; the tool table's lengths are in machine units."""
         s = self.state
         offsets = [0.0] * 9
         if code == 430:
-            number = s.tool_data if "h" not in block.words else self._tool_number(block.words["h"])
-            scale = s.length_scale(s.tools.units)
-            for axis, value in enumerate(s.tools.lengths.get(number, (0.0, 0.0, 0.0))):
-                offsets[axis] = value * scale
+            number = self._tool_number(block.words["h"]) if "h" in block.words else 0
+            for axis, value in enumerate(s.tool_lengths(number or s.tool_data)):
+                offsets[axis] = s.user_to_program(axis, value)
         elif code == 431:
+            offsets = list(s.tool_offset)
             for axis, letter in enumerate(AXIS_LETTERS):
-                offsets[axis] = block.words.get(letter, 0.0)
+                offsets[axis] = block.words.get(letter, offsets[axis])
         s.set_tool_offset(offsets)
         self.emit("USE_TOOL_LENGTH_OFFSET", *offsets)
 
@@ -392,55 +320,33 @@ class Interpreter:
     def _non_modal(self, code: int, block: Block) -> None:
         s = self.state
         words = block.words
-        given = [k for k, letter in enumerate(AXIS_LETTERS) if letter in words]
+        given = {k: words[letter] for k, letter in enumerate(AXIS_LETTERS) if letter in words}
         if code == 100:
             self._g10(block, given)
         elif code in (280, 300):
-            self.motion.home(code, block, given)
+            self.motion.home(code, block, list(given))
         elif code in (281, 301):
-            base = HOME_PARAMETERS[code - 1]
-            for axis in range(6):
-                self.params.numbered[base + axis] = s.to_machine(axis, s.position[axis])
+            s.save_home(HOME_PARAMETERS[code - 1])
         elif code == 920:
-            if not given:
-                raise BlockError("All axes missing with G92")
-            offsets = list(s.g92)
-            for axis in given:
-                offsets[axis] = s.position[axis] + s.g92[axis] - words[AXIS_LETTERS[axis]]
-            s.set_g92(offsets, save=True)
-            self.params.numbered[5210] = 1.0
+            s.set_g92(given)
             self.emit("SET_G92_OFFSET", *s.g92)
         elif code in (921, 922):
-            s.set_g92([0.0] * 6, save=code == 921)
-            if code == 921:
-                self.params.numbered[5210] = 0.0
+            s.clear_g92(save=code == 921)
             self.emit("SET_G92_OFFSET", *s.g92)
         elif code == 923:
-            s.set_g92([self.params.number(G92_PARAMETER + axis) for axis in range(6)], save=False)
+            s.restore_g92()
             self.emit("SET_G92_OFFSET", *s.g92)
 
-    def _g10(self, block: Block, given: list[int]) -> None:
+    def _g10(self, block: Block, given: dict[int, float]) -> None:
+        """G10 L2 / L20 (P checked with the block): LinuxCNC truncates P (``P1.5`` is G54)."""
         s = self.state
         words = block.words
-        if "p" not in words:
-            raise BlockError("P word missing with G10")
-        system = round(words["p"])
-        if abs(words["p"] - system) >= INTEGER_TOLERANCE:
-            raise BlockError("Non integer value for integer")
-        if not 0 <= system <= 9:
-            raise BlockError("P value out of range with G10 L2")
         if words.get("r", 0.0) != 0.0:
             raise BlockError(f"G10 L2 R (rotated work coordinates) is {UNSUPPORTED_MARK}")
-        system = system or s.system
-        base = SYSTEM_PARAMETER + 20 * system
-        for axis in given:
-            value = words[AXIS_LETTERS[axis]]
-            if round(words["l"]) == 20:
-                # L20: the current point becomes `value` in that system
-                value = s.position[axis] + s.g5x[axis] - value
-            self.params.numbered[base + axis] = value
+        system = int(words["p"] + 0.0001) or s.system
+        offsets = s.write_system(system, given, relative=round(words["l"]) == 20)
         if system == s.system:
-            s.reload_active_system()
+            s.set_active_origin(offsets)
             self.emit("SET_G5X_OFFSET", system, *s.g5x)
             self.emit("SET_XY_ROTATION", 0.0)
         else:
@@ -461,8 +367,10 @@ class Interpreter:
 
     def _program_end(self, code: int) -> None:
         s = self.state
-        if s.system != 1:
-            s.select_system(1)
+        # G54 again, its offsets read anew from #5221.. (even when it is the active system)
+        s.system = 1
+        self.params.numbered[ACTIVE_SYSTEM] = 1.0
+        s.set_active_origin(s.system_offsets(1))
         self.emit("SET_G5X_OFFSET", 1, *s.g5x)
         self.emit("SET_XY_ROTATION", 0.0)
         if s.plane != 170:
@@ -485,6 +393,8 @@ class Interpreter:
         if code == 30:
             self.emit("PALLET_SHUTTLE")
         self.emit("PROGRAM_END")
+        if self.source.percent_missing_after(self._line - 1):
+            self.emit("COMMENT", "interpreter: percent sign missing from end of file")
 
 
 def _n_text(raw: str) -> str:

@@ -103,7 +103,9 @@ class MotionRunner:
         s = self.state
         emit = self.interpreter.emit
         if self.nurbs is not None and motion not in (self.nurbs_kind, NURBS_END):
-            raise BlockError(f"G{self.nurbs_kind / 10:g} curve not ended before another motion")
+            if self.nurbs_kind != 52:  # the twin's own G6.2 must be complete
+                raise BlockError(f"G{self.nurbs_kind / 10:g} curve not ended before another motion")
+            self.nurbs = self.nurbs_kind = None  # LinuxCNC drops an unfinished G5.2 curve silently
         if motion in NURBS_STARTS or motion == NURBS_END:
             self._nurbs(motion, block)
             return
@@ -159,10 +161,8 @@ class MotionRunner:
         self.interpreter.emit("NURBS_FEED", payload=curve)
 
     def dwell(self, block: Block) -> None:
-        seconds = block.words["p"]
-        if seconds < 0:
-            raise BlockError("Negative dwell time (G4 P)")
-        self.interpreter.emit("DWELL", seconds)
+        """G4: LinuxCNC dwells even a negative time (P-1 alone reads as no P at all)."""
+        self.interpreter.emit("DWELL", block.words["p"])
 
     def home(self, code: int, block: Block, given: list[int]) -> None:
         """G28 / G30: through the programmed point, then to the stored position (#5161.. /
@@ -174,7 +174,7 @@ class MotionRunner:
         base = HOME_PARAMETERS[code]
         end = list(middle)
         for axis in (given or range(6)):
-            end[axis] = s.from_machine(axis, self.interpreter.params.number(base + axis))
+            end[axis] = s.home(base, axis)
         emit("STRAIGHT_TRAVERSE", *end)
         s.position = end
 

@@ -50,7 +50,8 @@ class Source:
 
     ``lines``: the raw lines (no newline characters); ``first``, ``end``: the range of 0-based
     line indices the interpreter reads (after a leading ``%``, up to a closing one);
-    ``percent_end``: whether ``end`` is a closing ``%`` line; ``o_lines``: 0-based index -> OLine
+    ``percent_start``: whether a ``%`` line opens the file; ``percent_end``: whether ``end`` is a
+    closing ``%`` line; ``o_lines``: 0-based index -> OLine
     for every O-word line in that range.
     """
 
@@ -58,10 +59,11 @@ class Source:
         self.name = name
         self.lines = text.splitlines()
         self.first, self.end, self.percent_end = 0, len(self.lines), False
+        self.percent_start = False
         for k, line in enumerate(self.lines):
             if line.strip():
                 if line.strip() == "%":
-                    self.first = k + 1
+                    self.first, self.percent_start = k + 1, True
                     closing = next((j for j in range(k + 1, len(self.lines)) if self.lines[j].strip().startswith("%")),
                                    None)
                     if closing is not None:
@@ -76,6 +78,23 @@ class Source:
             if o_line is not None:
                 self.o_lines[k] = o_line
         self._o_order = sorted(self.o_lines)
+
+    @property
+    def eof_message(self) -> str:
+        """LinuxCNC's refusal of a file that ends before the program does: a file opened by ``%``
+        wanted its closing ``%``."""
+        if self.percent_start:
+            return "File ended with no percent sign"
+        return "File ended with no percent sign or program end"
+
+    def percent_missing_after(self, index: int) -> bool:
+        """After a program end at ``index`` in a file opened by ``%``: no line after it is a
+        lone ``%`` (LinuxCNC then notes it in a comment)."""
+        return self.percent_start and not any(line.strip() == "%" for line in self.lines[index + 1:])
+
+    def o_lines_after(self, start: int) -> list[OLine]:
+        """The O-word lines after index ``start``, in order."""
+        return [self.o_lines[k] for k in self._o_order[bisect.bisect_right(self._o_order, start):]]
 
     @classmethod
     def read(cls, path: Path) -> "Source":

@@ -1,18 +1,22 @@
 """The interpreter's state between blocks: modes, the current point, coordinate systems, offsets,
 tool and spindle, kept as LinuxCNC keeps them.
 
-Lengths are in the program's current units (G20 inch / G21 mm) and are converted, offsets and
-their parameters included, when the units change; A B C are degrees. The current point is in
-program coordinates: the machine position is the point plus the active work offset
-(G54..G59.3), the G92 offset and the tool length offset. Work offsets live in LinuxCNC's
-parameters (``#5221`` onwards, 20 per system; ``#5220`` the active system; ``#5211`` the G92
-offsets), so programs read and write them as LinuxCNC's do.
+Lengths are in the program's current units (G20 inch / G21 mm) and are converted when the
+units change; A B C are degrees. The current point is in program coordinates: the machine
+position is the point plus the active work offset (G54..G59.3), the G92 offset and the tool
+length offset. Work offsets live in LinuxCNC's parameters (``#5221`` onwards, 20 per system;
+``#5220`` the active system; ``#5211`` the G92 offsets; ``#5161`` / ``#5181`` the G28 / G30
+positions), kept as LinuxCNC keeps them in the machine's units (the tool table's: inches for
+rs274) whatever the program's, and converted on every read and write by the codes that use them;
+a program that sets one directly sets it in machine units, as in LinuxCNC. The tool length
+offset keeps its number across G20 / G21, as LinuxCNC's does.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from cnc_twin.gcode.comments import DEBUG_SWITCH
 from cnc_twin.gcode.expressions import Parameters
 
 MM_PER_INCH = 25.4
@@ -29,6 +33,9 @@ G92_PARAMETER = 5211
 G92_ENABLED = 5210
 HOME_PARAMETERS = {280: 5161, 300: 5181}
 """G28 / G30 -> first of their saved positions (machine coordinates)"""
+EXTERNAL_LENGTH_UNITS = {200: 0.03937007874016, 210: 1.0}
+"""the machine's units (the tool table's: 200 inch, 210 mm) -> LinuxCNC's external length units
+(machine units per mm)"""
 SYSTEM_CODES = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}
 """G54 .. G59.3 (tenths) -> work system number"""
 
@@ -79,6 +86,8 @@ class State:
     tool_offset: list[float] = field(default_factory=lambda: [0.0] * 9)
     tool_in_spindle: int = 0
     tool_data: int = 0
+    """the tool whose table data is in rs274's spindle slot (what G43 without H, and G43 H0,
+    apply): the last tool M6 loaded other than 0, since T0 M6 leaves the slot as it was"""
     selected_tool: int = 0
     spindle: str = "stop"
     mist: bool = False
@@ -90,60 +99,143 @@ class State:
 
     def __post_init__(self):
         self.params.numbered.setdefault(ACTIVE_SYSTEM, 1.0)
+        self.params.numbered.setdefault(DEBUG_SWITCH, 1.0)
 
     # -- conversions -------------------------------------------------------------------------
-    def length_scale(self, units: int) -> float:
-        """Factor from ``units`` (200 / 210) to the program's current units."""
-        if units == self.units:
-            return 1.0
-        return MM_PER_INCH if self.units == 210 else 1.0 / MM_PER_INCH
+    @property
+    def unit_factor(self) -> float:
+        """mm per program unit (LinuxCNC's FROM_PROG_LEN factor)."""
+        return MM_PER_INCH if self.units == 200 else 1.0
+
+    @property
+    def external_units(self) -> float:
+        """Machine units per mm: LinuxCNC's GET_EXTERNAL_LENGTH_UNITS (rs274 writes 1/25.4 to 14
+        decimals, so an inch value in a G20 program comes back 6e-14 off)."""
+        return EXTERNAL_LENGTH_UNITS[self.tools.units]
+
+    def user_to_program(self, axis: int, value: float) -> float:
+        """A length in machine units (a parameter's, a tool table's) in program units, in
+        LinuxCNC's order of operations (USER_TO_PROGRAM_LEN); angles are not converted."""
+        if axis >= LINEAR:
+            return value
+        return value / self.external_units / self.unit_factor
+
+    def program_to_user(self, axis: int, value: float) -> float:
+        """A length in program units in machine units (PROGRAM_TO_USER_LEN)."""
+        if axis >= LINEAR:
+            return value
+        return value * self.unit_factor * self.external_units
 
     def change_units(self, units: int) -> None:
-        """G20 / G21: the current point, offsets and their parameters follow into the new units."""
+        """G20 / G21: the current point and the active offsets follow into the new units. The
+        offset parameters stay in machine units; the tool length offset keeps its number (LinuxCNC
+        re-reads it from its canon, which does not convert it); the canon's own point, which
+        ``tool_shift`` measures against, is converted."""
         if units == self.units:
             return
         k = MM_PER_INCH if units == 210 else 1.0 / MM_PER_INCH
         self.units = units
-        for vector in (self.position, self.g5x, self.g92):
+        for vector in (self.position, self.g5x, self.g92, self.tool_shift):
             for axis in range(LINEAR):
                 vector[axis] *= k
-        for axis in (0, 1, 2, 6, 7, 8):
-            self.tool_offset[axis] *= k
-        numbered = self.params.numbered
-        for system in range(1, 10):
-            for axis in range(LINEAR):
-                index = SYSTEM_PARAMETER + 20 * system + axis
-                if index in numbered:
-                    numbered[index] *= k
-        for axis in range(LINEAR):
-            if G92_PARAMETER + axis in numbered:
-                numbered[G92_PARAMETER + axis] *= k
 
     # -- work offsets ------------------------------------------------------------------------
     def system_offsets(self, system: int) -> list[float]:
+        """System ``system``'s offsets from its parameters, in program units."""
         base = SYSTEM_PARAMETER + 20 * system
-        return [self.params.number(base + axis) for axis in range(6)]
+        return [self.user_to_program(axis, self.params.number(base + axis)) for axis in range(6)]
+
+    def stored_g92(self) -> list[float]:
+        """The G92 offsets saved in #5211.., in program units."""
+        return [self.user_to_program(axis, self.params.number(G92_PARAMETER + axis)) for axis in range(6)]
+
+    def point_in_system(self, system: int) -> list[float]:
+        """The current point as system ``system`` would have it: LinuxCNC's
+        find_current_in_system, which takes the G92 offsets from their parameters when #5210 is
+        set, in its order of operations."""
+        new = self.system_offsets(system)
+        stored = self.stored_g92() if self.params.number(G92_ENABLED) else None
+        point = []
+        for axis in range(6):
+            value = self.position[axis] + self.g92[axis] + self.g5x[axis] - new[axis]
+            if stored is not None:
+                value -= stored[axis]
+            point.append(value)
+        return point
 
     def select_system(self, system: int) -> None:
         """G54 .. G59.3: the current point is re-expressed in the new system."""
-        new = self.system_offsets(system)
-        for axis in range(6):
-            self.position[axis] += self.g5x[axis] - new[axis]
-        self.g5x, self.system = new, system
+        self.position = self.point_in_system(system)
+        self.g5x, self.system = self.system_offsets(system), system
         self.params.numbered[ACTIVE_SYSTEM] = float(system)
 
-    def reload_active_system(self) -> None:
-        """After G10 changed the active system's parameters: its offsets take effect."""
-        self.select_system(self.system)
-
-    def set_g92(self, offsets: list[float], save: bool) -> None:
-        """New G92 offsets; the current point moves with them. ``save`` also writes #5211.."""
+    def set_active_origin(self, offsets: list[float]) -> None:
+        """New offsets of the active system (G10 for it, M2's return to G54): the point moves
+        with them."""
         for axis in range(6):
-            self.position[axis] += self.g92[axis] - offsets[axis]
-        self.g92 = list(offsets)
+            self.position[axis] = self.position[axis] + self.g5x[axis] - offsets[axis]
+        self.g5x = list(offsets)
+
+    def write_system(self, system: int, words: dict[int, float], relative: bool) -> list[float]:
+        """G10 L2 (``relative`` False) / L20: the given axes of system ``system`` set, written
+        to its parameters in machine units; its offsets (program units) returned."""
+        base = SYSTEM_PARAMETER + 20 * system
+        current = self.point_in_system(system) if relative else None
+        offsets = []
+        for axis in range(6):
+            stored = self.user_to_program(axis, self.params.number(base + axis))
+            if axis in words:
+                value = words[axis]
+                if relative:  # L20: the current point becomes `value` in that system
+                    value = current[axis] + stored - value
+                self.params.numbered[base + axis] = self.program_to_user(axis, value)
+                offsets.append(value)
+            else:
+                offsets.append(stored)
+        return offsets
+
+    def set_g92(self, words: dict[int, float]) -> None:
+        """G92: the current point takes the given values exactly; all offsets are saved."""
+        self.params.numbered[G92_ENABLED] = 1.0
+        for axis, value in words.items():
+            self.g92[axis] = self.position[axis] + self.g92[axis] - value
+            self.position[axis] = value
+        for axis in range(6):
+            self.params.numbered[G92_PARAMETER + axis] = self.program_to_user(axis, self.g92[axis])
+
+    def clear_g92(self, save: bool) -> None:
+        """G92.1 (``save``: the parameters are zeroed too) / G92.2."""
+        self.params.numbered[G92_ENABLED] = 0.0
+        for axis in range(6):
+            self.position[axis] = self.position[axis] + self.g92[axis]
+        self.g92 = [0.0] * 6
         if save:
             for axis in range(6):
-                self.params.numbered[G92_PARAMETER + axis] = offsets[axis]
+                self.params.numbered[G92_PARAMETER + axis] = 0.0
+
+    def restore_g92(self) -> None:
+        """G92.3: the offsets saved in the parameters apply again."""
+        self.params.numbered[G92_ENABLED] = 1.0
+        stored = self.stored_g92()
+        for axis in range(6):
+            self.position[axis] = self.position[axis] + self.g92[axis] - stored[axis]
+        self.g92 = stored
+
+    # -- G28 / G30 positions -----------------------------------------------------------------
+    def save_home(self, base: int) -> None:
+        """G28.1 / G30.1: the machine position into #base.., in machine units."""
+        for axis in range(6):
+            machine = self.position[axis] + self.tool_offset[axis] + self.g5x[axis] + self.g92[axis]
+            self.params.numbered[base + axis] = self.program_to_user(axis, machine)
+
+    def home(self, base: int, axis: int) -> float:
+        """The stored position #base.. of ``axis`` in program coordinates."""
+        return self.from_machine(axis, self.user_to_program(axis, self.params.number(base + axis)))
+
+    # -- tool length offsets -----------------------------------------------------------------
+    def tool_lengths(self, number: int) -> tuple[float, float, float]:
+        """Tool ``number``'s x y z lengths in the table (machine units); none for tool 0."""
+        return self.tools.lengths.get(number, (0.0, 0.0, 0.0))
 
     def set_tool_offset(self, offsets: list[float]) -> None:
         """G43 / G43.1 / G49: the tool tip's program position moves with the offset."""
@@ -159,11 +251,8 @@ class State:
             self.position[axis] -= self.tool_shift[axis]
         self.tool_shift = [0.0] * 6
 
-    def to_machine(self, axis: int, value: float) -> float:
-        """A program coordinate of ``axis`` as a machine coordinate (current units)."""
-        return value + self.g5x[axis] + self.g92[axis] + self.tool_offset[axis]
-
     def from_machine(self, axis: int, value: float) -> float:
+        """A machine coordinate of ``axis`` (program units) as a program coordinate."""
         return value - self.g5x[axis] - self.g92[axis] - self.tool_offset[axis]
 
     # -- read-only parameters ----------------------------------------------------------------
@@ -198,5 +287,9 @@ class State:
             position = (lambda k=axis: self.position[k]) if axis < 6 else (lambda: 0.0)
             named[f"_{letter}"] = position
             numbered[5420 + axis] = position
-            numbered[5401 + axis] = lambda k=axis: self.tool_offset[k]
+            # the spindle's tool as the table has it (machine units), not the offset in use
+            numbered[5401 + axis] = (lambda k=axis: self.tool_lengths(self.tool_data)[k]) if axis < 3 else (lambda: 0.0)
         numbered[5400] = lambda: float(self.tool_in_spindle)
+        numbered[5410] = lambda: self.tools.diameters.get(self.tool_data, 0.0)
+        for index in range(5411, 5414):  # front and back angles, orientation: a mill's are 0
+            numbered[index] = lambda: 0.0
