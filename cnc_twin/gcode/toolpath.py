@@ -214,9 +214,11 @@ def arc_element(start: np.ndarray, arc, offset: np.ndarray, scale: float, tolera
     return Element(pieces, line, "arc")
 
 
-def curve_element(block, offset: np.ndarray, scale: float, line: int) -> Element:
-    """A NURBS_FEED's curve (:class:`~cnc_twin.gcode.nurbs.NurbsBlock`) in workpiece mm."""
+def curve_element(block, start: np.ndarray, offset: np.ndarray, scale: float, line: int) -> Element:
+    """A NURBS_FEED's curve (:class:`~cnc_twin.gcode.nurbs.NurbsBlock`) in workpiece mm, its first
+    control point ``start`` (mm): the curve starts where the tool is, bit for bit."""
     points = np.asarray(block.control_points, dtype=float) * scale + offset
+    points[0] = start
     return Element(bezier_pieces(points, block.weights, block.knots, block.degree), line, "curve",
                    knot_spans(block.knots, block.degree),
                    (block.degree, [float(k) for k in block.knots], [float(w) for w in block.weights], points))
@@ -246,11 +248,12 @@ class _Canon:
 
     def machine(self, values) -> np.ndarray:
         """Program point x y z a b c -> the machine's (workpiece frame) point, mm / deg."""
-        return self.to_mm(values) + self.g92 + self.g5x + self.tool
+        return self.to_mm(values) + self.offset
 
     @property
     def offset(self) -> np.ndarray:
-        return (self.g92 + self.g5x + self.tool)
+        """G92 + G5x + tool length offset, x y z a b c [mm / deg]."""
+        return self.g92 + self.g5x + self.tool
 
 
 def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> list[Operation]:
@@ -307,10 +310,7 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> li
                 element = arc_element(here[:3], call.payload, offset, canon.scale, tol, call.line)
             else:
                 # the line of the block that started the curve (the call comes at its last block)
-                element = curve_element(call.payload, offset, canon.scale, call.payload.line)
-                first = element.pieces[0][0]
-                first[:3] = here[:3] * first[3]  # the curve starts where the tool is, bit for bit
-                element.nurbs[3][0] = here[:3]
+                element = curve_element(call.payload, here[:3], offset, canon.scale, call.payload.line)
             path.append((element, _modes(canon, here)))
             here = np.concatenate([element.end, here[3:]])
         elif name == "DWELL":

@@ -72,23 +72,32 @@ class ProgramKind:
         return {}
 
 
+def _path_stop_time(limits) -> float:
+    """Time to stop from the feed of a path with these :class:`PathLimits`, jerk-limited [s]."""
+    a, j = limits.tangential_acceleration, limits.tangential_jerk
+    return limits.feed / a + a / j
+
+
+def _warm_curve_stepper(twin: Twin) -> None:
+    """Compile (or load) the curve stepper when the card runs the compiled one."""
+    if twin.interpolator.compiled:
+        from cnc_twin.dsp import curve_kernel
+
+        curve_kernel.warm_up()
+
+
 class _PathKind(ProgramKind):
     """A program with a programmed path feed: the look-ahead must cover a stop from it."""
 
     def stop_time(self, program) -> float:
-        lim = program.limits
-        a, j = lim.tangential_acceleration, lim.tangential_jerk
-        return lim.feed / a + a / j
+        return _path_stop_time(program.limits)
 
 
 class CurveKind(_PathKind):
     """A NURBS curve: the compiled stepper, and the path metrics from the trace."""
 
     def warm_up(self, twin: Twin) -> None:
-        if twin.interpolator.compiled:
-            from cnc_twin.dsp import curve_kernel
-
-            curve_kernel.warm_up()
+        _warm_curve_stepper(twin)
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.path_metrics import path_metrics
@@ -181,11 +190,11 @@ class GcodeKind(ProgramKind):
     """An NC program: its feed paths are curves (the compiled stepper), measured path by path."""
 
     def stop_time(self, program: GcodeProgram) -> float | None:
-        times = [_PathKind.stop_time(self, path.curve) for path in program.paths]
+        times = [_path_stop_time(path.curve.limits) for path in program.paths]
         return max(times) if times else None
 
     def warm_up(self, twin: Twin) -> None:
-        CurveKind.warm_up(self, twin)
+        _warm_curve_stepper(twin)
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.gcode_metrics import gcode_metrics

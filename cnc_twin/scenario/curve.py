@@ -163,6 +163,10 @@ def _oriented_path(spec: NurbsCurveProgram, tip_world, head, label: Path):
     return axis_curve, curve, poses
 
 
+class CardMemoryError(ScenarioError):
+    """A curve larger than the card's geometry memory (a caller that can cut it catches this)."""
+
+
 def _check_fits_the_card(program: NurbsProgram, label: Path) -> None:
     """The card keeps a curve's geometry in its geometry memory (16384 words: about 800 control
     points of a 3D curve with their weights and knots; a curve longer than one record goes in
@@ -173,4 +177,4 @@ def _check_fits_the_card(program: NurbsProgram, label: Path) -> None:
     try:
         payload_words(curve_setup(program)[4])
     except ValueError as exc:
-        raise ScenarioError(label, "program.control_points", f"{exc}: split the curve") from None
+        raise CardMemoryError(label, "program.control_points", f"{exc}: split the curve") from None

@@ -28,7 +28,7 @@ from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.core.gcode_config import GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.curve import NurbsCurveProgram
+from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
 from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 from cnc_twin.scenario.validation import validate
@@ -97,6 +97,7 @@ def _find(name: str, folder: Path | None, label: Path, key: str) -> Path:
 def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: Path, folder: Path | None) -> GcodeProgram:
     """Read the program and turn its operations into machine steps (SI, axis space)."""
     from cnc_twin.gcode import toolpath as tp
+    from cnc_twin.geometry.kinematics import HeadGeometry
 
     path = _find(spec.file, folder, label, "program.file")
     table = _find(spec.tool_table, folder, label, "program.tool_table") if spec.tool_table else None
@@ -108,10 +109,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         raise where(exc.line, exc.message) from None
     if not any(isinstance(op, (tp.Traverse, tp.FeedPath)) for op in ops):
         raise ScenarioError(label, "program.file", f"{path} moves nothing")
+    head = HeadGeometry.from_model(model)
     steps = []
     for op in ops:
         if isinstance(op, tp.Traverse):
-            steps.append(_move(op, axes, model, where))
+            steps.append(_move(op, axes, head, where))
         elif isinstance(op, tp.FeedPath):
             steps += _paths(op, spec, axes, model, label, where)
         elif isinstance(op, tp.Pause):
@@ -125,11 +127,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
                         settle=spec.settle)
 
 
-def _move(op, axes: tuple[AxisConfig, ...], model, where: _Where) -> GcodeMove:
-    """A traverse: the tip's point through the head kinematics at the target A / B."""
-    from cnc_twin.geometry.kinematics import HeadGeometry
-
-    head = HeadGeometry.from_model(model)
+def _move(op, axes: tuple[AxisConfig, ...], head, where: _Where) -> GcodeMove:
+    """A traverse: the tip's point through the ``head`` kinematics at the target A / B."""
     a, b, c = (v * units.DEG for v in op.end[3:])
     tip = head.world_from_workpiece(np.array([op.end[:3]]) * units.MM)
     xyz = head.axes_from_tip(tip, a, b)[0]
@@ -170,7 +169,8 @@ def _pieces_in_cards(path) -> list[list[tuple]]:
 
 
 def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) -> list[GcodePath]:
-    """A feed path as one or more card curves (each Bezier piece's parameter span its length)."""
+    """A feed path as one or more card curves: a lone curve block as programmed when the card's
+    memory holds it, else the path's Bezier pieces joined (:func:`_pieces_in_cards`)."""
     from cnc_twin.geometry.bezier import join
 
     out = []
@@ -182,9 +182,8 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
         try:
             curve = _card_curve(op, spec, degree, knots, weights, points.tolist(), axes, model, label, where)
             return [GcodePath(curve=curve, lines=((float(knots[0]), op.line),), line=op.line)]
-        except ScenarioError as exc:
-            if "split the curve" not in exc.message:  # the card's memory: cut it below; else refused
-                raise
+        except CardMemoryError:  # too large for the card's memory: cut into pieces below
+            pass
     for chunk in _pieces_in_cards(op):
         spans = [h for _, h, _ in chunk]
         degree, knots, weights, points = join([q for q, _, _ in chunk], spans)
@@ -208,4 +207,6 @@ def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes
     try:
         return convert_curve(curve_spec, axes, model, label)
     except ScenarioError as exc:
+        if line is None and isinstance(exc, CardMemoryError):  # the whole curve block: the caller cuts it
+            raise
         raise where(op.line if line is None else line, exc.message) from None
