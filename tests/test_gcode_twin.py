@@ -223,7 +223,9 @@ def test_run_takes_a_program_directly_and_keeps_it_in_the_run_directory(tmp_path
 @pytest.mark.parametrize("program, line, words", [
     ("G21\nG2 X1 Y1 R1 F100\nM2\n", 2, "first motion"),
     ("G21\nG0 X0 Y0 Z5\nG1 X900 F100\nM2\n", 3, "soft limits"),
-    ("G21\nG0 X0 Y0 Z5\nM100 P20\nM2\n", 3, "workpiece"),
+    ("G21\nG0 X0 Y0 Z5\nM100 P20\nM2\n", 3, "no feed move follows"),
+    ("G21\nG0 X0 Y0 Z5\nM100 P20\nG1 X5 F100\nG0 Z9\nM2\n", 5, "M101 first"),
+    ("G21\nG0 X0 Y0 Z5\nM100 P20\nG1 X5 F100\nM100 P10\nM2\n", 5, "M101 first"),
     ("G21\nG0 X0 Y0 Z5\nG15\nM2\n", 3, "Unknown g code used"),
     ("G21\nG0 X0 Y0 Z5\nG0 Z900\nM2\n", 3, "outside its"),
 ])

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:  # config imports this module: the curve's type only for annotations
-    from cnc_twin.core.config import NurbsProgram
+if TYPE_CHECKING:  # config imports this module: its types only for annotations
+    from cnc_twin.core.config import ForceControl, NurbsProgram, Preston, SurfaceDef
 
 
 @dataclass(frozen=True)
@@ -48,17 +48,42 @@ class GcodeSpindle:
 
 
 @dataclass(frozen=True)
+class GcodeForce:
+    """M100 P / M101: the grinding-force loop on at the start of the next feed path, or off at
+    the end of the last one."""
+
+    control: ForceControl | None
+    """the loop's parameters with the program's setpoint; None = off (M101)"""
+    line: int
+
+
+@dataclass(frozen=True)
+class GcodeWorkpiece:
+    """The workpiece a G-code program polishes: its surface in the scene, the removal map on it."""
+
+    surface: SurfaceDef
+    """world frame [m]"""
+    preston: Preston
+    friction: float | None
+    """pad-workpiece sliding friction; None = the model's"""
+    tile_size: float
+    """edge of the convex collision tiles [m]"""
+
+
+@dataclass(frozen=True)
 class GcodeProgram:
     """An NC program read whole (:mod:`cnc_twin.gcode`), as machine steps in SI."""
 
     file: Path
     text: str
     """the program as read (the run directory keeps it)"""
-    steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle, ...]
+    steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle | GcodeForce, ...]
     lines: int
     """lines in the file"""
     settle: float
     """[s] simulated after the program end"""
+    workpiece: GcodeWorkpiece | None = None
+    """the surface pressed on and polished; None = the scene as it is, no removal map"""
 
     @property
     def paths(self) -> tuple[GcodePath, ...]:

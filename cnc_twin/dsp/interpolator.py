@@ -3,9 +3,9 @@
 Inputs: records accepted from the FIFO, in sequence order (:mod:`cnc_twin.whiteboard.records`).
 Move records become segments from the programmed position to their end; modal records (feed
 override, force setpoint, spindle) take effect when they reach the head of the queue, in program
-order; end of program finishes the run.
-Output per period: the commanded position at the *end* of the period [counts], relative to the
-encoder's power-on position, for the servo task to fine-interpolate towards.
+order; end of program finishes the run. Output per period: the commanded position at the *end*
+of the period [counts], relative to the encoder's power-on position, for the servo task to
+fine-interpolate towards.
 
 Feed override and hold scale the segment's own clock: ``tau += lambda * T`` per period and
 ``p = start + s(tau) * d``. The axis acceleration is then ``d (s'' lambda^2 + s' lambda')``; it
@@ -30,8 +30,7 @@ stopping distance (the FIFO is running dry), the card holds, across block bounda
 inside what it has; it resumes once new blocks have made the queued path longer than a full-speed
 stop again.
 
-Surfaces, the force loop's records and the spindle: see :mod:`cnc_twin.dsp.path_blocks`.
-Curve, surface, force-control and block records are queued as :mod:`cnc_twin.dsp.path_blocks` items.
+Curves, surfaces, the force loop and the spindle run as :mod:`cnc_twin.dsp.path_blocks` items.
 
 Step contours (StepContour records, the older cards' point-by-point and DDA interpolation):
 each element runs its own clock along its S-curve (:mod:`cnc_twin.dsp.step_interpolator`) and
@@ -98,8 +97,7 @@ class SegmentInterpolator:
         """end position of the last move accepted [m | rad]"""
         self._queue: deque[tuple[int, Record | MoveSegment]] = deque()
         self._current: tuple[int, MoveSegment | Dwell] | None = None
-        self._tau = 0.0
-        self._dwell_left = 0
+        self._tau, self._dwell_left = 0.0, 0
         self._a_lim = self._v_lim = math.inf
         self.override_target = 1.0
         self.override = 1.0
@@ -110,8 +108,7 @@ class SegmentInterpolator:
         """end of program reached"""
         self.last_seq_executed = 0
         self.force_setpoint = 0.0
-        self.spindle_on = False
-        self.spindle_speed = 0.0
+        self.spindle_on, self.spindle_speed = False, 0.0
         self._hold_counts = [0.0] * len(self.counts_per_unit)
         self._queued_periods = 0
         self._pending_curve: Curve | SurfaceRun | None = None
@@ -123,7 +120,7 @@ class SegmentInterpolator:
         self.path_s = 0.0
         """path length run since the last surface definition [m] (the force profile's abscissa)"""
         self._axis = (0.0, 0.0, 1.0)
-        """tool axis of the last surface pose (world frame), for the force offset"""
+        """tool axis of the last surface pose or force-control start (world frame), for the force offset"""
         c_axis = self.axes[5] if len(self.axes) > 5 else None
         self._spindle_accel = SLEW_MARGIN * c_axis.max_acceleration if c_axis is not None else math.inf
         self._spin = 0.0
@@ -269,10 +266,13 @@ class SegmentInterpolator:
     def next_period(self) -> list[float]:
         """Commanded position at the end of the coming period [counts], shape ``(6,)``."""
         force = self.force
-        depth = force.update(self.measured_force, self.path_s) if force.state != ForceState.OFF else 0.0
+        was_off = force.state == ForceState.OFF
+        depth = 0.0 if was_off else force.update(self.measured_force, self.path_s)
         self.tick_commands, self.events = None, []
         if self._current is None:
             self._start_next()
+            if was_off and force.state != ForceState.OFF:  # started now: hold at the standoff, no jump
+                depth = force.depth
         self.path_ds = 0.0
         if self._current is None:
             counts = list(self._hold_counts)

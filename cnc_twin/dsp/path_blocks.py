@@ -8,8 +8,9 @@ time scale follows.
   :class:`~cnc_twin.dsp.curve_stepper.CurveStepper`; its ``point`` [m], shape ``(3,)``, and
   parameter ``u``); ``hold``, the held A, B, C [rad], shape ``(3,)``; ``axis``, the tool-axis
   curve's span evaluator (None when A and B are held), with ``pivot`` and ``offset``, the head
-  geometry [m], shape ``(3,)`` each; ``end``, the machine position at the curve's end
-  (X, Y, Z [m], A, B, C [rad]), shape ``(6,)``. ``pose(point, u)`` is the machine position
+  geometry [m], shape ``(3,)`` each; ``start`` and ``end``, the machine positions at the
+  curve's ends (X, Y, Z [m], A, B, C [rad]), shape ``(6,)``, with ``start_axis`` and
+  ``end_axis``, the tool axis there (world frame, unit), shape ``(3,)``. ``pose(point, u)`` is the machine position
   for the tip at ``point``: X, Y, Z = ``point`` and the held A, B, C, or the head's inverse
   kinematics for the tool axis at ``u`` (C held).
 - :class:`Surface` (from a SurfaceGeometry record): ``evaluator``, the surface's span evaluator;
@@ -25,7 +26,7 @@ time scale follows.
   axis is the surface normal at the last evaluated point with lead and tilt, and the head's
   inverse kinematics solve X, Y, Z [m], A, B [rad]; C is held.
 - :class:`ForceWait` (from a ForceControlRecord): force control switching on (seek, ramp up) at
-  the following section's start or off (ramp down, retract) at the last section's end.
+  the following section's (or curve's) start or off (ramp down, retract) at the last one's end.
   ``record``; ``on``; ``base``, the section's pose there, shape ``(6,)``; ``axis``, the tool
   axis there, shape ``(3,)``; ``clear_pose``, ``base`` moved ``standoff`` [m] up the tool axis
   (where the tool is while force control is off), shape ``(6,)``.
@@ -56,7 +57,7 @@ import math
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.feed_slew import stop_distance
-from cnc_twin.geometry.kinematics import pose_to_axes
+from cnc_twin.geometry.kinematics import pose_to_axes, tool_axis
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
 from cnc_twin.geometry.surface_path import SurfacePathEvaluator
@@ -83,12 +84,23 @@ class Curve:
             ac = record.axis
             self.axis = NurbsCurve(ac.control_points, ac.weights, ac.knots, ac.degree).span_evaluator()
             self.pivot, self.offset = tuple(record.pivot), tuple(record.offset)
-        end = curve.point(curve.domain[1])[0].tolist()
-        self.end = self.pose(end, curve.domain[1])
+        t0, t1 = curve.domain
+        self.start = self.pose(curve.point(t0)[0].tolist(), t0)
+        self.end = self.pose(curve.point(t1)[0].tolist(), t1)
+        self.start_axis, self.end_axis = self.tool_axis(t0), self.tool_axis(t1)
+        """the tool axis at the ends (world frame, unit), for the force loop's seek and retract"""
 
     def line_at(self, u: float) -> int:
         """The program line the curve runs at parameter ``u`` (``line_us`` not empty)."""
         return self.line_numbers[max(bisect.bisect_right(self.line_us, u) - 1, 0)]
+
+    def tool_axis(self, u: float) -> tuple[float, float, float]:
+        """Unit tool axis (world frame) at parameter ``u``: the held A / B's, or the axis curve's."""
+        if self.axis is None:
+            return tool_axis(self.hold[0], self.hold[1])
+        n = self.axis.evaluate(u)[0]
+        norm = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        return (n[0] / norm, n[1] / norm, n[2] / norm)
 
     def pose(self, point: list[float], u: float) -> tuple[float, ...]:
         """Machine position (X, Y, Z, A, B, C) for the tip at ``point`` and parameter ``u``."""
@@ -132,10 +144,10 @@ class SurfaceRun:
 
 
 class ForceWait:
-    """Force control switching on (seek, ramp) or off (ramp down, retract) at a section's start or
-    end pose; the queue waits until it is done."""
+    """Force control switching on (seek, ramp) or off (ramp down, retract) at the start or end pose
+    of a surface section or a curve (a G-code path); the queue waits until it is done."""
 
-    def __init__(self, record: ForceControlRecord, run: SurfaceRun):
+    def __init__(self, record: ForceControlRecord, run: SurfaceRun | Curve):
         self.record = record
         self.on = record.on
         self.base = run.start if record.on else run.end

@@ -63,6 +63,13 @@ def pose_to_axes(tip, n, pivot, offset) -> tuple[float, float, float, float, flo
     return (tip[0] - pivot[0] - rx, tip[1] - pivot[1] - ry, tip[2] - pivot[2] - rz, a, b)
 
 
+def tool_axis(a: float, b: float) -> tuple[float, float, float]:
+    """Unit tool axis (world frame, from the tip towards the head) at head angles A, B [rad]:
+    ``Rx(a) Ry(b) (0, 0, 1)``, as :meth:`HeadGeometry.forward` gives it."""
+    sa, ca, sb, cb = math.sin(a), math.cos(a), math.sin(b), math.cos(b)
+    return (sb, -sa * cb, ca * cb)
+
+
 def rotation_ab(a: float, b: float) -> np.ndarray:
     """``Rx(a) @ Ry(b)``, shape (3, 3); angles [rad]."""
     ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)

@@ -8,6 +8,11 @@ Per step (:class:`~cnc_twin.core.config.GcodeProgram`)::
                   window by window (rest to rest)
     GcodePause    Mark line, Dwell
     GcodeSpindle  Mark line, Spindle
+    GcodeForce    on (M100): the next GcodePath's approach Move ends ``standoff`` above its start
+                  along the tool axis, and a ForceControl on follows its CurveGeometry (the card
+                  seeks contact, ramps, then runs the blocks); off (M101): Mark line, ForceControl
+                  off (ramp down, retract to ``standoff`` above the last path's end: the next
+                  move starts there)
 then Dwell (settle), EndOfProgram.
 """
 
@@ -17,9 +22,16 @@ import dataclasses
 import math
 
 from cnc_twin.core.config import AxisConfig
-from cnc_twin.core.gcode_config import GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
+from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
+from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.planner.ptp import dwell_chunk, plan_move
-from cnc_twin.whiteboard.records import CurveBlock, EndOfProgram, Mark, Move, Spindle
+from cnc_twin.whiteboard.records import CurveBlock, EndOfProgram, ForceControlRecord, Mark, Move, Spindle
+
+
+def _standoff(pose: tuple[float, ...], distance: float) -> tuple[float, ...]:
+    """``pose`` (X, Y, Z [m], A, B, C [rad]) moved ``distance`` [m] up its tool axis."""
+    n = tool_axis(pose[3], pose[4])
+    return (*(p + distance * k for p, k in zip(pose[:3], n)), *pose[3:])
 
 
 def _move_records(here: tuple[float, ...], step: GcodeMove, axes, period: float):
@@ -60,6 +72,9 @@ class GcodePlan:
                 here = (*c.control_points[-1], *c.hold)
             elif isinstance(step, GcodePause):
                 total += step.seconds + T
+            elif isinstance(step, GcodeForce) and step.control is not None:
+                f = step.control  # seek from the standoff (twice: slack for a gap), ramps, retract
+                total += 2.0 * f.standoff / f.seek_speed + 2.0 * f.ramp_time + f.standoff / f.retract_speed
         return math.ceil((total + self.prog.settle) / T)
 
     def chunks(self):
@@ -69,6 +84,8 @@ class GcodePlan:
 
         T = self.period
         here = self.home
+        force_on = None  # the ForceControl of an M100 waiting for the next path's start
+        force = None  # the one in effect (for M101's record)
         for step in self.prog.steps:
             mark = Mark(step.line)
             if isinstance(step, GcodeMove):
@@ -78,12 +95,20 @@ class GcodePlan:
             elif isinstance(step, GcodePath):
                 curve, start, _, _, geometry = curve_setup(step.curve)
                 records, periods = [mark], [0]
+                if force_on is not None:  # the seek starts the standoff above the path's start
+                    start = _standoff(start, force_on.standoff)
                 if any(abs(a - b) > 1e-12 for a, b in zip(start, here)):  # a path never starts off the tool
                     seg = plan_move(here, start, self.axes, feed=step.curve.limits.feed, period=T)
                     if seg is not None:
                         records.append(Move(end=seg.end, profile=seg.profile, periods=seg.periods))
                         periods.append(seg.periods)
-                yield records + [dataclasses.replace(geometry, lines=step.lines)], periods + [0]
+                records.append(dataclasses.replace(geometry, lines=step.lines))
+                periods.append(0)
+                if force_on is not None:
+                    records.append(ForceControlRecord(on=True, params=force_on))
+                    periods.append(0)
+                    force, force_on = force_on, None
+                yield records, periods
                 for blocks in plan_feed_windows(curve, step.curve.limits, period=T, window=self.window):
                     yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
                 here = (*curve.point(curve.domain[1])[0].tolist(), *step.curve.hold)
@@ -92,6 +117,12 @@ class GcodePlan:
                 yield [mark] + records, [0] + periods
             elif isinstance(step, GcodeSpindle):
                 yield [mark, Spindle(on=step.speed != 0.0, speed=step.speed)], [0, 0]
+            elif isinstance(step, GcodeForce):
+                if step.control is not None:
+                    force_on = step.control
+                elif force is not None:  # retracted: the next move starts the standoff above
+                    yield [mark, ForceControlRecord(on=False, params=force)], [0, 0]
+                    here = _standoff(here, force.standoff)
+                    force = None
         settle = dwell_chunk(self.prog.settle, T)
         yield settle[0] + [EndOfProgram()], settle[1] + [0]
-

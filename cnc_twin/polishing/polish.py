@@ -20,7 +20,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from cnc_twin.core.config import SurfaceProgram
+from cnc_twin.core.config import Preston, SurfaceProgram
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.motion.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
@@ -55,9 +55,10 @@ def removal_grid(surface: NurbsSurface, spacing: float, scales: tuple[float, flo
 class RemovalTracker:
     """Accumulates the removal map from the MuJoCo state during a run."""
 
-    def __init__(self, program: SurfaceProgram, surface: NurbsSurface, model: mujoco.MjModel, data: mujoco.MjData,
-                 period: float):
-        p = program.preston
+    def __init__(self, preston: Preston, friction: float | None, surface: NurbsSurface, model: mujoco.MjModel,
+                 data: mujoco.MjData, period: float):
+        """``friction``: the pad's sliding friction coefficient on the workpiece; None = the model's."""
+        p = preston
         self.surface = surface
         self.scales = parameter_scales(self.surface)[:2]
         self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
@@ -66,7 +67,7 @@ class RemovalTracker:
         self.model, self.data = model, data
         from cnc_twin.machine.workpiece import pad_friction
 
-        self.friction = program.friction if program.friction is not None else pad_friction(model)
+        self.friction = friction if friction is not None else pad_friction(model)
         self.dt = p.every * period
         self.every = p.every
         self._site = model.site("tool_site").id
@@ -159,14 +160,16 @@ def polished_band(program: SurfaceProgram, uv: np.ndarray, scales: tuple[float, 
     return (along >= a_lo) & (along <= a_hi) & (across >= p_across.min() + r) & (across <= p_across.max() - r)
 
 
-def force_metrics(trace: Trace, program: SurfaceProgram) -> dict[str, Any]:
-    """Force tracking after the ramp, and the overshoot at first contact."""
+def force_metrics(trace: Trace, setpoint_n: float) -> dict[str, Any]:
+    """Force tracking after the ramp, and the overshoot at first contact (``setpoint_n``: the
+    programmed force [N], reported as it is; tracking is judged against the setpoint in effect in
+    each period)."""
     state = trace.period_signals["force_state"]
     setpoint = trace.period_signals["force_setpoint"]
     force = trace.pad_force
     servo_period = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
     track = state == ForceState.TRACK
-    out: dict[str, Any] = {"setpoint_n": program.force.setpoint}
+    out: dict[str, Any] = {"setpoint_n": setpoint_n}
     if not np.any(track):
         out["tracking"] = None
         return out
@@ -192,30 +195,31 @@ def force_metrics(trace: Trace, program: SurfaceProgram) -> dict[str, Any]:
     return out
 
 
-def removal_metrics(tracker: RemovalTracker, program: SurfaceProgram, wall_time: float) -> dict[str, Any]:
-    """Volume and uniformity of the removal map; the model's cost."""
+def removal_metrics(tracker: RemovalTracker, wall_time: float, band: np.ndarray | None = None) -> dict[str, Any]:
+    """Volume and uniformity of the removal map, and the model's cost. ``band``: mask of the grid
+    points whose uniformity counts (:func:`polished_band`); None = no such band."""
     model = tracker.model_removal
-    band = polished_band(program, tracker.uv, tracker.scales)
-    p = program.preston
+    touched_band = None if band is None else band & (model.depth > 0)
     out: dict[str, Any] = {
         "volume_mm3": model.volume() * 1e9,
         "touched": model.stats(),
-        "middle_band": model.stats(band & (model.depth > 0)) if np.any(band & (model.depth > 0)) else None,
+        "middle_band": model.stats(touched_band) if touched_band is not None and np.any(touched_band) else None,
         "contact_time_s": model.contact_time,
         "force_time_integral_ns": tracker.force_time_integral,
         "grid_points": int(len(model.depth)),
         "updates": tracker.calls,
         "cost_us_per_update": tracker.cost_ns / max(1, tracker.calls) / 1e3,
         "cost_fraction_of_run": tracker.cost_ns / 1e9 / wall_time if wall_time > 0 else None,
-        "preston_k": p.k,
+        "preston_k": tracker.model_removal.preston_k,
     }
     return out
 
 
-def preston_by_hand(trace: Trace, program: SurfaceProgram) -> float:
+def preston_by_hand(trace: Trace, preston: Preston, spindle_speed: float) -> float:
     """Removed volume [m^3] by Preston's law in closed form: a flat pad of radius R spinning at
     the programmed speed w under the force setpoint, pressure uniform, feed negligible against
-    the pad's own sliding speed (mean over the disc of w r = 2 w R / 3)::
+    the pad's own sliding speed (mean over the disc of w r = 2 w R / 3; ``spindle_speed`` w
+    [rad/s])::
 
         V = k (2 w R / 3) integral F*(t) dt      over the ramps and the tracking
 
@@ -225,5 +229,4 @@ def preston_by_hand(trace: Trace, program: SurfaceProgram) -> float:
     active = (state == ForceState.RAMP) | (state == ForceState.TRACK) | (state == ForceState.RAMP_DOWN)
     dt = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
     impulse = float(np.sum(trace.period_signals["force_setpoint"][active])) * dt
-    p = program.preston
-    return p.k * 2.0 * program.spindle_speed * p.pad_radius / 3.0 * impulse
+    return preston.k * 2.0 * abs(spindle_speed) * preston.pad_radius / 3.0 * impulse

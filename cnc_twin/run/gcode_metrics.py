@@ -3,7 +3,11 @@
 
 The trace's periods on a curve (``path_u >= 0``) fall into runs, one per card curve, in program
 order: a run ends where the tool leaves the curve or the parameter starts again from the next
-curve's beginning. Each run is measured against its own curve.
+curve's beginning. Each run is measured against its own curve. On a path run with the force loop on (M100), the
+chord and contour errors are measured after taking the loop's offset along the tool axis off
+(the trace's ``force_depth``); the axis peaks keep it.
+
+With a workpiece, :func:`gcode_polish_metrics` adds the force tracking and the removal map.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
+from cnc_twin.core.gcode_config import GcodeForce, GcodePath, GcodeSpindle
+from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.trace.trace import Trace
 
 
@@ -25,7 +31,8 @@ class _PathTrace:
         """``first``, ``stop``: the path's first and one-past-last servo tick."""
         u = trace.period_signals["path_u"][:stop].copy()
         u[:first] = -1.0
-        self.period_signals = {"path_u": u, "path_ds": trace.period_signals["path_ds"][:stop]}
+        self.period_signals = {"path_u": u, "path_ds": trace.period_signals["path_ds"][:stop],
+                               "force_depth": trace.period_signals["force_depth"][:stop]}
         self.command, self.actual = trace.command[:stop], trace.actual[:stop]
         self.counts_per_unit = trace.counts_per_unit
 
@@ -47,6 +54,17 @@ def curve_runs(u: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def _pressed_paths(prog: GcodeProgram) -> set[int]:
+    """``id`` of each feed path the program runs with the force loop on (M100 ... M101)."""
+    on, out = False, set()
+    for step in prog.steps:
+        if isinstance(step, GcodeForce):
+            on = step.control is not None
+        elif on and isinstance(step, GcodePath):
+            out.add(id(step))
+    return out
+
+
 def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     """Chord error, feed fluctuation, contour error [um] and axis peaks over the program's feed
     paths, and each path's own (``paths``: the program line it starts at, length, errors)."""
@@ -57,8 +75,11 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     u_ticks = trace.period_signals["path_u"]
     u = u_ticks[tpp - 1::tpp]
     per_path = []
+    pressed = _pressed_paths(prog)
     for path, (first, stop) in zip(prog.paths, curve_runs(u)):
-        m = path_metrics(_PathTrace(trace, first * tpp, stop * tpp), dataclasses.replace(scenario, program=path.curve))
+        axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
+        m = path_metrics(_PathTrace(trace, first * tpp, stop * tpp), dataclasses.replace(scenario, program=path.curve),
+                         force_axis=axis)
         per_path.append((path, m))
     out: dict[str, Any] = {"file": str(prog.file), "feed_paths": len(prog.paths), "paths_run": len(per_path)}
     measured = [(p, m) for p, m in per_path if "chord_error_um" in m]
@@ -80,8 +101,34 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     out["axis_peaks"] = peaks
     out["axis_peaks_units"] = measured[0][1]["axis_peaks_units"]
     out["limit_violations"] = [dict(v, line=p.line) for p, m in measured for v in m["limit_violations"]]
+    pressed = [m["force_offset"] for _, m in measured if "force_offset" in m]
+    if pressed:  # the force loop's own motion along the tool axis on the paths it pressed
+        out["force_offset"] = {q: max(f[q] for f in pressed) for q in ("velocity", "acceleration", "jerk")}
+        out["force_offset"]["units"] = "m/s, m/s^2, m/s^3"
     out["paths"] = [{"line": p.line, "length_mm": m["length_mm"],
                      "chord_error_um": m.get("chord_error_um", {}).get("max"),
                      "contour_error_um": m.get("contour_error_um", {}).get("max"),
                      "feed_fluctuation": m.get("feed_fluctuation", {}).get("max")} for p, m in per_path]
+    return out
+
+
+def gcode_polish_metrics(trace: Trace, prog: GcodeProgram, removal, wall_time: float) -> dict[str, Any]:
+    """Force tracking (against the setpoint in effect each period) and the removal map of a
+    program with a workpiece; the Preston volume by hand when every M100 ran at one spindle
+    speed."""
+    from cnc_twin.polishing.polish import force_metrics, preston_by_hand, removal_metrics
+
+    setpoints, speeds, speed = [], set(), 0.0
+    for step in prog.steps:
+        if isinstance(step, GcodeSpindle):
+            speed = step.speed
+        elif isinstance(step, GcodeForce) and step.control is not None:
+            setpoints.append(step.control.setpoint)
+            speeds.add(abs(speed))
+    w = prog.workpiece
+    out: dict[str, Any] = {"force": force_metrics(trace, setpoints[0]) if setpoints else None,
+                           "setpoints_n": setpoints,
+                           "removal": removal_metrics(removal, wall_time)}
+    if len(speeds) == 1:
+        out["removal"]["preston_by_hand_mm3"] = preston_by_hand(trace, w.preston, speeds.pop()) * 1e9
     return out

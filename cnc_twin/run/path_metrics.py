@@ -72,8 +72,14 @@ def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
 
 
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
-                 plan_us: int = 0, plan_blocks: int = 0) -> dict[str, Any]:
-    """The contour metrics of a curve run (see the module docstring); lengths in um."""
+                 plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None) -> dict[str, Any]:
+    """The contour metrics of a curve run (see the module docstring); lengths in um.
+
+    ``force_axis``: the tool axis (world frame, unit) of a run with the force loop on. The loop's
+    offset along it (the trace's ``force_depth``) is taken off the commanded and actual X/Y/Z
+    first, so the chord error, the contour error (tracking) and the axis peaks are the path's;
+    the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
+    reported beside them, without limits (the force loop's correction, not the planned path)."""
     prog = scenario.program
     assert isinstance(prog, NurbsProgram)
     curve = tip_curve(prog)
@@ -86,6 +92,12 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     home = np.asarray(scenario.home)
     command_axes = trace.command[tpp - 1::tpp] / cpu + home
     actual_axes = trace.actual[tpp - 1::tpp] / cpu + home
+    depth = None
+    if force_axis is not None:  # the force loop pushed X/Y/Z depth along -axis: put it back
+        depth = trace.period_signals["force_depth"][tpp - 1::tpp]
+        shift = depth[:, None] * np.asarray(force_axis)
+        command_axes[:, :3] += shift
+        actual_axes[:, :3] += shift
     pivot, offset = np.asarray(prog.pivot_home), np.asarray(prog.tool_offset)
 
     def tips(q: np.ndarray) -> np.ndarray:
@@ -139,6 +151,12 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     out["axis_peaks_units"] = {"velocity": "m/s | rad/s", "acceleration": "m/s^2 | rad/s^2",
                                "jerk": "m/s^3 | rad/s^3"}
     out["limit_violations"] = violations
+    if depth is not None:
+        dv = np.diff(depth[seg[0] - 1:seg[-1] + 2]) / T
+        da = np.diff(dv) / T
+        out["force_offset"] = {"velocity": float(np.abs(dv).max()), "acceleration": float(np.abs(da).max()),
+                               "jerk": float(np.abs(np.diff(da) / T).max()), "depth_range_mm":
+                               [float(depth[seg].min() * 1e3), float(depth[seg].max() * 1e3)]}
     poly = curve.point(np.linspace(*curve.domain, 20001))
     contour = point_to_polyline(actual[on], poly)
     out["contour_error_um"] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}

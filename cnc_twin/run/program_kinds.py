@@ -122,30 +122,38 @@ class ContourKind(_PathKind):
                 f"{', '.join(program.methods)}")
 
 
+def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction, tile_size: float) -> Plant:
+    """The scene with ``surface_def`` (:class:`~cnc_twin.core.config.SurfaceDef`) as its workpiece
+    and the removal map on it (sets ``twin.removal`` and ``twin.tiling``)."""
+    from cnc_twin.geometry.surface import NurbsSurface
+    from cnc_twin.machine.workpiece import build_model
+    from cnc_twin.polishing.polish import RemovalTracker
+
+    sc = twin.scenario
+    surface = NurbsSurface.from_def(surface_def)
+    model, twin.tiling = build_model(sc.model_file, surface, tile_size=tile_size,
+                                     edit=lambda spec: add_obstacles(spec, obstacles))
+    plant = Plant(model, timestep=sc.timing.physics_timestep)
+    twin.removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period)
+    return plant
+
+
 class SurfaceKind(_PathKind):
     """Polishing a NURBS surface: the workpiece in the plant, the removal map, the force metrics."""
 
     def build_plant(self, twin: Twin, obstacles: list) -> Plant:
-        from cnc_twin.machine.workpiece import build_model
-        from cnc_twin.planner.surface_program import build_surface
-        from cnc_twin.polishing.polish import RemovalTracker
-
-        sc = twin.scenario
-        surface = build_surface(sc.program)
-        model, twin.tiling = build_model(sc.model_file, surface, tile_size=sc.program.surface_tile_size,
-                                         edit=lambda spec: add_obstacles(spec, obstacles))
-        plant = Plant(model, timestep=sc.timing.physics_timestep)
-        twin.removal = RemovalTracker(sc.program, surface, plant.model, plant.data, sc.timing.interpolation_period)
-        return plant
+        prog = twin.scenario.program
+        return _workpiece_plant(twin, obstacles, prog.surface, prog.preston, prog.friction, prog.surface_tile_size)
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
-        from cnc_twin.polishing.polish import force_metrics, preston_by_hand, removal_metrics
+        from cnc_twin.polishing.polish import force_metrics, polished_band, preston_by_hand, removal_metrics
 
-        prog = twin.scenario.program
+        prog, removal = twin.scenario.program, twin.removal
+        band = polished_band(prog, removal.uv, removal.scales)
         return {"polish": {
-            "force": force_metrics(trace, prog),
-            "removal": {**removal_metrics(twin.removal, prog, wall_time),
-                        "preston_by_hand_mm3": preston_by_hand(trace, prog) * 1e9},
+            "force": force_metrics(trace, prog.force.setpoint),
+            "removal": {**removal_metrics(removal, wall_time, band),
+                        "preston_by_hand_mm3": preston_by_hand(trace, prog.preston, prog.spindle_speed) * 1e9},
             "collision_tiles": list(twin.tiling.tiles),
             "tile_hull_gap_mm": twin.tiling.hull_gap * 1e3,
             "path_length_mm": prog.path_length * 1e3,
@@ -187,7 +195,14 @@ class MotionChipKind(ProgramKind):
 
 
 class GcodeKind(ProgramKind):
-    """An NC program: its feed paths are curves (the compiled stepper), measured path by path."""
+    """An NC program: its feed paths are curves (the compiled stepper), measured path by path; with
+    a workpiece (M100), the plant and the removal map of a surface, and the force metrics."""
+
+    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+        w = twin.scenario.program.workpiece
+        if w is None:
+            return super().build_plant(twin, obstacles)
+        return _workpiece_plant(twin, obstacles, w.surface, w.preston, w.friction, w.tile_size)
 
     def stop_time(self, program: GcodeProgram) -> float | None:
         times = [_path_stop_time(path.curve.limits) for path in program.paths]
@@ -199,7 +214,12 @@ class GcodeKind(ProgramKind):
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.gcode_metrics import gcode_metrics
 
-        return {"path": gcode_metrics(trace, twin.scenario)}
+        out: dict[str, Any] = {"path": gcode_metrics(trace, twin.scenario)}
+        if twin.removal is not None:
+            from cnc_twin.run.gcode_metrics import gcode_polish_metrics
+
+            out["polish"] = gcode_polish_metrics(trace, twin.scenario.program, twin.removal, wall_time)
+        return out
 
     def run_files(self, program: GcodeProgram) -> dict[str, str]:
         return {program.file.name: program.text}

@@ -1,5 +1,5 @@
-"""The terminal summary of a finished run: timing, following error per axis, whiteboard and
-path figures, limit warnings."""
+"""The terminal summary of a finished run: timing, following error per axis, whiteboard, path
+and polishing figures, limit warnings."""
 
 from __future__ import annotations
 
@@ -40,6 +40,9 @@ def summary_table(metrics: dict) -> str:
     for v in (path or {}).get("limit_violations", []):
         lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
                      f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
+    polish = metrics.get("polish")
+    if polish:
+        lines.append(polish_line(polish))
     if metrics.get("contour"):
         from cnc_twin.run.contour_metrics import format_passes
 
@@ -48,3 +51,20 @@ def summary_table(metrics: dict) -> str:
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
     return "\n".join(lines)
+
+
+def polish_line(polish: dict) -> str:
+    """One line of a polishing run's figures: force tracking, first contact, removed volume."""
+    force, removal = polish.get("force") or {}, polish["removal"]
+    parts = []
+    track = force.get("tracking")
+    if track:
+        parts.append(f"force {force['setpoint_n']:g} N, tracking rms {track['rms_error_pct']:.2f} % "
+                     f"(max {track['max_error_pct']:.1f} %)")
+    if force.get("first_contact"):
+        parts.append(f"first-contact overshoot {force['first_contact']['overshoot_pct']:.1f} %")
+    volume = f"removed {removal['volume_mm3']:.4g} mm3"
+    if "preston_by_hand_mm3" in removal:
+        volume += f" (Preston by hand {removal['preston_by_hand_mm3']:.4g} mm3)"
+    parts.append(volume)
+    return "polish: " + ", ".join(parts)

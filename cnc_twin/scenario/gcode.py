@@ -9,10 +9,23 @@
       blend_tolerance: 0.01     # [mm] corner blends under G64 without P
       chord_tolerance: 0.001    # [mm] the card's chord tolerance on curves
       settle: 0.3               # [s] simulated after the program end
+      force: {standoff: 2.0}    # how the force loop makes contact (M100 P<newtons> / M101)
+      workpiece:                # the surface pressed on and polished (default: the scene's block top)
+        surface: {...}          # as a surface_polish program's, workpiece frame [mm]
+        removal: {preston_k: 1.0e-12}
 
 X Y Z are the tool tip's in the workpiece frame (origin at the workpiece's top centre, as the
 YAML programs'), after the program's work offsets; A B C are the head and spindle angles [deg].
 A problem is reported as ``FILE:LINE: message``, the program's own file and line.
+
+The grinding-force loop (M100 P<newtons>, M101): M100 switches it on at the start of the next
+feed path (the tool goes to ``force.standoff`` above that start along its axis, seeks contact,
+ramps to P newtons) and the feed paths that follow run with the force held along the tool axis;
+M101 (or the program end) ramps it down and retracts by the standoff at the end of the last feed
+path. Between the two only feed moves, dwells and spindle changes are allowed: a rapid or a
+move of A / B / C alone is refused at its line, as is a second M100 or an M100 with no feed move
+after it. A program with M100 polishes a workpiece: ``workpiece.surface``, or by default the top
+face of the scene's block as a flat plate, with the removal map on it.
 """
 
 from __future__ import annotations
@@ -26,17 +39,28 @@ from pydantic import Field
 
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig
-from cnc_twin.core.gcode_config import GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
+from cnc_twin.core.gcode_config import (
+    GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle, GcodeWorkpiece,
+)
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
 from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
+from cnc_twin.scenario.surface import ForceLoopSpec, RemovalSpec, SurfaceSpec, force_control, preston_model, surface_in_world
 from cnc_twin.scenario.validation import validate
 
 CARD_CONTROL_POINTS = 600
 """control points of one joined curve sent to the card at most: a longer feed path is cut into
 curves (an exact stop between them) so each fits the card's geometry memory with room to spare (a
 path of one curve block goes whole whenever the memory holds it)"""
+
+
+class GcodeWorkpieceSpec(Strict):
+    """The workpiece a G-code program presses on (M100) and polishes."""
+
+    surface: SurfaceSpec | None = Field(None, description="NURBS surface, workpiece frame [mm]; default the scene's block top")
+    removal: RemovalSpec = RemovalSpec()
+    friction: float | None = Field(None, gt=0, description="pad-workpiece sliding friction coefficient; default the model's")
 
 
 class GcodeProgramSpec(Strict):
@@ -50,6 +74,8 @@ class GcodeProgramSpec(Strict):
     chord_tolerance: float = Field(0.001, gt=0, description="chord tolerance of the card's curve interpolation [mm]")
     limits: PathLimitsSpec = PathLimitsSpec()
     settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the program end [s]")
+    force: ForceLoopSpec = ForceLoopSpec()
+    workpiece: GcodeWorkpieceSpec | None = Field(None, description="default: the scene's block top when the program uses M100")
 
 
 class _Where:
@@ -111,8 +137,12 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         raise ScenarioError(label, "program.file", f"{path} moves nothing")
     head = HeadGeometry.from_model(model)
     steps = []
+    force_on = None  # the M100 op while the force loop is on
     for op in ops:
         if isinstance(op, tp.Traverse):
+            if force_on is not None:
+                raise where(op.line, f"a rapid or a move of A / B / C alone while the grinding-force loop is on (M100 at "
+                            f"line {force_on.line}): switch it off with M101 first")
             steps.append(_move(op, axes, head, where))
         elif isinstance(op, tp.FeedPath):
             steps += _paths(op, spec, axes, model, label, where)
@@ -120,11 +150,71 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
             steps.append(GcodeSpindle(op.rpm * 2.0 * math.pi / 60.0, op.line))
-        else:
-            raise where(op.line, "M100 / M101 (the grinding-force loop) need a workpiece to press on; a G-code "
-                        "program runs without one in this version: polish with a surface_polish scenario")
+        elif op.setpoint is not None:
+            if force_on is not None:
+                raise where(op.line, f"M100 while the grinding-force loop is on (M100 at line {force_on.line}): "
+                            "M101 first")
+            force_on = op
+            steps.append(GcodeForce(force_control(spec.force, op.setpoint), op.line))
+        elif force_on is not None:  # M101 (one while the loop is off changes nothing)
+            force_on = None
+            steps.append(GcodeForce(None, op.line))
+    if force_on is not None:  # the program end switches the loop off, as it stops the spindle
+        steps.append(GcodeForce(None, steps[-1].line))
+    _check_force_paths(steps, where)
+    workpiece = spec.workpiece
+    if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
+        workpiece = GcodeWorkpieceSpec()
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
-                        settle=spec.settle)
+                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label))
+
+
+def _check_force_paths(steps: list, where: _Where) -> None:
+    """Every M100 has a feed path after it before its M101 (the loop switches on at its start)."""
+    for k, step in enumerate(steps):
+        if isinstance(step, GcodeForce) and step.control is not None:
+            following = steps[k + 1:]
+            end = next((j for j, s in enumerate(following) if isinstance(s, GcodeForce)), len(following))
+            if not any(isinstance(s, GcodePath) for s in following[:end]):
+                raise where(step.line, "M100: no feed move follows before M101 or the program end (the force loop "
+                            "switches on at the start of the next feed path)")
+
+
+def _workpiece(spec: GcodeWorkpieceSpec | None, model, head, label: Path) -> GcodeWorkpiece | None:
+    """The workpiece in SI: the given surface, or the top face of the scene's block as a flat plate."""
+    from cnc_twin.machine.workpiece import pad_radius
+
+    if spec is None:
+        return None
+    surface = spec.surface if spec.surface is not None else _block_top(model, head, label)
+    _, surface_def = surface_in_world(surface, head.workpiece_origin, label, "program.workpiece.surface")
+    return GcodeWorkpiece(surface=surface_def, preston=preston_model(spec.removal, pad_radius(model)),
+                          friction=spec.friction, tile_size=surface.tile_size * units.MM)
+
+
+def _block_top(model, head, label: Path) -> SurfaceSpec:
+    """The scene block's top face as a flat degree-1 surface in the workpiece frame [mm]."""
+    import mujoco
+
+    from cnc_twin.machine.workpiece import BLOCK_GEOM
+
+    try:
+        geom = model.geom(BLOCK_GEOM)
+    except KeyError:
+        raise ScenarioError(label, "program.workpiece.surface", f"the scene has no block '{BLOCK_GEOM}': give the "
+                            "workpiece's surface") from None
+    if model.geom_type[geom.id] != mujoco.mjtGeom.mjGEOM_BOX:
+        raise ScenarioError(label, "program.workpiece.surface", f"the scene's '{BLOCK_GEOM}' is not a box: give the "
+                            "workpiece's surface")
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    centre = data.geom_xpos[geom.id] - np.asarray(head.workpiece_origin)
+    hx, hy, hz = model.geom_size[geom.id]
+    x0, x1, y0, y1 = ((centre[0] - hx) / units.MM, (centre[0] + hx) / units.MM, (centre[1] - hy) / units.MM,
+                      (centre[1] + hy) / units.MM)
+    z = (centre[2] + hz) / units.MM
+    return SurfaceSpec(degree_u=1, degree_v=1, knots_u=[0, 0, 1, 1], knots_v=[0, 0, 1, 1],
+                       control_net=[[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]])
 
 
 def _move(op, axes: tuple[AxisConfig, ...], head, where: _Where) -> GcodeMove:

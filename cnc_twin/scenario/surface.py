@@ -43,11 +43,10 @@ class PathSpec(Strict):
     margin: float | None = Field(None, ge=0, description="distance kept from the surface's edges [mm]; default the pad radius")
 
 
-class ForceSpec(Strict):
-    """The card's grinding-force loop (see cnc_twin.dsp.force)."""
+class ForceLoopSpec(Strict):
+    """How the card's grinding-force loop makes contact and holds the force (see
+    cnc_twin.dsp.force); the setpoint is the program's."""
 
-    setpoint: float = Field(gt=0, description="[N]")
-    profile: list[list[float]] | None = Field(None, description="[[path length mm, force N], ...] along the path; default the setpoint throughout")
     ramp_time: float = Field(0.5, gt=0, description="force ramp after contact and before retract [s]")
     seek_speed: float = Field(2.0, gt=0, description="approach speed along the tool axis until contact [mm/s]")
     standoff: float = Field(2.0, gt=0, description="gap above the surface where the seek starts [mm]")
@@ -59,6 +58,13 @@ class ForceSpec(Strict):
     adapt_threshold: float = Field(0.1, gt=0, description="force error (fraction of the setpoint) that reduces the feed")
     adapt_feed: float = Field(0.5, gt=0, le=1, description="feed fraction while the error is above the threshold")
     adapt_hold: float = Field(0.05, ge=0, description="time below half the threshold before the feed is restored [s]")
+
+
+class ForceSpec(ForceLoopSpec):
+    """The card's grinding-force loop (see cnc_twin.dsp.force)."""
+
+    setpoint: float = Field(gt=0, description="[N]")
+    profile: list[list[float]] | None = Field(None, description="[[path length mm, force N], ...] along the path; default the setpoint throughout")
 
     @model_validator(mode="after")
     def _profile(self) -> "ForceSpec":
@@ -103,25 +109,14 @@ class SurfacePolishProgram(Strict):
 def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file: Path, label: Path) -> SurfaceProgram:
     """Validate the surface and the path, check every pose, and convert to SI."""
     from cnc_twin.geometry.kinematics import HeadGeometry
-    from cnc_twin.geometry.nurbs import NurbsError
-    from cnc_twin.geometry.surface import NurbsSurface
     from cnc_twin.machine.plant import load_model
     from cnc_twin.planner import toolpath
     from cnc_twin.machine.workpiece import pad_radius
 
     sp = spec.surface
-    rows = {len(r) for r in sp.control_net}
-    if len(rows) != 1 or any(len(p) != 3 for r in sp.control_net for p in r):
-        raise ScenarioError(label, "program.surface.control_net",
-                            "expected a rectangular grid of [x, y, z] points in mm (every row the same length)")
     model = load_model(model_file)
     head = HeadGeometry.from_model(model)
-    origin = np.asarray(head.workpiece_origin)
-    net = np.asarray(sp.control_net, dtype=np.float64) * units.MM + origin
-    try:
-        surface = NurbsSurface(net, sp.weights, sp.knots_u, sp.knots_v, sp.degree_u, sp.degree_v)
-    except NurbsError as exc:
-        raise ScenarioError(label, f"program.surface.{exc.key}", str(exc)) from None
+    surface, surface_def = surface_in_world(sp, head.workpiece_origin, label, "program.surface")
     radius = pad_radius(model)
     margin = spec.path.margin * units.MM if spec.path.margin is not None else radius
     step = spec.path.step_over * units.MM
@@ -133,21 +128,11 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
     except toolpath.ToolpathError as exc:
         raise ScenarioError(label, f"program.path.{exc.key}", str(exc)) from None
     f = spec.force
-    force = ForceControl(
-        setpoint=f.setpoint,
-        profile=tuple((p[0] * units.MM, p[1]) for p in f.profile) if f.profile else (),
-        ramp_time=f.ramp_time, seek_speed=f.seek_speed * units.MM, standoff=f.standoff * units.MM,
-        contact_threshold=f.contact_threshold, kp=f.kp * units.MM, ki=f.ki * units.MM,
-        max_depth=f.max_depth * units.MM, retract_speed=f.retract_speed * units.MM,
-        adapt_threshold=f.adapt_threshold, adapt_feed=f.adapt_feed, adapt_hold=f.adapt_hold,
-    )
+    force = force_control(f, f.setpoint, tuple((p[0] * units.MM, p[1]) for p in f.profile) if f.profile else ())
     lim = spec.limits
     c_axis = axes[5]
     program = SurfaceProgram(
-        surface=SurfaceDef(degree_u=sp.degree_u, degree_v=sp.degree_v,
-                           knots_u=tuple(float(k) for k in sp.knots_u), knots_v=tuple(float(k) for k in sp.knots_v),
-                           weights=tuple(tuple(float(w) for w in row) for row in surface.weights),
-                           control_net=tuple(tuple(tuple(float(x) for x in p) for p in row) for row in net)),
+        surface=surface_def,
         sections=tuple(sections),
         pattern=spec.path.pattern,
         direction=spec.path.direction,
@@ -163,8 +148,7 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
             axis_jerk=tuple(c.max_jerk for c in axes[:3]),
         ),
         force=force,
-        preston=Preston(k=spec.removal.preston_k, pad_radius=radius, pad_modulus=spec.removal.pad_modulus * 1e9,
-                        grid_spacing=spec.removal.grid * units.MM, every=spec.removal.every),
+        preston=preston_model(spec.removal, radius),
         approach_feed=spec.approach_feed * units.MM_PER_MIN if spec.approach_feed is not None else None,
         settle=spec.settle,
         pivot_home=head.pivot_home,
@@ -184,6 +168,45 @@ def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file
     from dataclasses import replace
 
     return replace(program, path_length=length)
+
+
+def force_control(f: ForceLoopSpec, setpoint: float, profile: tuple = ()) -> ForceControl:
+    """The force loop's parameters in SI, with ``setpoint`` [N] and ``profile`` ((m, N) pairs)."""
+    return ForceControl(
+        setpoint=setpoint, profile=profile,
+        ramp_time=f.ramp_time, seek_speed=f.seek_speed * units.MM, standoff=f.standoff * units.MM,
+        contact_threshold=f.contact_threshold, kp=f.kp * units.MM, ki=f.ki * units.MM,
+        max_depth=f.max_depth * units.MM, retract_speed=f.retract_speed * units.MM,
+        adapt_threshold=f.adapt_threshold, adapt_feed=f.adapt_feed, adapt_hold=f.adapt_hold,
+    )
+
+
+def preston_model(removal: RemovalSpec, pad_radius: float) -> Preston:
+    """The removal model in SI for a pad of ``pad_radius`` [m]."""
+    return Preston(k=removal.preston_k, pad_radius=pad_radius, pad_modulus=removal.pad_modulus * 1e9,
+                   grid_spacing=removal.grid * units.MM, every=removal.every)
+
+
+def surface_in_world(sp: SurfaceSpec, origin, label: Path, key: str):
+    """The surface of ``sp`` (workpiece frame, mm) in the world frame: ``(NurbsSurface,
+    SurfaceDef)``; ``origin``: the workpiece origin [m]. A bad net or knots: ScenarioError at ``key``."""
+    from cnc_twin.geometry.nurbs import NurbsError
+    from cnc_twin.geometry.surface import NurbsSurface
+
+    rows = {len(r) for r in sp.control_net}
+    if len(rows) != 1 or any(len(p) != 3 for r in sp.control_net for p in r):
+        raise ScenarioError(label, f"{key}.control_net",
+                            "expected a rectangular grid of [x, y, z] points in mm (every row the same length)")
+    net = np.asarray(sp.control_net, dtype=np.float64) * units.MM + np.asarray(origin)
+    try:
+        surface = NurbsSurface(net, sp.weights, sp.knots_u, sp.knots_v, sp.degree_u, sp.degree_v)
+    except NurbsError as exc:
+        raise ScenarioError(label, f"{key}.{exc.key}", str(exc)) from None
+    return surface, SurfaceDef(
+        degree_u=sp.degree_u, degree_v=sp.degree_v,
+        knots_u=tuple(float(k) for k in sp.knots_u), knots_v=tuple(float(k) for k in sp.knots_v),
+        weights=tuple(tuple(float(w) for w in row) for row in surface.weights),
+        control_net=tuple(tuple(tuple(float(x) for x in p) for p in row) for row in net))
 
 
 def _check_fits_the_card(program: SurfaceProgram, label: Path) -> None:

@@ -136,14 +136,15 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
         row["feed_fluctuation_max"] = path["feed_fluctuation"]["max"]
     polish = metrics.get("polish")
     if polish:
-        tracking = polish["force"].get("tracking") or {}
+        force = polish.get("force") or {}  # None: a G-code program with a workpiece but no M100
+        tracking = force.get("tracking") or {}
         row["force_rms_pct"] = tracking.get("rms_error_pct")
         row["force_max_pct"] = tracking.get("max_error_pct")
-        row["force_overshoot_pct"] = (polish["force"].get("first_contact") or {}).get("overshoot_pct")
-        row["reduced_feed_s"] = polish["force"].get("reduced_feed_s")
+        row["force_overshoot_pct"] = (force.get("first_contact") or {}).get("overshoot_pct")
+        row["reduced_feed_s"] = force.get("reduced_feed_s")
         removal = polish["removal"]
         row["removal_volume_mm3"] = removal["volume_mm3"]
-        row["preston_by_hand_mm3"] = removal["preston_by_hand_mm3"]
+        row["preston_by_hand_mm3"] = removal.get("preston_by_hand_mm3")
         band = removal.get("middle_band") or {}
         row["band_mean_um"] = band.get("mean_um")
         row["band_pv_um"] = band.get("pv_um")
