@@ -5,7 +5,8 @@ The program is ``3D_Chips.ngc`` (200 kB, 4711 lines of CAM-style moves with expr
 with LinuxCNC. Both sides read the whole program and produce its canonical calls as text: ours in
 process (:func:`cnc_twin.gcode.listing.list_program`), rs274 as its own process with output to
 /dev/null; rs274's time for an empty program (its start-up) is measured too and taken off, so
-the ratio compares reading alone. Goal (issue #20): ours no slower than 2x rs274.
+the ratio compares reading alone. Goal (issue #20): ours no slower than 2x rs274 (printed with the
+ratio; speed is measured, not asserted).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import oracle  # noqa: E402
 from cnc_twin.gcode.listing import list_program  # noqa: E402
 
+GOAL = 2.0
+"""ours at most this many times rs274's reading time (issue #20)"""
 PROGRAM = oracle.ROOT / "usr" / "share" / "linuxcnc" / "ncfiles" / "3D_Chips.ngc"
 
 
@@ -55,4 +58,4 @@ def test_reading_speed_against_rs274(benchmark, tmp_path):
     benchmark.extra_info.update(figures)
     print(f"\n3D_Chips.ngc, {lines} lines: ours {ours * 1e3:.1f} ms ({lines / ours:,.0f} lines/s), rs274 "
           f"{rs274 * 1e3:.1f} ms ({lines / rs274:,.0f} lines/s; start-up {rs274_start * 1e3:.1f} ms taken off), "
-          f"ratio {ours / rs274:.2f}")
+          f"ratio {ours / rs274:.2f} (goal: at most {GOAL:g})")

@@ -45,8 +45,9 @@ def compare(text: str, folder: Path) -> Verdict:
     # rs274's other lines: what (print,...) printed, then an error and the line it refused
     expected = list(printed)
     if error is not None:
-        # rs274 shows the refused line as it read it (nothing for an empty one)
-        line_text = Source(text).lines[error.line - 1].strip() if error.line else ""
+        # rs274 shows the refused line as it read it (nothing for an empty one), at most the 254
+        # characters its line buffer holds (a line too long to read)
+        line_text = Source(text).lines[error.line - 1][:254].strip() if error.line else ""
         expected += [error.message] + ([line_text] if line_text else [])
     if [o.strip() for o in other] != [e.strip() for e in expected]:
         return Verdict("differs", f"messages: ours {expected} rs274 {other}")

@@ -7,13 +7,21 @@ of the line; a comment keeps its own text (leading spaces dropped), and ``(msg,.
 word is a letter and a real value (:mod:`~cnc_twin.gcode.expressions`); ``#n=value`` and
 ``#<name>=value`` set parameters after the whole line is read (``#1=7 G1 X#1`` moves to the old
 ``#1``). Errors carry LinuxCNC's wording; the caller adds the file and line.
+
+Most lines of a CAM program are letters with numbers, parameters and one-operator brackets: those
+are read by one regular expression; every other line, and every line it would refuse, by the
+character-by-character reader, which the quick one matches value for value
+(``tests/test_gcode_speed_paths.py``).
 """
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import dataclass, field
 
-from cnc_twin.gcode.expressions import ExpressionError, Parameters, read_parameter_key, read_real
+from cnc_twin.gcode.expressions import (MAX_PARAMETER, ExpressionError, Parameters, binary, read_parameter_key,
+                                        read_real)
 
 WORD_LETTERS = frozenset("abcdefghijklmnpqrstuvwxyz@^$") - {"n", "o"}
 """letters that start a word (``n`` is the line number, ``o`` an O-word, read apart; ``@`` and
@@ -36,7 +44,8 @@ class Block:
     ``words``: letter -> value for every word but G and M; ``g`` / ``m``: their values in the
     order written; ``comments``: comment texts in order; ``assignments``: ``(index or name,
     value)`` to apply after the line; ``number``: the N word; ``block_delete``: a ``/`` first;
-    ``o_word``: the text after ``o`` (name and keyword, normalised), or None.
+    ``o_word``: the text after ``o`` (name and keyword, normalised), or None; ``number_text``:
+    the N word as written.
     """
 
     line: int
@@ -48,6 +57,8 @@ class Block:
     comments: list[str] = field(default_factory=list)
     assignments: list[tuple[int | str, float]] = field(default_factory=list)
     o_word: str | None = None
+    number_text: str | None = None
+    """the N word's digits as written (``N0030`` -> ``0030``), for the call lines; None without N"""
 
     @property
     def empty(self) -> bool:
@@ -57,6 +68,10 @@ class Block:
 def normalise(text: str) -> tuple[str, list[str]]:
     """``text`` (one line, no newline) as LinuxCNC reads it: lower case without spaces outside
     comments, and the comments' texts apart."""
+    if "(" not in text and ";" not in text:  # most lines: no comment, one pass of replaces
+        if ")" in text:
+            raise BlockError("Bad character ')' used")
+        return text.replace(" ", "").replace("\t", "").replace("\r", "").lower(), []
     comments: list[str] = []
     out: list[str] = []
     k, n = 0, len(text)
@@ -83,12 +98,22 @@ def normalise(text: str) -> tuple[str, list[str]]:
 
 def read_block(text: str, line: int, params: Parameters) -> Block:
     """Read one line (``line`` is its number in the file, for messages and the trace)."""
-    block = Block(line=line)
     stripped = text.lstrip(" \t")
-    if stripped.startswith("/"):
-        block.block_delete = True
+    block_delete = stripped.startswith("/")
+    if block_delete:
         stripped = stripped[1:]
-    norm, block.comments = normalise(stripped)
+    norm, comments = normalise(stripped)
+    block = _simple_block(norm, line, block_delete, comments, params)
+    if block is None:  # anything else, and every refusal, is read character by character
+        block = _full_block(norm, Block(line=line, block_delete=block_delete, comments=comments), params)
+    if block.number is not None:
+        block.number_text = n_text(text)
+    return block
+
+
+def _full_block(norm: str, block: Block, params: Parameters) -> Block:
+    """The words of ``norm`` read one character at a time into ``block``, with LinuxCNC's
+    refusals."""
     pos = 0
     if norm.startswith("n"):
         pos = 1
@@ -121,6 +146,103 @@ def read_block(text: str, line: int, params: Parameters) -> Block:
     except ExpressionError as exc:
         raise BlockError(str(exc)) from None
     return block
+
+
+# The common line, read by one regular expression: an optional N word, then words whose value
+# is a plain number, a parameter, or a bracket of one operand or two around + - * /. A line of
+# that shape reads exactly as character by character (same values, in the same order); any other
+# line, or one whose reading would be refused, is left to the full reader. Quantifiers are
+# possessive (a number is always read whole, as the full reader reads it), so a long run of
+# digits never makes the expression backtrack.
+_NUMBER = r"[+-]?+(?:[0-9]++(?:\.[0-9]*+)?+|\.[0-9]++)"
+_PARAMETER = r"([+-]?+)#(?:<([^>]++)>|([0-9]{1,9}+))"  # sign, name | index (more digits: the full reader)
+_SIMPLE_WORD = re.compile(
+    rf"([a-mp-z@^$])(?:({_NUMBER})|\[(?:({_NUMBER})|{_PARAMETER})(?:([-+*/])(?:({_NUMBER})|{_PARAMETER}))?+\]"
+    rf"|{_PARAMETER})|.", re.DOTALL)
+"""a word: its letter, then a number | a bracket (number | parameter, then an operator and
+number | parameter) | a parameter; anything else matches as one character, every group empty"""
+_N_WORD = re.compile(r"n([0-9]++)[0-9.]*+")
+
+
+def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str], params: Parameters) -> Block | None:
+    """``norm`` read as :data:`_SIMPLE_WORD` words, or None when it is not made of them only or
+    its reading would be refused."""
+    number, pos = None, 0
+    if norm.startswith("n"):
+        match = _N_WORD.match(norm)
+        if match is None:
+            return None
+        number, pos = int(match.group(1)), match.end()
+    words: dict[str, float] = {}
+    g: list[float] = []
+    m: list[float] = []
+    name_of = params.name
+    try:
+        for (letter, plain, a_plain, a_sign, a_name, a_index, op, b_plain, b_sign, b_name, b_index, sign, name,
+             index) in _SIMPLE_WORD.findall(norm, pos):
+            if plain:
+                value = float(plain)
+            elif not letter:  # a character no simple word starts with
+                return None
+            elif name or index:
+                value = name_of(name) if name else _numbered(index, params)
+                if sign == "-":
+                    value = -value
+            else:  # a bracket
+                if a_plain:
+                    value = float(a_plain)
+                else:
+                    value = name_of(a_name) if a_name else _numbered(a_index, params)
+                    if a_sign == "-":
+                        value = -value
+                if op:
+                    if b_plain:
+                        right = float(b_plain)
+                    else:
+                        right = name_of(b_name) if b_name else _numbered(b_index, params)
+                        if b_sign == "-":
+                            right = -right
+                    value = value * right if op == "*" else binary(op, value, right)  # binary's product
+                if not math.isfinite(value):  # the bracket's refusal
+                    return None
+            if letter == "g":
+                g.append(value)
+            elif letter == "m":
+                m.append(value)
+            elif letter in words or (value < 0.0 and letter in NEGATIVE_REFUSED):
+                return None
+            else:
+                words[letter] = value
+    except ExpressionError:
+        return None
+    return Block(line, number, block_delete, words, g, m, comments, [])
+
+
+def _numbered(index: str, params: Parameters) -> float:
+    """The value of ``#index`` (its digits), as the full reader reads it."""
+    number = int(index)
+    if not 1 <= number <= MAX_PARAMETER:
+        raise ExpressionError("Parameter number out of range")
+    return params.number(number)
+
+
+_N_DIGITS = re.compile(r"[ \t/]*.([0-9]*)", re.DOTALL)
+
+
+def n_text(raw: str) -> str:
+    """The N word's digits as written in the raw line (``N0030`` -> ``0030``, spaces dropped)."""
+    match = _N_DIGITS.match(raw)
+    if match is not None:
+        end = match.end()
+        if end == len(raw) or not (raw[end] in " \t" or raw[end].isdigit()):
+            return match.group(1)
+    digits = []
+    for c in raw.lstrip(" \t/")[1:]:
+        if c.isdigit():
+            digits.append(c)
+        elif c not in " \t":
+            break
+    return "".join(digits)
 
 
 def _assignment(norm: str, pos: int, params: Parameters, block: Block) -> int:

@@ -19,7 +19,13 @@ UNITS = {200: "CANON_UNITS_INCHES", 210: "CANON_UNITS_MM"}
 """G20 / G21 (tenths) -> rs274's unit name"""
 
 
+_F4_TEXTS = tuple(", ".join(["%.4f"] * n) for n in range(10))
+"""n values with four decimals, one format for the lot (``%.4f`` prints as ``{:.4f}``)"""
+
+
 def _f4(values) -> str:
+    if len(values) < len(_F4_TEXTS):
+        return _F4_TEXTS[len(values)] % tuple(values)
     return ", ".join(f"{v:.4f}" for v in values)
 
 
@@ -56,7 +62,7 @@ _FORMATS = {
 """call name -> its arguments' text; names absent here print their values plainly"""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Call:
     """One canonical call.
 
@@ -71,6 +77,16 @@ class Call:
     line: int = 0
     number: str | None = None
     payload: object = None
+
+    def __init__(self, name: str, values: tuple = (), line: int = 0, number: str | None = None, payload: object = None):
+        # a program makes one call a line: filled in directly, the frozen way (object.__setattr__
+        # per field) costs twice as much
+        fields = self.__dict__
+        fields["name"] = name
+        fields["values"] = values
+        fields["line"] = line
+        fields["number"] = number
+        fields["payload"] = payload
 
     @property
     def arguments(self) -> str:

@@ -19,6 +19,8 @@ because the whole program is read before any motion.
 
 from __future__ import annotations
 
+import bisect
+
 from dataclasses import dataclass
 
 from cnc_twin.gcode.blocks import Block, BlockError, apply_assignments, read_block
@@ -34,6 +36,8 @@ from cnc_twin.gcode.source import Source
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
 
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
+PLAIN_WORDS = frozenset(AXIS_LETTERS + "f")
+"""a block with no codes, no comment and no words but these only moves in the current mode"""
 
 
 class ProgramError(ValueError):
@@ -77,6 +81,9 @@ class Interpreter:
 
     # -- the program -------------------------------------------------------------------------
     def run(self) -> Reading:
+        if self.source.too_long[:1] == [0]:  # LinuxCNC reads the first line on opening, before its reset
+            self._preamble(opening=True)
+            raise ProgramError(1, "Command too long", self.calls, self.printed)
         self._preamble()
         index = self.source.first
         try:
@@ -89,8 +96,12 @@ class Interpreter:
                     self._line = index  # the last line read (a skipped subroutine's endsub too)
                     raise BlockError(self.source.eof_message)
                 self._line, self._number = index + 1, None
+                self._check_length(index, index + 1)
                 if index in self.source.o_lines:
-                    index = self.flow.step(index)
+                    after = self.flow.step(index)
+                    if isinstance(after, int):  # the lines a jump forward passes over are read too
+                        self._check_length(index + 1, after)
+                    index = after
                     continue
                 block = read_block(self.source.lines[index], index + 1, self.params)
                 if block.o_word is not None:
@@ -106,14 +117,24 @@ class Interpreter:
         self._reset()
         return Reading(self.calls, self.printed)
 
-    def _preamble(self) -> None:
+    def _check_length(self, start: int, stop: int) -> None:
+        """Refuse the first line in ``start`` ..< ``stop`` (0-based) that is too long to read."""
+        long = self.source.too_long
+        k = bisect.bisect_left(long, start)
+        if k < len(long) and long[k] < stop:
+            self._line = long[k] + 1
+            raise BlockError("Command too long")
+
+    def _preamble(self, opening: bool = False) -> None:
+        """The calls before the first line; ``opening``: only those made before the file is opened."""
         s = self.state
         self.emit("USE_LENGTH_UNITS", s.units)
         self.emit("SET_G5X_OFFSET", s.system, *s.g5x)
         self.emit("SET_G92_OFFSET", *s.g92)
         self.emit("SET_XY_ROTATION", 0.0)
         self.emit("SET_FEED_REFERENCE", "CANON_XYZ")
-        self.emit("ON_RESET")
+        if not opening:
+            self.emit("ON_RESET")
 
     def _reset(self) -> None:
         self._line, self._number = 0, None
@@ -124,7 +145,9 @@ class Interpreter:
     def _execute(self, block: Block) -> bool:
         """Run ``block``; True when it ends the program."""
         if block.number is not None:
-            self._number = _n_text(self.source.lines[block.line - 1])
+            self._number = block.number_text
+        if not (block.g or block.m or block.comments) and PLAIN_WORDS.issuperset(block.words):
+            return self._plain_move(block)
         g, m = modal_codes(block)
         refuse_unsupported(block, g, m)
         # axis words move in the current motion mode unless a code of the block owns them
@@ -199,6 +222,22 @@ class Interpreter:
         if m.get(6) == 6:
             s.resynchronise()
         return self._stop(m.get(4))
+
+    def _plain_move(self, block: Block) -> bool:
+        """A block of axis words and F only (most of a CAM program): what :meth:`_execute` does
+        with it, without the checks that cannot refuse it (no codes, no other words)."""
+        s = self.state
+        words = block.words
+        moving = len(words) > ("f" in words)
+        if moving and s.motion == 800:
+            raise BlockError("Cannot use axis values without a g code that uses them")
+        if "f" in words:
+            s.feed = words["f"]
+            if s.feed_mode != 930:  # in inverse time each move sets its own rate
+                self.emit("SET_FEED_RATE", s.feed)
+        if moving:
+            self.motion.move(s.motion, block, False)
+        return False
 
     # -- the steps ---------------------------------------------------------------------------
     def _comment(self, text: str) -> None:
@@ -395,18 +434,6 @@ class Interpreter:
         self.emit("PROGRAM_END")
         if self.source.percent_missing_after(self._line - 1):
             self.emit("COMMENT", "interpreter: percent sign missing from end of file")
-
-
-def _n_text(raw: str) -> str:
-    """The N word's digits as written (``N0030`` -> ``0030``), for the call lines."""
-    text = raw.lstrip(" \t/")[1:]
-    digits = []
-    for c in text:
-        if c.isdigit():
-            digits.append(c)
-        elif c not in " \t":
-            break
-    return "".join(digits)
 
 
 def read_program(source: Source, tools: ToolTable) -> Reading:

@@ -23,6 +23,7 @@ if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed h
     from cnc_twin.gcode.interpreter import Interpreter
 
 AXIS_LETTERS = "xyzabc"
+AXIS_INDEX = {letter: axis for axis, letter in enumerate(AXIS_LETTERS)}
 NURBS_STARTS = {52: G52Collector, 62: G62Collector}
 """G5.2 / G6.2 (tenths) -> what gathers their blocks into one curve"""
 NURBS_END = 53
@@ -43,9 +44,9 @@ class MotionRunner:
         """The programmed end point: axes without a word keep the current value."""
         s = self.state
         end = list(s.position)
-        for axis, letter in enumerate(AXIS_LETTERS):
-            if letter in block.words:
-                value = block.words[letter]
+        for letter, value in block.words.items():  # each axis on its own: their order does not matter
+            axis = AXIS_INDEX.get(letter)
+            if axis is not None:
                 if machine:  # G53: machine coordinates of the tool tip
                     end[axis] = s.from_machine(axis, value)
                 elif s.distance == 910:
@@ -195,9 +196,10 @@ STRAIGHT_TINY = 1e-7
 def straight_length(start, end) -> float:
     """LinuxCNC's length of a straight move for inverse time: the XYZ distance, or the ABC
     distance (degrees) for a move of rotary axes only."""
-    if any(abs(start[k] - end[k]) > STRAIGHT_TINY for k in range(3)):
-        return math.sqrt((end[0] - start[0]) ** 2 + (end[1] - start[1]) ** 2 + (end[2] - start[2]) ** 2)
-    return math.sqrt((end[3] - start[3]) ** 2 + (end[4] - start[4]) ** 2 + (end[5] - start[5]) ** 2)
+    # products, not ** 2: a square past the float range is inf in C (and here), not an exception
+    first = 0 if any(abs(start[k] - end[k]) > STRAIGHT_TINY for k in range(3)) else 3
+    d = [end[k] - start[k] for k in range(first, first + 3)]
+    return math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
 
 
 def arc_length(plane: int, start, arc) -> float:

@@ -45,6 +45,10 @@ class OLine:
     index: int
 
 
+MAX_LINE = 253
+"""characters (bytes) in a line, newline not counted, that LinuxCNC refuses as too long"""
+
+
 class Source:
     """The lines of one program.
 
@@ -52,12 +56,17 @@ class Source:
     line indices the interpreter reads (after a leading ``%``, up to a closing one);
     ``percent_start``: whether a ``%`` line opens the file; ``percent_end``: whether ``end`` is a
     closing ``%`` line; ``o_lines``: 0-based index -> OLine
-    for every O-word line in that range.
+    for every O-word line in that range; ``too_long``: 0-based indices of the lines LinuxCNC
+    refuses as too long, increasing.
     """
 
     def __init__(self, text: str, name: str = "program.ngc"):
         self.name = name
         self.lines = text.splitlines()
+        # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
+        # (a CR counts) is "Command too long" wherever it is read, a line passed over too
+        self.too_long = [k for k, line in enumerate(text.splitlines(keepends=True))
+                         if len(line) >= MAX_LINE and len(line.rstrip("\n").encode("utf-8", "replace")) >= MAX_LINE]
         self.first, self.end, self.percent_end = 0, len(self.lines), False
         self.percent_start = False
         for k, line in enumerate(self.lines):
