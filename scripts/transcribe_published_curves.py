@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+import textwrap
 from pathlib import Path
 
 CURVES = {
@@ -130,7 +131,8 @@ def program_text(name: str, source: str, title: str, curve: dict) -> str:
     parentheses): rapids to the curve's start in the scenario's plane, a dwell of the scenario's
     settle (the rapid's last micrometres die out before the curve), the feed, the control point
     blocks ``X Y R<weight> K<knot>`` (``P<order>`` on the first), the closing ``G6.2 K`` blocks,
-    back up and M2. The numbers are written as :func:`scenario_text` writes them."""
+    back up and M2. The numbers are written as :func:`scenario_text` writes them. Every line is
+    well under LinuxCNC's 253 characters ("Command too long")."""
     pts = curve["points"]
     z = pts[0][2] + LIFT
     if any(p[2] + LIFT != z for p in pts):
@@ -138,7 +140,7 @@ def program_text(name: str, source: str, title: str, curve: dict) -> str:
     knots = curve["knots"]
     lines = [
         f"; {title}: a published NURBS benchmark curve, degree {curve['order'] - 1}, {len(pts)} control points.",
-        f"; Source: {CITATION}, file '{source}'.",
+        *textwrap.wrap(f"Source: {CITATION}, file '{source}'.", 96, initial_indent="; ", subsequent_indent=";   "),
         "; The control points, weights and knots are transcribed from the numbers of that program (mm), not a",
         "; copy of the file; the curve lies in the program's XY plane at its cutting depth raised by",
         f"; {LIFT:g} mm (above the workpiece top), as in scenarios/published/{name}.yaml, at the same feed.",
