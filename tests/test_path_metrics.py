@@ -1,8 +1,8 @@
-"""The contour error's distance to the path (cnc_twin.run.path_metrics.point_to_polyline)."""
+"""The contour error's distance to the path (cnc_twin.geometry.polyline.point_to_polyline)."""
 
 import numpy as np
 
-from cnc_twin.run.path_metrics import point_to_polyline
+from cnc_twin.geometry.polyline import point_to_polyline
 
 
 def test_distance_to_a_long_segment_whose_nearest_vertex_is_elsewhere():

@@ -29,6 +29,7 @@ import numpy as np
 from cnc_twin.core.config import NurbsProgram, Scenario
 from cnc_twin.geometry.kinematics import rotation_ab
 from cnc_twin.geometry.nurbs import NurbsCurve
+from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.geometry.tip_path import tip_curve
 from cnc_twin.trace.trace import Trace
 
@@ -48,27 +49,6 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
     for i in straddle:  # a kink in |C'| at a knot: split there
         out[i] = curve.arc_length(u0[i], u1[i])
     return out
-
-
-def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Distance of each of ``points`` (shape (n, 3)) to the polyline ``poly`` (shape (m, 3)), same
-    units; shape (n,)."""
-    from scipy.spatial import cKDTree  # here: only curve and contour runs need it
-
-    tree = cKDTree(poly)
-    # the segments next to the 4 nearest vertices: the nearest vertex alone can belong to another
-    # part of the curve than the nearest segment (a closed curve's end beside its start, a long
-    # first span's far vertex)
-    _, nearest = tree.query(points, k=min(4, len(poly)))
-    best = np.full(len(points), np.inf)
-    for idx in nearest.T:
-        for offset in (-1, 0):
-            i0 = np.clip(idx + offset, 0, len(poly) - 2)
-            a, b = poly[i0], poly[i0 + 1]
-            d = b - a
-            t = np.clip(np.sum((points - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-300), 0.0, 1.0)
-            best = np.minimum(best, np.linalg.norm(points - (a + t[:, None] * d), axis=1))
-    return best
 
 
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
