@@ -248,3 +248,16 @@ def test_a_curve_record_carries_its_program_lines_to_the_card():
     seq, back = decode(encode(record, 7))
     assert (seq, back) == (7, record)
     assert decode(encode(dataclasses.replace(record, lines=()), 8))[1].lines == ()
+
+
+@pytest.mark.parametrize("mode, overrides, chord_mm", [
+    ("G64 P0.02", {}, 0.02),                                   # G64 P: the card's chord tolerance
+    ("G61", {}, 0.001),                                        # exact path: the default
+    ("G64", {}, 0.001),                                        # G64 without P: the default
+    ("G64 P0.02", {"program.chord_tolerance": 0.002}, 0.002),  # the scenario's, when it gives one
+])
+def test_g64_p_is_the_chord_tolerance_of_the_paths_it_governs(mode, overrides, chord_mm, tmp_path):
+    (tmp_path / "p.ngc").write_text(f"G21 G90 {mode}\nG0 X0 Y0 Z5\nG1 X10 F600\nG3 X20 Y10 R10\nM2\n")
+    program = load_scenario(tmp_path / "p.ngc", overrides=overrides).program
+    (path,) = program.paths
+    assert path.curve.limits.chord_tolerance == pytest.approx(chord_mm * 1e-3)

@@ -176,3 +176,30 @@ def test_a_signal_inside_an_extension_module_import_is_the_interruption(monkeypa
     err = capsys.readouterr().err
     assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"
     assert not (tmp_path / "run").exists()
+
+
+def test_a_signal_inside_importlibs_lock_callback_is_noted_and_stops_the_run_at_once():
+    """Seen in CI: SIGTERM inside importlib's module-lock weakref callback (``cb``), where a raised
+    Interrupted is printed as "Exception ignored ... Traceback" and lost. There the guard only notes
+    the signal; the run that follows stops at once (one of the two clean outcomes)."""
+    from cnc_twin.run.signals import Interrupted, SignalGuard
+
+    namespace: dict = {}
+    exec(compile("import sys\ndef cb():\n    return sys._getframe()\n", "<frozen importlib._bootstrap>", "exec"),
+         namespace)
+    frame = namespace["cb"]()  # a frame as importlib's callback has it
+
+    class Target:
+        stopped = None
+
+        def request_stop(self, name):
+            self.stopped = name
+
+    guard = SignalGuard()
+    guard._handle(signal.SIGTERM, frame)  # no Interrupted raised
+    assert guard.received == "SIGTERM"
+    target = Target()
+    with guard.stopping(target):
+        assert target.stopped == "SIGTERM"
+    with pytest.raises(Interrupted):  # anywhere else before the run: the interruption itself
+        SignalGuard()._handle(signal.SIGINT, sys._getframe())

@@ -108,6 +108,9 @@ class FeedPath:
     hold: tuple[float, float, float]
     """A, B, C [deg]"""
     line: int
+    tolerance: float | None = None
+    """the path's G64 P [mm] (its corner blends' tolerance, and the card's chord tolerance on it);
+    None under G61 / G61.1 or a G64 without P"""
 
     @property
     def start(self) -> np.ndarray:
@@ -380,7 +383,8 @@ def _joins(a: Element, b: Element, control: tuple) -> bool:
 def _finish(run: list[Element], modes: tuple, default_blend: float) -> FeedPath:
     feed, hold, control = modes
     tolerance = control[1] or default_blend
-    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line)
+    p = control[1] if control[0] == "CANON_CONTINUOUS" and control[1] > 0.0 else None
+    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line, p)
 
 
 def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:

@@ -65,12 +65,13 @@ class SignalGuard:
                 signal.signal(sig, signal.SIG_IGN)
         return False
 
-    def _handle(self, signum: int, _frame) -> None:
+    def _handle(self, signum: int, frame) -> None:
         first = self.received is None
         if first:
             self.received = signal.Signals(signum).name
-        if first:
+        if first and not (self._on_signal == self._raise and _swallowed_here(frame)):
             self._on_signal(self.received)
+        # else: only noted; the run that follows stops at once (:meth:`stopping`)
 
     def _raise(self, name: str) -> None:
         self._on_signal = _note  # clean-up on the way out is not cut short by a second signal
@@ -94,6 +95,18 @@ class SignalGuard:
         """Within the block a signal is only noted (``received``)."""
         self._on_signal = _note
         yield
+
+
+def _swallowed_here(frame) -> bool:
+    """The signal came inside a callback whose exceptions Python ignores: the weakref callback of
+    importlib's module locks, run when an import on the way finishes. Raised there, Interrupted
+    would be printed as "Exception ignored ... Traceback" and lost."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_filename.startswith("<frozen importlib") and code.co_name == "cb":
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _note(_name: str) -> None:

@@ -7,7 +7,7 @@
       type: gcode
       file: part.ngc            # next to the scenario
       blend_tolerance: 0.01     # [mm] corner blends under G64 without P
-      chord_tolerance: 0.001    # [mm] the card's chord tolerance on curves
+      chord_tolerance: 0.001    # [mm] the card's chord tolerance on curves (default: G64 P, else 0.001)
       settle: 0.3               # [s] simulated after the program end
       force: {standoff: 2.0}    # how the force loop makes contact (M100 P<newtons> / M101)
       workpiece:                # the surface pressed on and polished (default: the scene's block top)
@@ -55,6 +55,10 @@ curves (an exact stop between them) so each fits the card's geometry memory with
 path of one curve block goes whole whenever the memory holds it)"""
 
 
+DEFAULT_CHORD_TOLERANCE = 0.001
+"""[mm] the card's chord tolerance on a path without G64 P, unless the scenario gives one"""
+
+
 class GcodeWorkpieceSpec(Strict):
     """The workpiece a G-code program presses on (M100) and polishes."""
 
@@ -71,7 +75,8 @@ class GcodeProgramSpec(Strict):
     tool_table: str | None = Field(None, description="LinuxCNC tool table next to the scenario, for G43 H")
     tool_units: Literal["mm", "inch"] = Field("mm", description="units of the tool table's lengths")
     blend_tolerance: float = Field(0.01, gt=0, le=10, description="corner blend tolerance under G64 without P [mm]")
-    chord_tolerance: float = Field(0.001, gt=0, description="chord tolerance of the card's curve interpolation [mm]")
+    chord_tolerance: float | None = Field(None, gt=0, description="chord tolerance of the card's curve interpolation "
+                                          "[mm]; default each path's G64 P, else 0.001")
     limits: PathLimitsSpec = PathLimitsSpec()
     settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the program end [s]")
     force: ForceLoopSpec = ForceLoopSpec()
@@ -287,12 +292,19 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
     return out
 
 
+def _chord_tolerance(spec: GcodeProgramSpec, op) -> float:
+    """The card's chord tolerance on a feed path [mm]: the scenario's, else the path's G64 P."""
+    if spec.chord_tolerance is not None:
+        return spec.chord_tolerance
+    return op.tolerance if op.tolerance is not None else DEFAULT_CHORD_TOLERANCE
+
+
 def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes, model, label: Path, where: _Where,
                 line: int | None = None):
     """One card curve of a feed path, checked against travel and the card's memory at ``line``."""
     curve_spec = validate(NurbsCurveProgram, {
         "type": "nurbs_curve", "degree": degree, "knots": knots, "weights": weights, "control_points": points,
-        "feed": op.feed, "chord_tolerance": spec.chord_tolerance, "limits": spec.limits.model_dump(),
+        "feed": op.feed, "chord_tolerance": _chord_tolerance(spec, op), "limits": spec.limits.model_dump(),
         "tool_axis": {"A": op.hold[0], "B": op.hold[1]}, "C": op.hold[2], "settle": 0.0}, label, ("program",))
     try:
         return convert_curve(curve_spec, axes, model, label)
