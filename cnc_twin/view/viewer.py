@@ -36,6 +36,11 @@ def serve_web(recording: Path, port: int) -> int:
     if not 1024 <= port <= 65535:
         print(f"error: --port: expected 1024 - 65535, got {port}", file=sys.stderr)
         return 2
+    in_use = _port_in_use(port)
+    if in_use is not None:  # said at once: on a loaded machine rerun may take longer than the wait below to fail
+        print(f"error: the web viewer did not start: port {port} on 127.0.0.1 is in use ({in_use}); choose "
+              "another with --port", file=sys.stderr)
+        return 2
     command = rerun_command() + ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
                                  "--port", "0", str(recording)]
     # Its own process group: `rerun` may be a launcher whose child is the server, and both must
@@ -65,6 +70,19 @@ def serve_web(recording: Path, port: int) -> int:
               file=sys.stderr)
         return 2
     return 0
+
+
+def _port_in_use(port: int) -> str | None:
+    """Why ``port`` on 127.0.0.1 cannot be listened on (another server holds it), or None."""
+    import socket
+
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # a closed socket's TIME_WAIT is no owner
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError as exc:
+            return exc.strerror or str(exc)
+    return None
 
 
 def _raise_interrupt(signum, frame):
