@@ -58,7 +58,7 @@ def test_the_parameter_is_about_the_arc_length():
     assert 0.9 < speed.min() and speed.max() < 1.1
 
 
-def test_end_tangents_are_kept_at_unit_speed():
+def test_end_tangents_are_kept_at_unit_speed_without_curvature():
     pts = cam_polyline(1)
     t0, t1 = pts[1] - pts[0], pts[-1] - pts[-2]  # along the neighbouring segments
     t0, t1 = t0 / np.linalg.norm(t0), t1 / np.linalg.norm(t1)
@@ -66,6 +66,9 @@ def test_end_tangents_are_kept_at_unit_speed():
     d = BSpline(fit.knots, fit.points, DEGREE).derivative()
     assert d(fit.knots[0]) == pytest.approx(t0, abs=1e-12)
     assert d(fit.knots[-1]) == pytest.approx(t1, abs=1e-12)
+    dd = d.derivative()  # no curvature at the ends: joined to the lines along t0, t1 it is C2
+    assert dd(fit.knots[0]) == pytest.approx(np.zeros(3), abs=1e-9)
+    assert dd(fit.knots[-1]) == pytest.approx(np.zeros(3), abs=1e-9)
 
 
 def test_a_tool_axis_is_fitted_within_its_angle():

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cnc_twin.gcode.canon import Call
+from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines
 from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans, piece_length
 
 INCH = 25.4
@@ -56,12 +57,14 @@ class Element:
     pieces: list[np.ndarray]
     line: int
     kind: str
-    """line, arc, curve or blend"""
+    """line, arc, curve, blend or fit (a run of lines as one curve)"""
     spans: list[float] | None = None
     """each piece's parameter span relative to the others (a curve's own knot spans); None: equal"""
     nurbs: tuple | None = None
     """a curve as programmed, ``(degree, knots, weights, control points (n, 3) mm)``: a path of
     this one element goes to the card as it is (its pieces would hold about degree x the points)"""
+    piece_lines: list[int] | None = None
+    """the program line of each piece when they differ (a run of lines fitted as one curve)"""
 
     @property
     def start(self) -> np.ndarray:
@@ -384,7 +387,35 @@ def _finish(run: list[Element], modes: tuple, default_blend: float) -> FeedPath:
     feed, hold, control = modes
     tolerance = control[1] or default_blend
     p = control[1] if control[0] == "CANON_CONTINUOUS" and control[1] > 0.0 else None
+    if p is not None:  # G64 P: runs of gently turning lines (CAM's) as fitted curves
+        run = _fit_runs(run, p)
     return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line, p)
+
+
+def _fit_runs(run: list[Element], tolerance: float) -> list[Element]:
+    """Each run of :data:`~cnc_twin.gcode.line_fit.MIN_SEGMENTS` or more lines turning less than
+    :data:`~cnc_twin.gcode.line_fit.FIT_CORNER` at each point, as its first half line, one fitted
+    curve and its last half line (:func:`~cnc_twin.gcode.line_fit.fit_lines`); the rest as it is."""
+    out: list[Element] = []
+    k = 0
+    while k < len(run):
+        j = k
+        while (run[k].kind == "line" and j + 1 < len(run) and run[j + 1].kind == "line"
+               and _turn(run[j], run[j + 1]) < FIT_CORNER):
+            j += 1
+        fitted = None
+        if j - k + 1 >= MIN_SEGMENTS:
+            lines = run[k:j + 1]
+            points = np.array([e.start for e in lines] + [lines[-1].end])
+            fitted = fit_lines(points, [e.line for e in lines], tolerance)
+        if fitted is None:
+            out += run[k:j + 1]
+        else:
+            out.append(line_element(*fitted.head, run[k].line))
+            out.append(Element(fitted.pieces, run[k].line, "fit", spans=fitted.spans, piece_lines=fitted.piece_lines))
+            out.append(line_element(*fitted.tail, run[j].line))
+        k = j + 1
+    return out
 
 
 def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:

@@ -7,8 +7,8 @@ vector the control points solve a least-squares problem, one coordinate at a tim
     minimise  sum_i |C(u_i) - D_i|^2  +  lam sum_j |P_(j-1) - 2 P_j + P_(j+1)|^2
 
 with the end points fixed (``P_0 = D_0``, ``P_(n-1) = D_last``) and, when given, the end
-tangents (``P_1 = D_0 + t_0 h_0 / 3``: unit parameter speed along ``t_0`` at the start; the same
-at the end). The small smoothing term ``lam`` keeps spans with few points well determined.
+tangents: ``P_1`` and ``P_2`` on the line along ``t_0`` so that the curve leaves at unit
+parameter speed with no curvature (the same at the end): joined to a line there, it is C2. The small smoothing term ``lam`` keeps spans with few points well determined.
 
 The tolerance is checked, not assumed: after each solve :func:`deviation` measures both ways,
 every programmed point's distance to the curve and every curve sample's distance to the
@@ -77,8 +77,8 @@ def chord_parameters(points: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
 
 
-def _initial_knots(u: np.ndarray) -> np.ndarray:
-    spans = max(1, (len(u) - 1) // POINTS_PER_SPAN)
+def _initial_knots(u: np.ndarray, spans_at_least: int) -> np.ndarray:
+    spans = max(spans_at_least, (len(u) - 1) // POINTS_PER_SPAN)
     inner = u[np.linspace(0, len(u) - 1, spans + 1).round().astype(int)[1:-1]]
     return np.concatenate([[u[0]] * (DEGREE + 1), inner, [u[-1]] * (DEGREE + 1)])
 
@@ -89,10 +89,14 @@ def _solve(u: np.ndarray, data: np.ndarray, knots: np.ndarray, tangents: tuple) 
     basis = BSpline.design_matrix(u, knots, DEGREE).tocsc()
     fixed = {0: data[0], n - 1: data[-1]}
     t0, t1 = tangents
-    if t0 is not None and n > 3:
+    # a given end tangent: unit speed along it and no curvature there (the derivative curve's
+    # first two control points equal), so the curve joins a line there with C2 continuity
+    if t0 is not None:
         fixed[1] = data[0] + np.asarray(t0) * (knots[DEGREE + 1] - knots[DEGREE]) / 3.0
-    if t1 is not None and n > 3:
+        fixed[2] = fixed[1] + np.asarray(t0) * (knots[DEGREE + 2] - knots[DEGREE]) / 3.0
+    if t1 is not None:
         fixed[n - 2] = data[-1] - np.asarray(t1) * (knots[n] - knots[n - 1]) / 3.0
+        fixed[n - 3] = fixed[n - 2] - np.asarray(t1) * (knots[n] - knots[n - 2]) / 3.0
     free = [j for j in range(n) if j not in fixed]
     known = np.zeros((n, data.shape[1]))
     for j, p in fixed.items():
@@ -162,7 +166,8 @@ def fit_polyline(points, tolerance: float, *, axes=None, axis_tolerance: float |
                  start_tangent=None, end_tangent=None) -> Fit:
     """Fit ``points`` (m, 3) with a cubic B-spline within ``tolerance`` (same units); ``axes`` (m,
     3): a unit tool axis per point, fitted within ``axis_tolerance`` [rad]; ``start_tangent`` /
-    ``end_tangent``: unit directions the curve must leave and arrive along (its neighbours').
+    ``end_tangent``: unit directions the curve must leave and arrive along (its neighbours'), with
+    no curvature there.
 
     Raises
     ------
@@ -181,7 +186,9 @@ def fit_polyline(points, tolerance: float, *, axes=None, axis_tolerance: float |
         if axis_tolerance is None:
             raise FitError("a tool axis needs its tolerance")
     u = chord_parameters(data)
-    knots = _initial_knots(u)
+    # with end tangents, three control points are fixed at each such end: at least one free
+    ends = (start_tangent is not None) + (end_tangent is not None)
+    knots = _initial_knots(u, 1 + 2 * ends)
     for refit in range(MAX_REFITS + 1):
         ctrl = _solve(u, data, knots, (start_tangent, end_tangent))
         worst, bad = deviation(knots, ctrl, data, u, tolerance)

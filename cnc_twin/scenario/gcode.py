@@ -258,7 +258,8 @@ def _pieces_in_cards(path) -> list[list[tuple]]:
         else:
             scale = start / speed
         spans = [r * scale for r in relative]
-        flat += [(q, h, e.line) for q, h in zip(e.pieces, spans)]
+        lines = e.piece_lines or [e.line] * len(e.pieces)
+        flat += list(zip(e.pieces, spans, lines))
         speed = end_speed(e.pieces[-1], True) / spans[-1]
     return [flat[k:k + per_curve] for k in range(0, len(flat), per_curve)]
 

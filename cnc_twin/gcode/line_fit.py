@@ -1,0 +1,71 @@
+"""Runs of G1 lines as one smooth curve: CAM's dense segments fitted within G64 P.
+
+A run is consecutive lines of one feed path (same feed, held axes and G64 P) that each turn less
+than :data:`FIT_CORNER` from the last, at least :data:`MIN_SEGMENTS` of them. Its points, from
+the middle of its first line to the middle of its last, are fitted with a cubic B-spline
+(:func:`cnc_twin.geometry.fit.fit_polyline`) within ``FIT_SHARE`` of P, both ways: every
+programmed point to the curve and the curve to every programmed segment. The curve leaves the
+first half line and joins the last one along them, at unit parameter speed and without
+curvature, so the corners at the run's ends (turns above :data:`FIT_CORNER`) stay corners for
+the usual blend, between half lines. A run the fit cannot follow within P (it turns too sharply
+for its tolerance) stays lines.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.geometry.bezier import bezier_pieces, knot_spans
+from cnc_twin.geometry.fit import DEGREE, Fit, FitError, fit_polyline
+
+FIT_CORNER = math.radians(30.0)
+"""a turn between two lines above this is a corner (blended, or a stop), never fitted across"""
+MIN_SEGMENTS = 3
+"""lines in a run, at least, for a fit (two lines are one corner: the blend serves them)"""
+FIT_SHARE = 0.9
+"""the fit's tolerance as a share of P: the rest is margin for the measured check"""
+
+
+@dataclass(frozen=True)
+class FittedRun:
+    """A run of lines as: the first half line ``(start, middle)``, the fitted curve's rational
+    Bezier pieces (homogeneous, each (4, 4)) with their parameter spans and program lines, and the
+    last half line ``(middle, end)``; ``fit``: the fit and its measured deviation [mm]."""
+
+    head: tuple[np.ndarray, np.ndarray]
+    pieces: list[np.ndarray]
+    spans: list[float]
+    piece_lines: list[int]
+    tail: tuple[np.ndarray, np.ndarray]
+    fit: Fit
+
+
+def turn_angle(d0: np.ndarray, d1: np.ndarray) -> float:
+    """Angle [rad] between unit directions ``d0`` and ``d1``."""
+    return math.acos(float(np.clip(np.dot(d0, d1), -1.0, 1.0)))
+
+
+def fit_lines(points: np.ndarray, lines: list[int], tolerance: float) -> FittedRun | None:
+    """The run of lines through ``points`` ((n + 1, 3) mm; line k from point k to k + 1, program
+    line ``lines[k]``) fitted within ``FIT_SHARE * tolerance`` [mm]; None when the fit cannot
+    follow it within that."""
+    pts = np.asarray(points, dtype=np.float64)
+    first, last = 0.5 * (pts[0] + pts[1]), 0.5 * (pts[-2] + pts[-1])
+    t0 = (pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0])
+    t1 = (pts[-1] - pts[-2]) / np.linalg.norm(pts[-1] - pts[-2])
+    data = np.vstack([first, pts[1:-1], last])
+    try:
+        fit = fit_polyline(data, FIT_SHARE * tolerance, start_tangent=t0, end_tangent=t1)
+    except FitError:
+        return None
+    pieces = bezier_pieces(fit.points, np.ones(len(fit.points)), fit.knots, DEGREE)
+    spans = knot_spans(fit.knots, DEGREE)
+    # each piece's program line: the line its start lies on (the fitted points' segment k lies on
+    # line k: the first and last only in half)
+    u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(data, axis=0), axis=1))])
+    starts = np.unique(fit.knots)[:-1]
+    index = np.clip(np.searchsorted(u, starts, side="right") - 1, 0, len(lines) - 1)
+    return FittedRun((pts[0], first), pieces, spans, [lines[int(k)] for k in index], (last, pts[-1]), fit)
