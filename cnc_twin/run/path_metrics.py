@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import NurbsProgram, Scenario
-from cnc_twin.geometry.kinematics import rotation_ab
+from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.geometry.tip_path import tip_curve
@@ -78,12 +78,8 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
         shift = depth[:, None] * np.asarray(force_axis)
         command_axes[:, :3] += shift
         actual_axes[:, :3] += shift
-    pivot, offset = np.asarray(prog.pivot_home), np.asarray(prog.tool_offset)
-
-    def tips(q: np.ndarray) -> np.ndarray:
-        return q[:, :3] + pivot + np.array([rotation_ab(a, b) @ offset for a, b in zip(q[:, 3], q[:, 4])])
-
-    command, actual = tips(command_axes), tips(actual_axes)
+    head = HeadGeometry(pivot_home=prog.pivot_home, tool_offset=prog.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
+    command, actual = head.forward(command_axes[:, :5])[0], head.forward(actual_axes[:, :5])[0]  # the tips
     out: dict[str, Any] = {"periods_on_curve": int(on.sum()), "length_mm": curve.arc_length() * 1e3}
     if on.sum() < 3:
         return out
