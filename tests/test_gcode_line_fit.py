@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
 from cnc_twin.gcode import toolpath as tp
+from cnc_twin.geometry.kinematics import HeadGeometry
 from test_fit import segment_distance
 from test_gcode_twin import ops_of, points_of
 
@@ -103,3 +105,55 @@ def test_a_run_too_sharp_for_p_stays_lines(tmp_path):
     text = f"G21 G90 G64 P0.001\nG0 X0 Y0 Z0\nF1000\n{body}\nM2\n"
     kinds = [e.kind for e in feed_paths(ops_of(text, tmp_path))[0].elements]
     assert "fit" not in kinds and kinds.count("blend") == 39
+
+
+# -- on the twin: checked from the trace ----------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fitted_and_exact(tmp_path_factory):
+    from cnc_twin import load_scenario, run_scenario
+
+    folder = tmp_path_factory.mktemp("dense")
+    out = {}
+    for name, mode in (("fitted", "G64 P0.01"), ("exact", "G61.1")):
+        text, pts = dense_program(mode)
+        (folder / f"{name}.ngc").write_text(text)
+        scenario = load_scenario(folder / f"{name}.ngc")
+        out[name] = (scenario, run_scenario(scenario), pts)
+    return out
+
+
+def test_the_fitted_run_stays_within_p_of_the_program_in_every_period(fitted_and_exact):
+    scenario, result, pts = fitted_and_exact["fitted"]
+    m = result.metrics
+    assert m["final_state"] == "FINISHED"
+    d = m["program"]["deviation_um"]
+    assert d["tolerance_um"] == pytest.approx(10.0)
+    assert d["max"] <= 10.0 and d["vertices_max"] <= 10.0
+    # independently: the commanded tip at every period's end on the fitted path, against the
+    # program's own points and segments (workpiece frame -> world)
+    trace = result.trace
+    tpp = scenario.timing.ticks_per_period
+    ends = slice(tpp - 1, None, tpp)
+    u = trace.period_signals["path_u"][ends]
+    command = trace.command[ends] / trace.counts_per_unit + np.asarray(scenario.home)
+    curve = scenario.program.paths[-1].curve
+    head = HeadGeometry(curve.pivot_home, curve.tool_offset, (0.0, 0.0, 0.0))
+    tips = head.forward(command[:, :5])[0]
+    origin = np.asarray(HeadGeometry.from_model(mujoco.MjModel.from_xml_path(str(scenario.model_file))).workpiece_origin)
+    program = pts * 1e-3 + origin
+    on = (u >= 0.0) & (tips[:, 2] < program[0, 2] + 1e-6)  # on a path, down at the program's height
+    assert np.count_nonzero(on) > 1000
+    assert segment_distance(tips[on], program).max() <= 10e-6
+    assert m["path"]["limit_violations"] == []
+    assert m["whiteboard"]["underrun_periods"] == 0  # the planner kept ahead of the card
+
+
+def test_the_fitted_run_holds_the_feed_and_beats_segment_by_segment(fitted_and_exact):
+    fitted = fitted_and_exact["fitted"][1].metrics["program"]
+    exact = fitted_and_exact["exact"][1].metrics["program"]
+    assert fitted["fits"]["runs"] == 1 and exact["fits"]["runs"] == 0
+    assert fitted["feed"]["time_s"] <= 1.10 * fitted["feed"]["ideal_time_s"]  # within 10 % of the F-limited time
+    assert fitted["feed"]["share_at_95pct"] >= 0.85
+    assert exact["feed"]["time_s"] >= 3.0 * fitted["feed"]["time_s"]  # a stop at every point
+    assert exact["feed"]["share_at_95pct"] <= 0.2

@@ -3,9 +3,11 @@ the machine steps an NC program becomes. Re-exported by :mod:`cnc_twin.core.conf
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 if TYPE_CHECKING:  # config imports this module: its types only for annotations
     from cnc_twin.core.config import ForceControl, NurbsProgram, Preston, SurfaceDef
@@ -25,6 +27,25 @@ class GcodeMove:
 
 
 @dataclass(frozen=True)
+class GcodeReference:
+    """A feed path as programmed (before blends and fits), what its run is measured against; one
+    object shared by the card curves a path is cut into."""
+
+    polyline: np.ndarray
+    """(k, 3) [m] world frame, tool tip: lines by their ends, arcs and curves finely sampled"""
+    vertices: np.ndarray
+    """(m, 3) [m] the programmed elements' ends"""
+    tolerance: float | None
+    """the path's G64 P [m]; None without one"""
+    fits: int
+    """runs of lines fitted as one curve"""
+    fit_spans: int
+    fit_deviation: float
+    """the fits' largest distance from their programmed points and segments, as the fitter
+    measured it [m] (a claim: the run is checked against ``polyline`` from the trace)"""
+
+
+@dataclass(frozen=True)
 class GcodePath:
     """Consecutive feed moves as one curve the card interpolates directly, rest to rest."""
 
@@ -32,6 +53,8 @@ class GcodePath:
     lines: tuple[tuple[float, int], ...]
     """``(u, line)``: from parameter ``u`` on, the curve runs the block of program line ``line``"""
     line: int
+    reference: GcodeReference | None = field(default=None, compare=False)
+    """the feed path as programmed"""
 
 
 @dataclass(frozen=True)

@@ -65,6 +65,8 @@ class Element:
     this one element goes to the card as it is (its pieces would hold about degree x the points)"""
     piece_lines: list[int] | None = None
     """the program line of each piece when they differ (a run of lines fitted as one curve)"""
+    deviation: float | None = None
+    """a fit's largest distance from its programmed points and segments, as measured [mm]"""
 
     @property
     def start(self) -> np.ndarray:
@@ -114,6 +116,8 @@ class FeedPath:
     tolerance: float | None = None
     """the path's G64 P [mm] (its corner blends' tolerance, and the card's chord tolerance on it);
     None under G61 / G61.1 or a G64 without P"""
+    program: list[Element] = field(default_factory=list)
+    """the elements as programmed, before corner blends and fits (what the run is measured against)"""
 
     @property
     def start(self) -> np.ndarray:
@@ -387,9 +391,10 @@ def _finish(run: list[Element], modes: tuple, default_blend: float) -> FeedPath:
     feed, hold, control = modes
     tolerance = control[1] or default_blend
     p = control[1] if control[0] == "CANON_CONTINUOUS" and control[1] > 0.0 else None
+    programmed = list(run)
     if p is not None:  # G64 P: runs of gently turning lines (CAM's) as fitted curves
         run = _fit_runs(run, p)
-    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line, p)
+    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line, p, programmed)
 
 
 def _fit_runs(run: list[Element], tolerance: float) -> list[Element]:
@@ -412,7 +417,8 @@ def _fit_runs(run: list[Element], tolerance: float) -> list[Element]:
             out += run[k:j + 1]
         else:
             out.append(line_element(*fitted.head, run[k].line))
-            out.append(Element(fitted.pieces, run[k].line, "fit", spans=fitted.spans, piece_lines=fitted.piece_lines))
+            out.append(Element(fitted.pieces, run[k].line, "fit", spans=fitted.spans, piece_lines=fitted.piece_lines,
+                               deviation=fitted.fit.deviation))
             out.append(line_element(*fitted.tail, run[j].line))
         k = j + 1
     return out
@@ -451,3 +457,26 @@ def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:
             p0, p3 = corner - cuts[k + 1] * d_in, corner + cuts[k + 1] * d_out
             out.append(Element([homogeneous([p0, corner, corner, p3], [1.0] * 4)], run[k + 1].line, "blend"))
     return out
+
+
+REFERENCE_STEP = 0.05
+"""[mm] between the samples of a programmed arc or curve in :func:`programmed_geometry` (a 20 mm
+radius's chord then strays 0.016 um from it)"""
+
+
+def programmed_geometry(elements: list[Element]) -> tuple[np.ndarray, np.ndarray]:
+    """The programmed path as a polyline ((k, 3) mm: lines by their ends, arcs and curves sampled
+    every :data:`REFERENCE_STEP`) and its vertices ((m, 3) mm: each element's ends)."""
+    points, vertices = [elements[0].start], [elements[0].start]
+    for e in elements:
+        if e.kind != "line":
+            for q in e.pieces:
+                t = np.linspace(0.0, 1.0, max(8, math.ceil(piece_length(q) / REFERENCE_STEP)) + 1)[1:]
+                p = len(q) - 1
+                basis = np.array([[math.comb(p, i) * x ** i * (1 - x) ** (p - i) for i in range(p + 1)] for x in t])
+                h = basis @ q
+                points.extend(h[:, :3] / h[:, 3:4])
+        else:
+            points.append(e.end)
+        vertices.append(e.end)
+    return np.array(points), np.array(vertices)

@@ -2,8 +2,8 @@
 (:func:`cnc_twin.run.path_metrics.path_metrics`), then the figures over the whole program.
 
 The trace's periods on a curve (``path_u >= 0``) fall into runs, one per card curve, in program
-order: a run ends where the tool leaves the curve or the parameter starts again from the next
-curve's beginning. Each run is measured against its own curve. On a path run with the force loop on (M100), the
+order (:func:`~cnc_twin.run.program_check.curve_runs`). Each run is measured against its own
+curve; the whole against the program as written: :mod:`cnc_twin.run.program_check`. On a path run with the force loop on (M100), the
 chord and contour errors are measured after taking the loop's offset along the tool axis off
 (the trace's ``force_depth``); the axis peaks keep it.
 
@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
-from cnc_twin.core.gcode_config import GcodeForce, GcodePath, GcodeSpindle
+from cnc_twin.core.gcode_config import GcodeForce, GcodeSpindle
 from cnc_twin.geometry.kinematics import tool_axis
+from cnc_twin.run.program_check import curve_runs, pressed_paths
 from cnc_twin.trace.trace import Trace
 
 
@@ -37,34 +38,6 @@ class _PathTrace:
         self.counts_per_unit = trace.counts_per_unit
 
 
-def curve_runs(u: np.ndarray) -> list[tuple[int, int]]:
-    """``[(first, stop)]`` period ranges of ``u`` (one value per period) on one curve each."""
-    on = u >= 0.0
-    runs, start = [], None
-    for k in range(len(u)):
-        if on[k] and (start is None or u[k] < u[k - 1]):
-            if start is not None:
-                runs.append((start, k))
-            start = k
-        elif not on[k] and start is not None:
-            runs.append((start, k))
-            start = None
-    if start is not None:
-        runs.append((start, len(u)))
-    return runs
-
-
-def _pressed_paths(prog: GcodeProgram) -> set[int]:
-    """``id`` of each feed path the program runs with the force loop on (M100 ... M101)."""
-    on, out = False, set()
-    for step in prog.steps:
-        if isinstance(step, GcodeForce):
-            on = step.control is not None
-        elif on and isinstance(step, GcodePath):
-            out.add(id(step))
-    return out
-
-
 def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     """Chord error, feed fluctuation, contour error [um] and axis peaks over the program's feed
     paths, and each path's own (``paths``: the program line it starts at, length, errors)."""
@@ -75,7 +48,7 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     u_ticks = trace.period_signals["path_u"]
     u = u_ticks[tpp - 1::tpp]
     per_path = []
-    pressed = _pressed_paths(prog)
+    pressed = pressed_paths(prog)
     for path, (first, stop) in zip(prog.paths, curve_runs(u)):
         axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
         m = path_metrics(_PathTrace(trace, first * tpp, stop * tpp), dataclasses.replace(scenario, program=path.curve),

@@ -214,7 +214,9 @@ class GcodeKind(ProgramKind):
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.gcode_metrics import gcode_metrics
 
-        out: dict[str, Any] = {"path": gcode_metrics(trace, twin.scenario)}
+        from cnc_twin.run.program_check import against_program
+
+        out: dict[str, Any] = {"path": gcode_metrics(trace, twin.scenario), "program": against_program(trace, twin.scenario)}
         if twin.removal is not None:
             from cnc_twin.run.gcode_metrics import gcode_polish_metrics
 

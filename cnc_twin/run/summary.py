@@ -40,6 +40,9 @@ def summary_table(metrics: dict) -> str:
     for v in (path or {}).get("limit_violations", []):
         lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
                      f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
+    program = metrics.get("program")
+    if program and "deviation_um" in program:
+        lines.append(program_line(program))
     polish = metrics.get("polish")
     if polish:
         lines.append(polish_line(polish))
@@ -68,3 +71,15 @@ def polish_line(polish: dict) -> str:
         volume += f" (Preston by hand {removal['preston_by_hand_mm3']:.4g} mm3)"
     parts.append(volume)
     return "polish: " + ", ".join(parts)
+
+
+def program_line(program: dict) -> str:
+    """One line of a G-code run against its program: deviation, feed held, fits."""
+    d, feed, fits = program["deviation_um"], program["feed"], program["fits"]
+    p = f" (G64 P {d['tolerance_um']:g} um)" if d["tolerance_um"] is not None else ""
+    text = (f"program: deviation from it max {d['max']:.2f} um, its vertices {d['vertices_max']:.2f} um{p}; "
+            f"feed paths {feed['time_s']:.2f} s (at F: {feed['ideal_time_s']:.2f} s), "
+            f"{100 * (feed['share_at_95pct'] or 0):.1f} % of it at >= 95 % of F")
+    if fits["runs"]:
+        text += f"; {fits['runs']} run(s) of lines fitted in {fits['spans']} spans"
+    return text

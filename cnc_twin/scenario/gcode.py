@@ -40,7 +40,7 @@ from pydantic import Field
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.core.gcode_config import (
-    GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle, GcodeWorkpiece,
+    GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeReference, GcodeSpindle, GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
@@ -150,7 +150,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
                             f"line {force_on.line}): switch it off with M101 first")
             steps.append(_move(op, axes, head, where))
         elif isinstance(op, tp.FeedPath):
-            steps += _paths(op, spec, axes, model, label, where)
+            steps += _paths(op, spec, axes, model, label, where, head)
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
@@ -264,7 +264,7 @@ def _pieces_in_cards(path) -> list[list[tuple]]:
     return [flat[k:k + per_curve] for k in range(0, len(flat), per_curve)]
 
 
-def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) -> list[GcodePath]:
+def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list[GcodePath]:
     """A feed path as one or more card curves: a lone curve block as programmed when the card's
     memory holds it, else the path's Bezier pieces joined (:func:`_pieces_in_cards`)."""
     from cnc_twin.geometry.bezier import join
@@ -272,12 +272,13 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
     out = []
     if op.feed <= 0.0:
         raise where(op.line, "feed rate 0")
+    reference = _reference(op, head)
     whole = op.elements[0].nurbs if len(op.elements) == 1 else None
     if whole is not None:  # one curve block: to the card as programmed, when its memory holds it
         degree, knots, weights, points = whole
         try:
             curve = _card_curve(op, spec, degree, knots, weights, points.tolist(), axes, model, label, where)
-            return [GcodePath(curve=curve, lines=((float(knots[0]), op.line),), line=op.line)]
+            return [GcodePath(curve=curve, lines=((float(knots[0]), op.line),), line=op.line, reference=reference)]
         except CardMemoryError:  # too large for the card's memory: cut into pieces below
             pass
     for chunk in _pieces_in_cards(op):
@@ -289,8 +290,21 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where) 
             if not lines or lines[-1][1] != line:
                 lines.append((float(u[k]), line))
         curve = _card_curve(op, spec, degree, knots, weights, points, axes, model, label, where, chunk[0][2])
-        out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2]))
+        out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2], reference=reference))
     return out
+
+
+def _reference(op, head) -> GcodeReference:
+    """The feed path as programmed, in the world frame [m], with its fits' figures."""
+    from cnc_twin.gcode.toolpath import programmed_geometry
+
+    polyline, vertices = programmed_geometry(op.program or op.elements)
+    origin = np.asarray(head.workpiece_origin)
+    fits = [e for e in op.elements if e.kind == "fit"]
+    return GcodeReference(
+        polyline=polyline * units.MM + origin, vertices=vertices * units.MM + origin,
+        tolerance=None if op.tolerance is None else op.tolerance * units.MM, fits=len(fits),
+        fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
 
 
 def _chord_tolerance(spec: GcodeProgramSpec, op) -> float:

@@ -1,0 +1,112 @@
+"""A G-code run checked against the program as written, from the trace: how far the commanded tip
+strayed from the programmed path, and how much of the time the feed held the programmed F.
+
+For each feed path, the commanded tip at every period's end on it (encoder counts through the
+head's kinematics, the force loop's offset taken off on pressed paths) is measured against the
+path as programmed (:class:`~cnc_twin.core.gcode_config.GcodeReference`: lines by their ends,
+arcs and curves finely sampled; before corner blends and fits), both ways:
+
+- ``deviation_um.max``: each commanded point's distance to the programmed path;
+- ``deviation_um.vertices_max``: each programmed vertex's distance to the commanded path (the
+  polyline through the commanded points): a corner rounded, or a point cut, by more than P shows
+  here;
+
+against the path's G64 P (``tolerance_um``). ``feed``: the time on feed paths, the ideal time
+(each path's programmed length at its F), and the time below 95 % of F (accelerations, corners,
+curvature). ``fits``: what the fitter made and claims (spans, its own measured deviation), for
+comparison with the measured one.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cnc_twin.core.config import GcodeProgram, Scenario
+from cnc_twin.core.gcode_config import GcodeForce, GcodePath
+from cnc_twin.geometry.kinematics import HeadGeometry, tool_axis
+from cnc_twin.geometry.polyline import point_to_polyline
+from cnc_twin.trace.trace import Trace
+
+FULL_FEED = 0.95
+"""a period runs at full feed when its speed is at least this share of the programmed F"""
+
+
+def curve_runs(u: np.ndarray) -> list[tuple[int, int]]:
+    """``[(first, stop)]`` period ranges of ``u`` (one value per period) on one curve each: a run
+    ends where the tool leaves the curve or the parameter starts again from the next curve's
+    beginning."""
+    on = u >= 0.0
+    runs, start = [], None
+    for k in range(len(u)):
+        if on[k] and (start is None or u[k] < u[k - 1]):
+            if start is not None:
+                runs.append((start, k))
+            start = k
+        elif not on[k] and start is not None:
+            runs.append((start, k))
+            start = None
+    if start is not None:
+        runs.append((start, len(u)))
+    return runs
+
+
+def pressed_paths(prog: GcodeProgram) -> set[int]:
+    """``id`` of each feed path the program runs with the force loop on (M100 ... M101)."""
+    on, out = False, set()
+    for step in prog.steps:
+        if isinstance(step, GcodeForce):
+            on = step.control is not None
+        elif on and isinstance(step, GcodePath):
+            out.add(id(step))
+    return out
+
+
+def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
+    """The run against its program (see the module docstring); lengths in um, times in s."""
+    prog: GcodeProgram = scenario.program
+    tpp = scenario.timing.ticks_per_period
+    T = scenario.timing.interpolation_period
+    ends = slice(tpp - 1, None, tpp)
+    u = trace.period_signals["path_u"][ends]
+    ds = trace.period_signals["path_ds"][ends]
+    depth = trace.period_signals["force_depth"][ends]
+    command = trace.command[ends] / trace.counts_per_unit + np.asarray(scenario.home)
+    pressed = pressed_paths(prog)
+    groups: dict[int, tuple[Any, list[np.ndarray]]] = {}
+    time = below = ideal = 0.0
+    for path, (first, stop) in zip(prog.paths, curve_runs(u)):
+        c = path.curve
+        head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
+        tips = head.forward(command[first:stop, :5])[0]
+        if id(path) in pressed:  # the loop pushed the tip depth along -axis: the path's own point
+            tips = tips + depth[first:stop, None] * np.asarray(tool_axis(*c.hold[:2]))
+        speed = ds[first:stop] / T
+        time += (stop - first) * T
+        below += float(np.count_nonzero(speed < FULL_FEED * c.limits.feed)) * T
+        if path.reference is not None:
+            ref, parts = groups.setdefault(id(path.reference), (path.reference, []))
+            if not parts:
+                ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
+            parts.append(tips)
+    out: dict[str, Any] = {"feed": {"time_s": time, "ideal_time_s": ideal, "below_95pct_s": below,
+                                    "share_at_95pct": (time - below) / time if time > 0 else None}}
+    if not groups:
+        return out
+    worst = vertex_worst = 0.0
+    tolerances = []
+    for ref, parts in groups.values():
+        tips = np.vstack(parts)
+        worst = max(worst, float(point_to_polyline(tips, ref.polyline).max()))
+        if len(tips) > 1:
+            vertex_worst = max(vertex_worst, float(point_to_polyline(ref.vertices, tips).max()))
+        if ref.tolerance is not None:
+            tolerances.append(ref.tolerance)
+    refs = [ref for ref, _ in groups.values()]
+    tolerance = min(tolerances) if tolerances else None
+    out["deviation_um"] = {"max": worst * 1e6, "vertices_max": vertex_worst * 1e6,
+                           "tolerance_um": None if tolerance is None else tolerance * 1e6}
+    out["fits"] = {"runs": sum(r.fits for r in refs), "spans": sum(r.fit_spans for r in refs),
+                   "fitter_deviation_um": max(r.fit_deviation for r in refs) * 1e6}
+    return out
