@@ -157,3 +157,74 @@ def test_the_fitted_run_holds_the_feed_and_beats_segment_by_segment(fitted_and_e
     assert fitted["feed"]["share_at_95pct"] >= 0.85
     assert exact["feed"]["time_s"] >= 3.0 * fitted["feed"]["time_s"]  # a stop at every point
     assert exact["feed"]["share_at_95pct"] <= 0.2
+
+
+# -- 5-axis: G1 runs turning A / B ------------------------------------------------------------------
+
+def tilted_program(mode: str, step: float = 0.5) -> tuple[str, np.ndarray, np.ndarray]:
+    """A pass over a bump with the tool along its normal (A / B words), as 5-axis CAM writes it:
+    the program, the tip points (mm) and the unit tool axes there."""
+    from cnc_twin.geometry.kinematics import ab_from_axis, tool_axis
+
+    x = np.arange(-40.0, 40.0 + step / 2, step)
+    y = np.full_like(x, 5.0)
+    bump = 3.0 * np.exp(-((x / 30.0) ** 2 + (y / 25.0) ** 2))  # z = 2 + bump, 2 mm above the block
+    z = 2.0 + bump
+    n = np.column_stack([bump * 2 * x / 900.0, bump * 2 * y / 625.0, np.ones_like(x)])  # (-dz/dx, -dz/dy, 1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    a, b = (np.round(np.degrees(v), 4) for v in ab_from_axis(n))
+    axes = np.array([tool_axis(np.radians(p), np.radians(q)) for p, q in zip(a, b)])  # as the words give them
+    pts = np.round(np.column_stack([x, y, z]), 4)
+    body = [f"G1 X{p[0]:.4f} Y{p[1]:.4f} Z{p[2]:.4f} A{p_a:.4f} B{p_b:.4f}" for p, p_a, p_b in zip(pts[1:], a[1:], b[1:])]
+    text = "\n".join([f"G21 G90 G17 G94 {mode}", "G0 Z20", f"G0 X{pts[0, 0]:.4f} Y{pts[0, 1]:.4f} A{a[0]:.4f} B{b[0]:.4f}",
+                      f"G1 Z{pts[0, 2]:.4f} F600", "F3000", *body, "G0 Z20", "M2"]) + "\n"
+    return text, pts, axes
+
+
+def test_a_run_turning_the_head_is_fitted_as_tip_and_tool_axis_curves(tmp_path):
+    from scipy.interpolate import BSpline
+
+    text, pts, axes = tilted_program("G64 P0.01")
+    ops = ops_of(text, tmp_path)
+    (run,) = [op for op in ops if isinstance(op, tp.ToolAxisPath)]
+    assert not [op for op in ops if isinstance(op, tp.Traverse) and op.feed == 3000.0]  # no G1 left as a move
+    u = np.linspace(run.knots[0], run.knots[-1], 8001)
+    tip = BSpline(run.knots, run.points, 3)(u)
+    assert segment_distance(tip, pts).max() <= 0.01 and segment_distance(pts, tip).max() <= 0.01
+    chord = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    got = BSpline(run.knots, run.axis_points, 3)(chord)
+    got /= np.linalg.norm(got, axis=1, keepdims=True)
+    angle = np.degrees(np.arccos(np.clip(np.sum(got * axes, axis=1), -1, 1)))
+    assert angle.max() <= 0.05  # the default axis tolerance [deg]
+    assert len(np.unique(run.knots)) - 1 < len(pts) / 5
+
+
+def test_g61_1_runs_a_head_turning_run_move_by_move(tmp_path):
+    text, pts, _ = tilted_program("G61.1")
+    ops = ops_of(text, tmp_path)
+    assert not [op for op in ops if isinstance(op, tp.ToolAxisPath)]
+    assert len([op for op in ops if isinstance(op, tp.Traverse) and op.feed == 3000.0]) == len(pts) - 1
+
+
+def test_the_head_turning_run_on_the_twin_stays_within_p_and_the_axis_tolerance(tmp_path):
+    from cnc_twin import load_scenario, run_scenario
+
+    text, pts, _ = tilted_program("G64 P0.01")
+    (tmp_path / "five.ngc").write_text(text)
+    result = run_scenario(load_scenario(tmp_path / "five.ngc"))
+    m = result.metrics
+    assert m["final_state"] == "FINISHED" and m["path"]["limit_violations"] == []
+    program = m["program"]
+    assert program["deviation_um"]["max"] <= 10.0 and program["deviation_um"]["vertices_max"] <= 10.0
+    assert program["axis_deviation_deg"]["max"] <= program["axis_deviation_deg"]["tolerance"] == 0.05
+    assert program["feed"]["time_s"] <= 1.10 * program["feed"]["ideal_time_s"]
+
+
+def test_a_head_turning_run_under_the_force_loop_is_refused_at_its_line(tmp_path):
+    from conftest import run_cli
+
+    text, _, _ = tilted_program("G64 P0.01")
+    text = text.replace("F3000\n", "F3000\nM100 P10\n")
+    (tmp_path / "p.ngc").write_text(text)
+    code, _, err = run_cli("run", tmp_path / "p.ngc", "--out", tmp_path / "run")
+    assert code == 2 and "turning A / B while the grinding-force loop is on" in err and not (tmp_path / "run").exists()

@@ -43,6 +43,10 @@ class GcodeReference:
     fit_deviation: float
     """the fits' largest distance from their programmed points and segments, as the fitter
     measured it [m] (a claim: the run is checked against ``polyline`` from the trace)"""
+    axes: np.ndarray | None = None
+    """(m, 3) the programmed tool axis at each vertex (a path turning the head), unit"""
+    axis_tolerance: float | None = None
+    """[rad] how far the fitted tool axis may turn from the programmed one"""
 
 
 @dataclass(frozen=True)

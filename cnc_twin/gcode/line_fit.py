@@ -18,8 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_twin.gcode.path_ops import Operation, ToolAxisPath, Traverse
 from cnc_twin.geometry.bezier import bezier_pieces, knot_spans
 from cnc_twin.geometry.fit import DEGREE, Fit, FitError, fit_polyline
+from cnc_twin.geometry.kinematics import tool_axis
 
 FIT_CORNER = math.radians(30.0)
 """a turn between two lines above this is a corner (blended, or a stop), never fitted across"""
@@ -69,3 +71,70 @@ def fit_lines(points: np.ndarray, lines: list[int], tolerance: float) -> FittedR
     starts = np.unique(fit.knots)[:-1]
     index = np.clip(np.searchsorted(u, starts, side="right") - 1, 0, len(lines) - 1)
     return FittedRun((pts[0], first), pieces, spans, [lines[int(k)] for k in index], (last, pts[-1]), fit)
+
+
+@dataclass(frozen=True)
+class FittedToolAxisRun:
+    """A run of G1 lines that also turn the head (A / B), fitted whole: the tip curve and the
+    tool-axis curve on the same ``knots`` (cubic, ``points`` and ``axis_points`` (n, 3)), with
+    the program line of each knot span (``span_lines``, increasing ``(u, line)``)."""
+
+    knots: np.ndarray
+    points: np.ndarray
+    axis_points: np.ndarray
+    span_lines: list[tuple[float, int]]
+    fit: Fit
+
+
+def fit_tool_axis_lines(points: np.ndarray, axes: np.ndarray, lines: list[int], tolerance: float,
+                        axis_tolerance: float) -> FittedToolAxisRun | None:
+    """The run through ``points`` ((n + 1, 3) mm) with the unit tool ``axes`` there ((n + 1, 3);
+    line k from point k to k + 1 is program line ``lines[k]``) fitted within ``FIT_SHARE *
+    tolerance`` [mm] and ``axis_tolerance`` [rad], from its first point to its last (it starts and
+    ends at rest); None when the fit cannot follow it."""
+    pts = np.asarray(points, dtype=np.float64)
+    try:
+        fit = fit_polyline(pts, FIT_SHARE * tolerance, axes=axes, axis_tolerance=axis_tolerance)
+    except FitError:
+        return None
+    u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    span_lines: list[tuple[float, int]] = []
+    for start in np.unique(fit.knots)[:-1]:
+        line = lines[int(np.clip(np.searchsorted(u, start, side="right") - 1, 0, len(lines) - 1))]
+        if not span_lines or span_lines[-1][1] != line:
+            span_lines.append((float(start), line))
+    return FittedToolAxisRun(fit.knots, fit.points, fit.axis_points, span_lines, fit)
+
+
+def tool_axis_paths(moves: list[tuple], axis_tolerance: float) -> list[Operation]:
+    """G1 moves turning the head, in order: each run of :data:`~cnc_twin.gcode.line_fit.MIN_SEGMENTS`
+    or more (same feed and G64 P, each turning the tip less than :data:`~cnc_twin.gcode.line_fit.FIT_CORNER`)
+    fitted whole (:func:`~cnc_twin.gcode.line_fit.fit_tool_axis_lines`); the others, and a run the
+    fit cannot follow, as coordinated moves of the axes, one per line."""
+    out: list[Operation] = []
+    k = 0
+    while k < len(moves):
+        j = k
+        while j + 1 < len(moves) and moves[j + 1][3] == moves[k][3] and _tip_turn(moves[j], moves[j + 1]) < FIT_CORNER:
+            j += 1
+        run = moves[k:j + 1]
+        fitted = None
+        if len(run) >= MIN_SEGMENTS:
+            points = np.array([m[0] for m in run] + [run[-1][1]])
+            axes = np.array([tool_axis(math.radians(p[3]), math.radians(p[4])) for p in points])
+            tolerance = run[0][3][1][1]
+            fitted = fit_tool_axis_lines(points[:, :3], axes, [m[2] for m in run], tolerance, axis_tolerance)
+        if fitted is None:
+            out += [Traverse(tuple(float(x) for x in end), feed, line) for _, end, line, (feed, _) in run]
+        else:
+            out.append(ToolAxisPath(fitted.knots, fitted.points, fitted.axis_points, run[0][3][0], float(run[0][0][5]),
+                                    run[0][2], fitted.span_lines, tolerance, fitted.fit.deviation,
+                                    fitted.fit.axis_deviation, points[:, :3], axes))
+        k = j + 1
+    return out
+
+
+def _tip_turn(a: tuple, b: tuple) -> float:
+    """Angle [rad] the tip's path turns between two moves ``(start, end, ...)``."""
+    da, db = a[1][:3] - a[0][:3], b[1][:3] - b[0][:3]
+    return turn_angle(da / np.linalg.norm(da), db / np.linalg.norm(db))

@@ -6,18 +6,11 @@ the G5x work offset and the tool length offset, each converted from the units it
 The twin's machine coordinates are the tool tip's in the workpiece frame (the bundled machine's
 head kinematics carries the pad): so work offsets put the program's zero onto the workpiece.
 
-Operations, in program order:
-
-- :class:`Traverse`: a coordinated move of all six axes to ``end`` (G0 rapid: ``feed`` None;
-  a G1 that turns A, B or C, which the card runs as a linear move in axis space as LinuxCNC does
-  without tool-centre-point control; G28 / G30 / G53);
-- :class:`FeedPath`: consecutive feed moves with A, B, C held (G1 lines, G2 / G3 arcs and
-  helices, G5.2 / G6.2 curves), each element an exact rational Bezier chain; corners between
-  lines are blended within the G64 ``P`` tolerance, others (and all in G61 / G61.1) stop;
-- :class:`Pause` (G4, M0, M1), :class:`SpindleChange` (M3 M4 M5 S), :class:`ForceChange`
-  (M100 P / M101).
-
-Geometry of each element in :class:`Element`; corner blending in :func:`_blend_corners`.
+The operations, in program order (:mod:`cnc_twin.gcode.path_ops`): traverses, feed paths (A B C
+held; corners between lines blended within the G64 ``P`` tolerance, others, and all in G61 /
+G61.1, stop; under G64 P runs of gently turning lines fitted as one curve,
+:mod:`cnc_twin.gcode.line_fit`), tool-axis paths (G1 runs turning the head, fitted under G64 P),
+pauses, spindle and force changes. Corner blending in :func:`_blend_corners`.
 """
 
 from __future__ import annotations
@@ -28,8 +21,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cnc_twin.gcode.canon import Call
-from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines
-from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans, piece_length
+from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines, tool_axis_paths
+from cnc_twin.gcode.path_ops import (
+    Element, FeedPath, ForceChange, Operation, Pause, SpindleChange, ToolAxisPath, ToolpathError, Traverse,
+    line_element, programmed_geometry,
+)
+from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans
+
+__all__ = ["operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange", "Operation", "Pause",
+           "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
+"""the operations are re-exported: what the program becomes is looked for here"""
 
 INCH = 25.4
 """[mm]"""
@@ -37,125 +38,10 @@ TANGENT_ANGLE = 1e-4
 """[rad] a join turning less than this is tangent: the path runs through it without a blend"""
 BLEND_MAX_ANGLE = math.radians(120.0)
 """[rad] a corner turning more than this is not blended (a reversal): the path stops there"""
+DEFAULT_AXIS_TOLERANCE = 0.05
+"""[deg] how far a fitted tool axis may turn from the programmed one (A / B words)"""
 DEFAULT_BLEND = 0.01
 """[mm] blend tolerance of G64 without P (LinuxCNC: "as fast as possible", no limit)"""
-
-
-class ToolpathError(ValueError):
-    """A program the machine cannot run although it reads: ``line`` (1-based) and the message."""
-
-    def __init__(self, line: int, message: str):
-        super().__init__(message)
-        self.line, self.message = line, message
-
-
-@dataclass
-class Element:
-    """One programmed feed element (or a corner blend) in workpiece mm: its rational Bezier
-    ``pieces`` (each ``(degree + 1, 4)`` homogeneous), the program ``line`` that made it."""
-
-    pieces: list[np.ndarray]
-    line: int
-    kind: str
-    """line, arc, curve, blend or fit (a run of lines as one curve)"""
-    spans: list[float] | None = None
-    """each piece's parameter span relative to the others (a curve's own knot spans); None: equal"""
-    nurbs: tuple | None = None
-    """a curve as programmed, ``(degree, knots, weights, control points (n, 3) mm)``: a path of
-    this one element goes to the card as it is (its pieces would hold about degree x the points)"""
-    piece_lines: list[int] | None = None
-    """the program line of each piece when they differ (a run of lines fitted as one curve)"""
-    deviation: float | None = None
-    """a fit's largest distance from its programmed points and segments, as measured [mm]"""
-
-    @property
-    def start(self) -> np.ndarray:
-        q = self.pieces[0][0]
-        return q[:3] / q[3]
-
-    @property
-    def end(self) -> np.ndarray:
-        q = self.pieces[-1][-1]
-        return q[:3] / q[3]
-
-    def direction(self, at_end: bool) -> np.ndarray:
-        """Unit tangent at the start or the end (the first control point off the end point)."""
-        piece = self.pieces[-1][::-1] if at_end else self.pieces[0]
-        xyz = piece[:, :3] / piece[:, 3:4]
-        for q in xyz[1:]:
-            d = (xyz[0] - q) if at_end else (q - xyz[0])
-            norm = float(np.linalg.norm(d))
-            if norm > 1e-12:
-                return d / norm
-        return np.zeros(3)
-
-    @property
-    def length(self) -> float:
-        return sum(piece_length(p) for p in self.pieces)
-
-
-@dataclass
-class Traverse:
-    end: tuple[float, ...]
-    """X, Y, Z [mm] (tip, workpiece frame), A, B, C [deg]"""
-    feed: float | None
-    """[mm/min] (X/Y/Z), or [deg/min] for a move of the rotary axes alone; None: rapid"""
-    line: int
-    rotary_only: bool = False
-    """only A, B, C move (the feed is in deg/min)"""
-
-
-@dataclass
-class FeedPath:
-    elements: list[Element]
-    feed: float
-    """[mm/min]"""
-    hold: tuple[float, float, float]
-    """A, B, C [deg]"""
-    line: int
-    tolerance: float | None = None
-    """the path's G64 P [mm] (its corner blends' tolerance, and the card's chord tolerance on it);
-    None under G61 / G61.1 or a G64 without P"""
-    program: list[Element] = field(default_factory=list)
-    """the elements as programmed, before corner blends and fits (what the run is measured against)"""
-
-    @property
-    def start(self) -> np.ndarray:
-        return self.elements[0].start
-
-    @property
-    def end(self) -> np.ndarray:
-        return self.elements[-1].end
-
-
-@dataclass
-class Pause:
-    seconds: float
-    line: int
-    """G4 P seconds; M0 / M1 pause the twin 0 s (an exact stop: no operator to press start)"""
-
-
-@dataclass
-class SpindleChange:
-    rpm: float
-    """signed: + M3 (clockwise), - M4; 0 stopped"""
-    line: int
-
-
-@dataclass
-class ForceChange:
-    setpoint: float | None
-    """[N]; None: the force loop off (M101)"""
-    line: int
-
-
-Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange
-
-
-# -- element geometry ---------------------------------------------------------------------------
-
-def line_element(start: np.ndarray, end: np.ndarray, line: int) -> Element:
-    return Element([homogeneous([start, end], [1.0, 1.0])], line, "line")
 
 
 def _arc_piece_points(center, e1, e2, radius, a0, sweep, n, z0, dz, normal):
@@ -266,8 +152,10 @@ class _Canon:
         return self.g92 + self.g5x + self.tool
 
 
-def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> list[Operation]:
-    """The operations of a program read whole (:func:`~cnc_twin.gcode.interpreter.read_program`).
+def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
+               axis_tolerance: float = DEFAULT_AXIS_TOLERANCE) -> list[Operation]:
+    """The operations of a program read whole (:func:`~cnc_twin.gcode.interpreter.read_program`);
+    ``axis_tolerance`` [deg]: how far a fitted tool axis may turn from the programmed one.
 
     Raises :class:`ToolpathError` for what reads but cannot run: an arc or a curve as the first
     motion (the tool's place is not known to the program before its first G0 / G1).
@@ -276,11 +164,15 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> li
     ops: list[Operation] = []
     here: np.ndarray | None = None  # machine point, mm / deg; None until the first move
     path: list[tuple[Element, tuple]] = []  # elements of the open feed path, with their modes
+    tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
 
     def close() -> None:
         if path:
             ops.extend(_feed_paths(path, default_blend))
             path.clear()
+        if tilting:
+            ops.extend(tool_axis_paths(tilting, math.radians(axis_tolerance)))
+            tilting.clear()
 
     for call in calls:
         name, v = call.name, call.values
@@ -300,8 +192,16 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND) -> li
             end = canon.machine(v)
             rotary = here is not None and np.any(end[3:] != here[3:])
             if name == "STRAIGHT_FEED" and here is not None and not rotary:
+                if tilting:
+                    close()
                 if np.any(end[:3] != here[:3]):
                     path.append((line_element(here[:3], end[:3], call.line), _modes(canon, here)))
+            elif (name == "STRAIGHT_FEED" and here is not None and canon.control[0] == "CANON_CONTINUOUS"
+                  and canon.control[1] > 0.0 and end[5] == here[5] and np.any(end[:3] != here[:3])):
+                # a G1 turning A / B as the tip moves, under G64 P: gathered for a 5-axis fit
+                if path:
+                    close()
+                tilting.append((here.copy(), end.copy(), call.line, (canon.feed, canon.control)))
             else:
                 close()
                 rotary_only = here is not None and not np.any(end[:3] != here[:3])
@@ -457,26 +357,3 @@ def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:
             p0, p3 = corner - cuts[k + 1] * d_in, corner + cuts[k + 1] * d_out
             out.append(Element([homogeneous([p0, corner, corner, p3], [1.0] * 4)], run[k + 1].line, "blend"))
     return out
-
-
-REFERENCE_STEP = 0.05
-"""[mm] between the samples of a programmed arc or curve in :func:`programmed_geometry` (a 20 mm
-radius's chord then strays 0.016 um from it)"""
-
-
-def programmed_geometry(elements: list[Element]) -> tuple[np.ndarray, np.ndarray]:
-    """The programmed path as a polyline ((k, 3) mm: lines by their ends, arcs and curves sampled
-    every :data:`REFERENCE_STEP`) and its vertices ((m, 3) mm: each element's ends)."""
-    points, vertices = [elements[0].start], [elements[0].start]
-    for e in elements:
-        if e.kind != "line":
-            for q in e.pieces:
-                t = np.linspace(0.0, 1.0, max(8, math.ceil(piece_length(q) / REFERENCE_STEP)) + 1)[1:]
-                p = len(q) - 1
-                basis = np.array([[math.comb(p, i) * x ** i * (1 - x) ** (p - i) for i in range(p + 1)] for x in t])
-                h = basis @ q
-                points.extend(h[:, :3] / h[:, 3:4])
-        else:
-            points.append(e.end)
-        vertices.append(e.end)
-    return np.array(points), np.array(vertices)

@@ -11,7 +11,9 @@ arcs and curves finely sampled; before corner blends and fits), both ways:
   polyline through the commanded points): a corner rounded, or a point cut, by more than P shows
   here;
 
-against the path's G64 P (``tolerance_um``). ``feed``: the time on feed paths, the ideal time
+against the path's G64 P (``tolerance_um``); on paths that turn the head,
+``axis_deviation_deg``: the commanded tool axis where the tip passes each programmed vertex
+against the axis its A / B words give. ``feed``: the time on feed paths, the ideal time
 (each path's programmed length at its F), and the time below 95 % of F (accelerations, corners,
 curvature). ``fits``: what the fitter made and claims (spans, its own measured deviation), for
 comparison with the measured one.
@@ -79,7 +81,7 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     for path, (first, stop) in zip(prog.paths, curve_runs(u)):
         c = path.curve
         head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
-        tips = head.forward(command[first:stop, :5])[0]
+        tips, tool = head.forward(command[first:stop, :5])
         if id(path) in pressed:  # the loop pushed the tip depth along -axis: the path's own point
             tips = tips + depth[first:stop, None] * np.asarray(tool_axis(*c.hold[:2]))
         speed = ds[first:stop] / T
@@ -89,24 +91,34 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
             ref, parts = groups.setdefault(id(path.reference), (path.reference, []))
             if not parts:
                 ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
-            parts.append(tips)
+            parts.append((tips, tool))
     out: dict[str, Any] = {"feed": {"time_s": time, "ideal_time_s": ideal, "below_95pct_s": below,
                                     "share_at_95pct": (time - below) / time if time > 0 else None}}
     if not groups:
         return out
     worst = vertex_worst = 0.0
-    tolerances = []
+    tolerances, axis_worst, axis_tolerances = [], None, []
     for ref, parts in groups.values():
-        tips = np.vstack(parts)
+        tips = np.vstack([t for t, _ in parts])
         worst = max(worst, float(point_to_polyline(tips, ref.polyline).max()))
         if len(tips) > 1:
             vertex_worst = max(vertex_worst, float(point_to_polyline(ref.vertices, tips).max()))
         if ref.tolerance is not None:
             tolerances.append(ref.tolerance)
+        if ref.axes is not None:  # the commanded tool axis where the tip passes each programmed vertex
+            tool = np.vstack([a for _, a in parts])
+            from scipy.spatial import cKDTree
+
+            nearest = cKDTree(tips).query(ref.vertices)[1]
+            cos = np.clip(np.sum(tool[nearest] * ref.axes, axis=1), -1.0, 1.0)
+            axis_worst = max(axis_worst or 0.0, float(np.degrees(np.arccos(cos)).max()))
+            axis_tolerances.append(ref.axis_tolerance)
     refs = [ref for ref, _ in groups.values()]
     tolerance = min(tolerances) if tolerances else None
     out["deviation_um"] = {"max": worst * 1e6, "vertices_max": vertex_worst * 1e6,
                            "tolerance_um": None if tolerance is None else tolerance * 1e6}
+    if axis_worst is not None:
+        out["axis_deviation_deg"] = {"max": axis_worst, "tolerance": float(np.degrees(min(axis_tolerances)))}
     out["fits"] = {"runs": sum(r.fits for r in refs), "spans": sum(r.fit_spans for r in refs),
                    "fitter_deviation_um": max(r.fit_deviation for r in refs) * 1e6}
     return out

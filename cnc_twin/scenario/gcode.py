@@ -75,6 +75,8 @@ class GcodeProgramSpec(Strict):
     tool_table: str | None = Field(None, description="LinuxCNC tool table next to the scenario, for G43 H")
     tool_units: Literal["mm", "inch"] = Field("mm", description="units of the tool table's lengths")
     blend_tolerance: float = Field(0.01, gt=0, le=10, description="corner blend tolerance under G64 without P [mm]")
+    axis_tolerance: float = Field(0.05, gt=0, le=10, description="how far a fitted tool axis (G1 runs turning A / B "
+                                  "under G64 P) may turn from the programmed one [deg]")
     chord_tolerance: float | None = Field(None, gt=0, description="chord tolerance of the card's curve interpolation "
                                           "[mm]; default each path's G64 P, else 0.001")
     limits: PathLimitsSpec = PathLimitsSpec()
@@ -135,7 +137,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     calls, source = read_calls(path, table, spec.tool_units, label)
     where = _Where(path)
     try:
-        ops = tp.operations(calls, default_blend=spec.blend_tolerance)
+        ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance)
     except tp.ToolpathError as exc:
         raise where(exc.line, exc.message) from None
     if not any(isinstance(op, (tp.Traverse, tp.FeedPath)) for op in ops):
@@ -151,6 +153,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
             steps.append(_move(op, axes, head, where))
         elif isinstance(op, tp.FeedPath):
             steps += _paths(op, spec, axes, model, label, where, head)
+        elif isinstance(op, tp.ToolAxisPath):
+            if force_on is not None:
+                raise where(op.line, f"G1 moves turning A / B while the grinding-force loop is on (M100 at line "
+                            f"{force_on.line}): not in this version; hold A / B, or M101 first")
+            steps.append(_tool_axis_path(op, spec, axes, model, label, where, head))
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
@@ -305,6 +312,26 @@ def _reference(op, head) -> GcodeReference:
         polyline=polyline * units.MM + origin, vertices=vertices * units.MM + origin,
         tolerance=None if op.tolerance is None else op.tolerance * units.MM, fits=len(fits),
         fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
+
+
+def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> GcodePath:
+    """A run of G1 lines turning the head, fitted (tip and tool-axis curves on one knot vector),
+    as one card curve with its tool-axis curve."""
+    curve_spec = validate(NurbsCurveProgram, {
+        "type": "nurbs_curve", "degree": 3, "knots": op.knots.tolist(), "control_points": op.points.tolist(),
+        "feed": op.feed, "chord_tolerance": _chord_tolerance(spec, op), "limits": spec.limits.model_dump(),
+        "tool_axis_curve": {"degree": 3, "knots": op.knots.tolist(), "control_points": op.axis_points.tolist()},
+        "C": op.c, "settle": 0.0}, label, ("program",))
+    try:
+        curve = convert_curve(curve_spec, axes, model, label)
+    except ScenarioError as exc:
+        raise where(op.line, exc.message) from None
+    origin = np.asarray(head.workpiece_origin)
+    points = op.program_points * units.MM + origin
+    reference = GcodeReference(polyline=points, vertices=points, tolerance=op.tolerance * units.MM, fits=1,
+                               fit_spans=len(np.unique(op.knots)) - 1, fit_deviation=op.deviation * units.MM,
+                               axes=op.program_axes, axis_tolerance=math.radians(spec.axis_tolerance))
+    return GcodePath(curve=curve, lines=tuple(op.span_lines), line=op.line, reference=reference)
 
 
 def _chord_tolerance(spec: GcodeProgramSpec, op) -> float:
