@@ -127,10 +127,32 @@ def tool_axis_paths(moves: list[tuple], axis_tolerance: float) -> list[Operation
         if fitted is None:
             out += [Traverse(tuple(float(x) for x in end), feed, line) for _, end, line, (feed, _) in run]
         else:
-            out.append(ToolAxisPath(fitted.knots, fitted.points, fitted.axis_points, run[0][3][0], float(run[0][0][5]),
-                                    run[0][2], fitted.span_lines, tolerance, fitted.fit.deviation,
-                                    fitted.fit.axis_deviation, points[:, :3], axes))
+            out.append(_tool_axis_path(fitted, points[:, :3], axes, [m[2] for m in run], run[0][3][0],
+                                       float(run[0][0][5]), tolerance, axis_tolerance))
         k = j + 1
+    return out
+
+
+def _tool_axis_path(fitted: FittedToolAxisRun, points, axes, lines, feed, c, tolerance, axis_tolerance) -> ToolAxisPath:
+    return ToolAxisPath(fitted.knots, fitted.points, fitted.axis_points, feed, c, lines[0], fitted.span_lines,
+                        tolerance, fitted.fit.deviation, fitted.fit.axis_deviation, points, axes, lines, axis_tolerance)
+
+
+def split_tool_axis_path(path: ToolAxisPath) -> list[ToolAxisPath]:
+    """``path`` cut at its middle programmed point into two, each fitted again (a card whose
+    memory cannot hold the whole curve runs them one after the other, rest to rest); a half the
+    fit cannot follow any more raises :class:`FitError`."""
+    middle = len(path.program_points) // 2
+    if middle < MIN_SEGMENTS:
+        raise FitError("too short to cut")
+    out = []
+    for first, last in ((0, middle), (middle, len(path.program_points) - 1)):  # points first..last
+        points, axes = path.program_points[first:last + 1], path.program_axes[first:last + 1]
+        lines = path.program_lines[first:last]
+        fitted = fit_tool_axis_lines(points, axes, lines, path.tolerance, path.axis_tolerance)
+        if fitted is None:
+            raise FitError("a half of the run cannot be fitted within the tolerance")
+        out.append(_tool_axis_path(fitted, points, axes, lines, path.feed, path.c, path.tolerance, path.axis_tolerance))
     return out
 
 

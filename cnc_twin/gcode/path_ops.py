@@ -157,6 +157,10 @@ class ToolAxisPath:
     """(m, 3) [mm] the programmed tip points"""
     program_axes: np.ndarray
     """(m, 3) unit tool axes there (from the programmed A, B)"""
+    program_lines: list[int]
+    """(m - 1,) the program line of each programmed move"""
+    axis_tolerance: float
+    """[rad] how far the fitted tool axis may turn from the programmed one"""
 
 
 Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange | ToolAxisPath

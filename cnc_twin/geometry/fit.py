@@ -146,17 +146,17 @@ def _axis_deviation(knots: np.ndarray, axis_points: np.ndarray, axes: np.ndarray
 
 
 def _split(knots: np.ndarray, where: np.ndarray, u: np.ndarray) -> np.ndarray | None:
-    """``knots`` with a knot in every span holding one of the parameters ``where``: at the median
-    of the programmed points' parameters ``u`` inside the span, so every span keeps points of its
-    own (the least-squares problem stays well posed). None when no such span has two points
-    inside left to split between."""
+    """``knots`` with a knot in every span holding one of the parameters ``where``: at the middle
+    one of the programmed points' parameters ``u`` inside the span, so every span keeps points
+    of its own, at least on its ends (the least-squares problem stays well posed). None when no
+    such span has a point inside left to split at."""
     breaks = np.unique(knots)
     spans = np.unique(np.clip(np.searchsorted(breaks, where, side="right") - 1, 0, len(breaks) - 2))
     added = []
     for k in spans:
         inside = u[(u > breaks[k]) & (u < breaks[k + 1])]
-        if len(inside) >= 2:
-            added.append(float(np.median(inside)) if len(inside) % 2 else float(inside[len(inside) // 2]))
+        if len(inside):  # at the middle point inside (a knot at a programmed point: each side keeps it)
+            added.append(float(inside[len(inside) // 2]))
     if not added:
         return None
     return np.sort(np.concatenate([knots, added]))

@@ -48,6 +48,15 @@ def _move_records(here: tuple[float, ...], step: GcodeMove, axes, period: float)
     return [Move(end=seg.end, profile=seg.profile, periods=seg.periods)], [seg.periods]
 
 
+def _end_pose(curve, axis_path, hold: tuple[float, ...]) -> tuple[float, ...]:
+    """The six axes at a path's end: the curve's point with the held A, B, C, or (a varying tool
+    axis) X, Y, Z, A, B through the kinematics with C held."""
+    u1 = curve.domain[1]
+    if axis_path is None:
+        return (*curve.point(u1)[0].tolist(), *hold)
+    return (*(float(x) for x in axis_path([u1])[0]), hold[2])
+
+
 class GcodePlan:
     """A G-code program, planned step by step as :meth:`chunks` is asked (``window`` [m] of curve
     per feed-planning window)."""
@@ -60,6 +69,8 @@ class GcodePlan:
     def estimated_periods(self) -> int:
         """Program length [periods], estimated: moves at their planned time, feed paths at 1.5x
         their length at feed (corners and curvature slow them), pauses, the settle."""
+        from cnc_twin.planner.curve_program import curve_setup
+
         T, here, total = self.period, self.home, 0.0
         for step in self.prog.steps:
             if isinstance(step, GcodeMove):
@@ -69,7 +80,8 @@ class GcodePlan:
                 c = step.curve
                 length = sum(math.dist(p, q) for p, q in zip(c.control_points, c.control_points[1:]))
                 total += 1.5 * length / c.limits.feed + 0.05
-                here = (*c.control_points[-1], *c.hold)
+                curve, _, axis_path, _, _ = curve_setup(c)
+                here = _end_pose(curve, axis_path, c.hold)
             elif isinstance(step, GcodePause):
                 total += step.seconds + T
             elif isinstance(step, GcodeForce) and step.control is not None:
@@ -93,7 +105,7 @@ class GcodePlan:
                 yield [mark] + records, [0] + periods
                 here = step.end
             elif isinstance(step, GcodePath):
-                curve, start, _, _, geometry = curve_setup(step.curve)
+                curve, start, axis_path, axis_limits, geometry = curve_setup(step.curve)
                 records, periods = [mark], [0]
                 if force_on is not None:  # the seek starts the standoff above the path's start
                     start = _standoff(start, force_on.standoff)
@@ -109,9 +121,11 @@ class GcodePlan:
                     periods.append(0)
                     force, force_on = force_on, None
                 yield records, periods
-                for blocks in plan_feed_windows(curve, step.curve.limits, period=T, window=self.window):
+                # a varying tool axis: planned against every axis after the kinematics, as a curve program
+                for blocks in plan_feed_windows(curve, step.curve.limits, period=T, window=self.window,
+                                                axis_path=axis_path, axis_limits=axis_limits):
                     yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
-                here = (*curve.point(curve.domain[1])[0].tolist(), *step.curve.hold)
+                here = _end_pose(curve, axis_path, step.curve.hold)
             elif isinstance(step, GcodePause):
                 records, periods = dwell_chunk(max(step.seconds, T), T)
                 yield [mark] + records, [0] + periods

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
-from cnc_twin.core.gcode_config import GcodeForce, GcodePath
+from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath
 from cnc_twin.geometry.kinematics import HeadGeometry, tool_axis
 from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.trace.trace import Trace
@@ -65,6 +65,28 @@ def pressed_paths(prog: GcodeProgram) -> set[int]:
     return out
 
 
+def _feed_moves(prog: GcodeProgram, command: np.ndarray, u: np.ndarray, mark: np.ndarray, T: float):
+    """``(time, ideal time, time below 95 % of F)`` [s] of the G1 moves the card runs as
+    coordinated moves of the axes (their periods: off a curve, marked with their line), the tip's
+    speed from the commanded axes through the kinematics; the arrays are per period (``command``
+    (n, 6) axes, ``u`` the path parameter, ``mark`` the program line); None without such moves."""
+    feeds = {s.line: s.feed for s in prog.steps if isinstance(s, GcodeMove) and s.feed is not None and not s.rotary_only}
+    if not feeds or not prog.paths:
+        return None
+    c = prog.paths[0].curve  # the head's geometry (the machine's, the same for every path)
+    head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
+    tips = head.forward(command[:, :5])[0]
+    speed = np.concatenate([[0.0], np.linalg.norm(np.diff(tips, axis=0), axis=1) / T])
+    time = ideal = below = 0.0
+    for line, feed in feeds.items():
+        on = np.flatnonzero((mark == line) & (u < 0.0) & (speed > 0.0))
+        if on.size:
+            time += on.size * T
+            ideal += float(np.sum(speed[on])) * T / feed
+            below += float(np.count_nonzero(speed[on] < FULL_FEED * feed)) * T
+    return time, ideal, below
+
+
 def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     """The run against its program (see the module docstring); lengths in um, times in s."""
     prog: GcodeProgram = scenario.program
@@ -92,6 +114,9 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
             if not parts:
                 ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
             parts.append((tips, tool))
+    moving = _feed_moves(prog, command, u, trace.period_signals["mark"][ends], T)
+    if moving is not None:  # G1 moves run as coordinated moves (exact stop, or turning the head)
+        time, ideal, below = time + moving[0], ideal + moving[1], below + moving[2]
     out: dict[str, Any] = {"feed": {"time_s": time, "ideal_time_s": ideal, "below_95pct_s": below,
                                     "share_at_95pct": (time - below) / time if time > 0 else None}}
     if not groups:

@@ -157,7 +157,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
             if force_on is not None:
                 raise where(op.line, f"G1 moves turning A / B while the grinding-force loop is on (M100 at line "
                             f"{force_on.line}): not in this version; hold A / B, or M101 first")
-            steps.append(_tool_axis_path(op, spec, axes, model, label, where, head))
+            steps += _tool_axis_paths(op, spec, axes, model, label, where, head)
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
@@ -314,9 +314,25 @@ def _reference(op, head) -> GcodeReference:
         fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
 
 
-def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> GcodePath:
+def _tool_axis_paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list[GcodePath]:
     """A run of G1 lines turning the head, fitted (tip and tool-axis curves on one knot vector),
-    as one card curve with its tool-axis curve."""
+    as one card curve with its tool-axis curve; cut in halves, each fitted again, while the card's
+    memory cannot hold it (a stop between them)."""
+    from cnc_twin.gcode.line_fit import split_tool_axis_path
+    from cnc_twin.geometry.fit import FitError
+
+    try:
+        return [_tool_axis_path(op, spec, axes, model, label, where, head)]
+    except CardMemoryError as exc:
+        try:
+            halves = split_tool_axis_path(op)
+        except FitError:
+            raise where(op.line, exc.message) from None
+    return [p for half in halves for p in _tool_axis_paths(half, spec, axes, model, label, where, head)]
+
+
+def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> GcodePath:
+    """One fitted run as one card curve (CardMemoryError when the card cannot hold it)."""
     curve_spec = validate(NurbsCurveProgram, {
         "type": "nurbs_curve", "degree": 3, "knots": op.knots.tolist(), "control_points": op.points.tolist(),
         "feed": op.feed, "chord_tolerance": _chord_tolerance(spec, op), "limits": spec.limits.model_dump(),
@@ -324,13 +340,15 @@ def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where:
         "C": op.c, "settle": 0.0}, label, ("program",))
     try:
         curve = convert_curve(curve_spec, axes, model, label)
+    except CardMemoryError:
+        raise
     except ScenarioError as exc:
         raise where(op.line, exc.message) from None
     origin = np.asarray(head.workpiece_origin)
     points = op.program_points * units.MM + origin
     reference = GcodeReference(polyline=points, vertices=points, tolerance=op.tolerance * units.MM, fits=1,
                                fit_spans=len(np.unique(op.knots)) - 1, fit_deviation=op.deviation * units.MM,
-                               axes=op.program_axes, axis_tolerance=math.radians(spec.axis_tolerance))
+                               axes=op.program_axes, axis_tolerance=op.axis_tolerance)
     return GcodePath(curve=curve, lines=tuple(op.span_lines), line=op.line, reference=reference)
 
 
