@@ -164,6 +164,15 @@ number | parameter) | a parameter; anything else matches as one character, every
 _N_WORD = re.compile(r"n([0-9]++)[0-9.]*+")
 
 
+def _operand(plain: str, name: str, index: str, sign: str, name_of, params) -> float:
+    """One operand of a quick-path bracket: a plain number, or a parameter (named or numbered)
+    with its sign."""
+    if plain:
+        return float(plain)
+    value = name_of(name) if name else _numbered(index, params)
+    return -value if sign == "-" else value
+
+
 def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str], params: Parameters) -> Block | None:
     """``norm`` read as :data:`_SIMPLE_WORD` words, or None when it is not made of them only or
     its reading would be refused."""
@@ -189,19 +198,9 @@ def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str],
                 if sign == "-":
                     value = -value
             else:  # a bracket
-                if a_plain:
-                    value = float(a_plain)
-                else:
-                    value = name_of(a_name) if a_name else _numbered(a_index, params)
-                    if a_sign == "-":
-                        value = -value
+                value = _operand(a_plain, a_name, a_index, a_sign, name_of, params)
                 if op:
-                    if b_plain:
-                        right = float(b_plain)
-                    else:
-                        right = name_of(b_name) if b_name else _numbered(b_index, params)
-                        if b_sign == "-":
-                            right = -right
+                    right = _operand(b_plain, b_name, b_index, b_sign, name_of, params)
                     value = value * right if op == "*" else binary(op, value, right)  # binary's product
                 if not math.isfinite(value):  # the bracket's refusal
                     return None
