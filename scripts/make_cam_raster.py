@@ -78,24 +78,32 @@ def raster(surface: NurbsSurface) -> list[np.ndarray]:
     return passes
 
 
-def _link(end: np.ndarray, start: np.ndarray) -> list[str]:
-    """The words of the points of a half-circle link from one pass's ``end`` to the next pass's
-    ``start`` (each x y z + axis), bulging outwards past the pass ends, a point every STEP mm; the
-    tool axis turns from the one to the other along it."""
+def _link(before: np.ndarray, after: np.ndarray) -> list[str]:
+    """The words of the points of a half-circle link from the end of one pass to the start of the
+    next (``before``: the pass's last two points, ``after``: the next pass's first two, each x y z
+    + axis), bulging outwards past the pass ends, a point every STEP mm. Z and the tool axis follow
+    cubic Hermite curves that leave and join the passes with their own slopes, as a CAM system's
+    smooth link does (a linear blend would put a kink in both at each end)."""
+    end, start = before[-1], after[0]
     chord = start[:3] - end[:3]
     radius = 0.5 * float(np.linalg.norm(chord[:2]))
     centre = end[:3] + 0.5 * chord
     out_dir = np.sign(end[0]) * np.array([1.0, 0.0, 0.0])  # past the end of the pass, along x
-    count = max(2, int(math.ceil(math.pi * radius / STEP)))
+    length = math.pi * radius
+    # slopes per mm along the path: z and the axis components at the pass's end and the next start
+    d0 = (before[-1, 2:] - before[-2, 2:]) / np.linalg.norm(before[-1, :2] - before[-2, :2])
+    d1 = (after[1, 2:] - after[0, 2:]) / np.linalg.norm(after[1, :2] - after[0, :2])
+    count = max(2, int(math.ceil(length / STEP)))
     words = []
     for k in range(1, count):
         t = k / count
         angle = math.pi * t
         p = centre - math.cos(angle) * 0.5 * chord + math.sin(angle) * radius * out_dir
-        p[2] = end[2] + t * (start[2] - end[2])
-        n = (1 - t) * end[3:] + t * start[3:]
-        a, b = (math.degrees(float(v)) for v in ab_from_axis(n / np.linalg.norm(n)))
-        words.append(f"X{p[0]:.4f} Y{p[1]:.4f} Z{p[2]:.4f} A{a:.4f} B{b:.4f}")
+        h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+        zn = h00 * end[2:] + h10 * length * d0 + h01 * start[2:] + h11 * length * d1  # z, then the axis
+        n = zn[1:] / np.linalg.norm(zn[1:])
+        a, b = (math.degrees(float(v)) for v in ab_from_axis(n))
+        words.append(f"X{p[0]:.4f} Y{p[1]:.4f} Z{zn[0]:.4f} A{a:.4f} B{b:.4f}")
     return words
 
 
@@ -120,7 +128,7 @@ def program_text(name: str, passes: list[np.ndarray]) -> str:
             body += [f"G0 X{x:.4f} Y{y:.4f} A{a[0]:.4f} B{b[0]:.4f}", f"G1 Z{z:.4f} F600", f"F{FEED:g}"]
             body += [f"G1 {w}" for w in words[1:]]
         else:  # the step over to the next pass along a half circle (as CAM links a zig-zag), then the pass
-            body += [f"G1 {w}" for w in _link(passes[k - 1][-1], run[0])]
+            body += [f"G1 {w}" for w in _link(passes[k - 1][-2:], run[:2])]
             body += [f"G1 {w}" for w in words]
     tail = ["G0 Z40", "G0 A0 B0", "M2"]
     return "\n".join(head + body + tail) + "\n"

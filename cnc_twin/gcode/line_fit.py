@@ -138,12 +138,22 @@ def _tool_axis_path(fitted: FittedToolAxisRun, points, axes, lines, feed, c, tol
                         tolerance, fitted.fit.deviation, fitted.fit.axis_deviation, points, axes, lines, axis_tolerance)
 
 
+def _cut_point(points: np.ndarray) -> int:
+    """Where to cut a run in two: in its middle half, at the programmed point where it turns most
+    (a tight turn is slow anyway: the stop between the halves costs least there)."""
+    d = np.diff(points, axis=0)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    turns = np.arccos(np.clip(np.sum(d[1:] * d[:-1], axis=1), -1.0, 1.0))  # at points 1 .. m - 2
+    lo, hi = len(points) // 4, 3 * len(points) // 4
+    return lo + int(np.argmax(turns[lo - 1:hi - 1])) if hi - lo > 1 else len(points) // 2
+
+
 def split_tool_axis_path(path: ToolAxisPath) -> list[ToolAxisPath]:
-    """``path`` cut at its middle programmed point into two, each fitted again (a card whose
-    memory cannot hold the whole curve runs them one after the other, rest to rest); a half the
-    fit cannot follow any more raises :class:`FitError`."""
-    middle = len(path.program_points) // 2
-    if middle < MIN_SEGMENTS:
+    """``path`` cut at a programmed point (:func:`_cut_point`) into two, each fitted again (a card
+    whose memory cannot hold the whole curve runs them one after the other, rest to rest); a half
+    the fit cannot follow any more raises :class:`FitError`."""
+    middle = _cut_point(path.program_points)
+    if min(middle, len(path.program_points) - 1 - middle) < MIN_SEGMENTS:
         raise FitError("too short to cut")
     out = []
     for first, last in ((0, middle), (middle, len(path.program_points) - 1)):  # points first..last

@@ -124,7 +124,7 @@ def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label:
             tuple(c.max_velocity for c in axes[3:5]), tuple(c.max_acceleration for c in axes[3:5]),
             tuple(c.max_jerk for c in axes[3:5])),
     )
-    _check_fits_the_card(program, label)
+    check_fits_the_card(program, label)
     return program
 
 
@@ -167,14 +167,18 @@ class CardMemoryError(ScenarioError):
     """A curve larger than the card's geometry memory (a caller that can cut it catches this)."""
 
 
-def _check_fits_the_card(program: NurbsProgram, label: Path) -> None:
+def check_fits_the_card(program: NurbsProgram, label: Path, lines: tuple = ()) -> None:
     """The card keeps a curve's geometry in its geometry memory (16384 words: about 800 control
     points of a 3D curve with their weights and knots; a curve longer than one record goes in
-    parts); refuse a larger one here, before any motion."""
+    parts); refuse a larger one here, before any motion. ``lines``: the ``(u, line)`` marks a
+    G-code path's record carries too."""
+    import dataclasses
+
     from cnc_twin.planner.curve_program import curve_setup
     from cnc_twin.whiteboard.codec import payload_words
 
     try:
-        payload_words(curve_setup(program)[4])
+        payload_words(dataclasses.replace(curve_setup(program)[4], lines=tuple(lines)))
     except ValueError as exc:
         raise CardMemoryError(label, "program.control_points", f"{exc}: split the curve") from None
+

@@ -43,7 +43,7 @@ from cnc_twin.core.gcode_config import (
     GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeReference, GcodeSpindle, GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
+from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram, check_fits_the_card
 from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 from cnc_twin.scenario.surface import ForceLoopSpec, RemovalSpec, SurfaceSpec, force_control, preston_model, surface_in_world
@@ -297,6 +297,10 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, 
             if not lines or lines[-1][1] != line:
                 lines.append((float(u[k]), line))
         curve = _card_curve(op, spec, degree, knots, weights, points, axes, model, label, where, chunk[0][2])
+        try:  # with its program lines too
+            check_fits_the_card(curve, label, lines)
+        except CardMemoryError as exc:
+            raise where(chunk[0][2], exc.message) from None
         out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2], reference=reference))
     return out
 
@@ -344,6 +348,7 @@ def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where:
         raise
     except ScenarioError as exc:
         raise where(op.line, exc.message) from None
+    check_fits_the_card(curve, label, op.span_lines)  # with its program lines: CardMemoryError cuts it
     origin = np.asarray(head.workpiece_origin)
     points = op.program_points * units.MM + origin
     reference = GcodeReference(polyline=points, vertices=points, tolerance=op.tolerance * units.MM, fits=1,
