@@ -20,7 +20,7 @@ import numpy as np
 
 from cnc_twin.gcode.path_ops import Operation, ToolAxisPath, Traverse
 from cnc_twin.geometry.bezier import bezier_pieces, knot_spans
-from cnc_twin.geometry.fit import DEGREE, Fit, FitError, fit_polyline
+from cnc_twin.geometry.fit import DEGREE, Fit, FitError, chord_parameters, fit_polyline
 from cnc_twin.geometry.kinematics import tool_axis
 
 FIT_CORNER = math.radians(30.0)
@@ -65,12 +65,16 @@ def fit_lines(points: np.ndarray, lines: list[int], tolerance: float) -> FittedR
         return None
     pieces = bezier_pieces(fit.points, np.ones(len(fit.points)), fit.knots, DEGREE)
     spans = knot_spans(fit.knots, DEGREE)
-    # each piece's program line: the line its start lies on (the fitted points' segment k lies on
-    # line k: the first and last only in half)
-    u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(data, axis=0), axis=1))])
-    starts = np.unique(fit.knots)[:-1]
-    index = np.clip(np.searchsorted(u, starts, side="right") - 1, 0, len(lines) - 1)
-    return FittedRun((pts[0], first), pieces, spans, [lines[int(k)] for k in index], (last, pts[-1]), fit)
+    # the fitted points' segment k lies on line k (the first and last only in half)
+    return FittedRun((pts[0], first), pieces, spans, _span_lines(fit, data, lines), (last, pts[-1]), fit)
+
+
+def _span_lines(fit: Fit, data: np.ndarray, lines: list[int]) -> list[int]:
+    """The program line each knot span of ``fit`` starts on: segment k of the fitted points
+    ``data`` is program line ``lines[k]``."""
+    u = chord_parameters(data)  # the fit's own parameter at the points
+    index = np.clip(np.searchsorted(u, np.unique(fit.knots)[:-1], side="right") - 1, 0, len(lines) - 1)
+    return [lines[int(k)] for k in index]
 
 
 @dataclass(frozen=True)
@@ -97,10 +101,8 @@ def fit_tool_axis_lines(points: np.ndarray, axes: np.ndarray, lines: list[int], 
         fit = fit_polyline(pts, FIT_SHARE * tolerance, axes=axes, axis_tolerance=axis_tolerance)
     except FitError:
         return None
-    u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    span_lines: list[tuple[float, int]] = []
-    for start in np.unique(fit.knots)[:-1]:
-        line = lines[int(np.clip(np.searchsorted(u, start, side="right") - 1, 0, len(lines) - 1))]
+    span_lines: list[tuple[float, int]] = []  # (u, line) where the line changes
+    for start, line in zip(np.unique(fit.knots)[:-1], _span_lines(fit, pts, lines)):
         if not span_lines or span_lines[-1][1] != line:
             span_lines.append((float(start), line))
     return FittedToolAxisRun(fit.knots, fit.points, fit.axis_points, span_lines, fit)
@@ -122,13 +124,13 @@ def tool_axis_paths(moves: list[tuple], axis_tolerance: float) -> list[Operation
         if len(run) >= MIN_SEGMENTS:
             points = np.array([m[0] for m in run] + [run[-1][1]])
             axes = np.array([tool_axis(math.radians(p[3]), math.radians(p[4])) for p in points])
-            tolerance = run[0][3][1][1]
-            fitted = fit_tool_axis_lines(points[:, :3], axes, [m[2] for m in run], tolerance, axis_tolerance)
+            lines, tolerance = [m[2] for m in run], run[0][3][1][1]
+            fitted = fit_tool_axis_lines(points[:, :3], axes, lines, tolerance, axis_tolerance)
         if fitted is None:
             out += [Traverse(tuple(float(x) for x in end), feed, line) for _, end, line, (feed, _) in run]
         else:
-            out.append(_tool_axis_path(fitted, points[:, :3], axes, [m[2] for m in run], run[0][3][0],
-                                       float(run[0][0][5]), tolerance, axis_tolerance))
+            out.append(_tool_axis_path(fitted, points[:, :3], axes, lines, run[0][3][0], float(run[0][0][5]),
+                                       tolerance, axis_tolerance))
         k = j + 1
     return out
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cnc_twin.geometry.bezier import homogeneous, piece_length
+from cnc_twin.geometry.bezier import homogeneous, piece_length, piece_points
 
 
 class ToolpathError(ValueError):
@@ -185,10 +185,7 @@ def programmed_geometry(elements: list[Element]) -> tuple[np.ndarray, np.ndarray
         if e.kind != "line":
             for q in e.pieces:
                 t = np.linspace(0.0, 1.0, max(8, math.ceil(piece_length(q) / REFERENCE_STEP)) + 1)[1:]
-                p = len(q) - 1
-                basis = np.array([[math.comb(p, i) * x ** i * (1 - x) ** (p - i) for i in range(p + 1)] for x in t])
-                h = basis @ q
-                points.extend(h[:, :3] / h[:, 3:4])
+                points.extend(piece_points(q, t))
         else:
             points.append(e.end)
         vertices.append(e.end)

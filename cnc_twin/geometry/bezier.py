@@ -78,15 +78,20 @@ def elevate(piece: np.ndarray, degree: int) -> np.ndarray:
     return Q
 
 
+def piece_points(piece: np.ndarray, t) -> np.ndarray:
+    """Points (k, 3) of a rational Bezier piece (homogeneous, (degree + 1, 4)) at parameters
+    ``t`` in [0, 1], shape (k,): Bernstein basis, then the division by the weight."""
+    p = len(piece) - 1
+    basis = np.array([[math.comb(p, i) * ti ** i * (1 - ti) ** (p - i) for i in range(p + 1)] for ti in t])
+    h = basis @ piece
+    return h[:, :3] / h[:, 3:4]
+
+
 def piece_length(piece: np.ndarray, samples: int = 16) -> float:
     """Length of a rational Bezier piece [its points' unit], by a polyline of ``samples`` chords
     (a parameter span for the joined curve: close to the length keeps the parameter speed near
     one across joins, which the card's stepper and the feed planner like)."""
-    t = np.linspace(0.0, 1.0, samples + 1)
-    p = len(piece) - 1
-    basis = np.array([[math.comb(p, i) * ti ** i * (1 - ti) ** (p - i) for i in range(p + 1)] for ti in t])
-    h = basis @ piece
-    xyz = h[:, :3] / h[:, 3:4]
+    xyz = piece_points(piece, np.linspace(0.0, 1.0, samples + 1))
     return float(np.sum(np.linalg.norm(np.diff(xyz, axis=0), axis=1)))
 
 

@@ -65,17 +65,14 @@ def pressed_paths(prog: GcodeProgram) -> set[int]:
     return out
 
 
-def _feed_moves(prog: GcodeProgram, command: np.ndarray, u: np.ndarray, mark: np.ndarray, T: float):
+def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.ndarray, T: float):
     """``(time, ideal time, time below 95 % of F)`` [s] of the G1 moves the card runs as
     coordinated moves of the axes (their periods: off a curve, marked with their line), the tip's
-    speed from the commanded axes through the kinematics; the arrays are per period (``command``
-    (n, 6) axes, ``u`` the path parameter, ``mark`` the program line); None without such moves."""
+    speed from the commanded tips; the arrays are per period (``tips`` (n, 3), ``u`` the path
+    parameter, ``mark`` the program line); None without such moves."""
     feeds = {s.line: s.feed for s in prog.steps if isinstance(s, GcodeMove) and s.feed is not None and not s.rotary_only}
-    if not feeds or not prog.paths:
+    if not feeds:
         return None
-    c = prog.paths[0].curve  # the head's geometry (the machine's, the same for every path)
-    head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
-    tips = head.forward(command[:, :5])[0]
     speed = np.concatenate([[0.0], np.linalg.norm(np.diff(tips, axis=0), axis=1) / T])
     time = ideal = below = 0.0
     for line, feed in feeds.items():
@@ -96,14 +93,18 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     u = trace.period_signals["path_u"][ends]
     ds = trace.period_signals["path_ds"][ends]
     depth = trace.period_signals["force_depth"][ends]
+    if not prog.paths:  # no curve: nothing fed along one (and no head geometry to read)
+        return {"feed": {"time_s": 0.0, "ideal_time_s": 0.0, "below_95pct_s": 0.0, "share_at_95pct": None}}
     command = trace.command[ends] / trace.counts_per_unit + np.asarray(scenario.home)
+    c = prog.paths[0].curve  # the head's geometry: the machine's, the same on every path
+    head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
+    all_tips, all_tools = head.forward(command[:, :5])  # every period's commanded tip and tool axis
     pressed = pressed_paths(prog)
-    groups: dict[int, tuple[Any, list[np.ndarray]]] = {}
+    groups: dict[int, tuple[Any, list[tuple[np.ndarray, np.ndarray]]]] = {}
     time = below = ideal = 0.0
     for path, (first, stop) in zip(prog.paths, curve_runs(u)):
         c = path.curve
-        head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
-        tips, tool = head.forward(command[first:stop, :5])
+        tips, tool = all_tips[first:stop], all_tools[first:stop]
         if id(path) in pressed:  # the loop pushed the tip depth along -axis: the path's own point
             tips = tips + depth[first:stop, None] * np.asarray(tool_axis(*c.hold[:2]))
         speed = ds[first:stop] / T
@@ -114,7 +115,7 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
             if not parts:
                 ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
             parts.append((tips, tool))
-    moving = _feed_moves(prog, command, u, trace.period_signals["mark"][ends], T)
+    moving = _feed_moves(prog, all_tips, u, trace.period_signals["mark"][ends], T)
     if moving is not None:  # G1 moves run as coordinated moves (exact stop, or turning the head)
         time, ideal, below = time + moving[0], ideal + moving[1], below + moving[2]
     out: dict[str, Any] = {"feed": {"time_s": time, "ideal_time_s": ideal, "below_95pct_s": below,
@@ -131,9 +132,9 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
         if ref.tolerance is not None:
             tolerances.append(ref.tolerance)
         if ref.axes is not None:  # the commanded tool axis where the tip passes each programmed vertex
-            tool = np.vstack([a for _, a in parts])
             from scipy.spatial import cKDTree
 
+            tool = np.vstack([a for _, a in parts])
             nearest = cKDTree(tips).query(ref.vertices)[1]
             cos = np.clip(np.sum(tool[nearest] * ref.axes, axis=1), -1.0, 1.0)
             axis_worst = max(axis_worst or 0.0, float(np.degrees(np.arccos(cos)).max()))

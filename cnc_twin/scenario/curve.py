@@ -50,7 +50,9 @@ class NurbsCurveProgram(Strict):
                                                  "and time simulated after the curve [s]")
 
 
-def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label: Path) -> NurbsProgram:
+def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label: Path, lines: tuple = ()) -> NurbsProgram:
+    """The curve in SI, checked against the head's reach, travel and the card's memory (with the
+    ``(u, line)`` marks a G-code path's record carries too)."""
     import numpy as np
 
     from cnc_twin.geometry.kinematics import HeadGeometry, rotation_ab
@@ -124,7 +126,7 @@ def convert(spec: NurbsCurveProgram, axes: tuple[AxisConfig, ...], model, label:
             tuple(c.max_velocity for c in axes[3:5]), tuple(c.max_acceleration for c in axes[3:5]),
             tuple(c.max_jerk for c in axes[3:5])),
     )
-    check_fits_the_card(program, label)
+    _check_fits_the_card(program, label, lines)
     return program
 
 
@@ -167,7 +169,7 @@ class CardMemoryError(ScenarioError):
     """A curve larger than the card's geometry memory (a caller that can cut it catches this)."""
 
 
-def check_fits_the_card(program: NurbsProgram, label: Path, lines: tuple = ()) -> None:
+def _check_fits_the_card(program: NurbsProgram, label: Path, lines: tuple = ()) -> None:
     """The card keeps a curve's geometry in its geometry memory (16384 words: about 800 control
     points of a 3D curve with their weights and knots; a curve longer than one record goes in
     parts); refuse a larger one here, before any motion. ``lines``: the ``(u, line)`` marks a

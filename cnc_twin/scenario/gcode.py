@@ -43,7 +43,7 @@ from cnc_twin.core.gcode_config import (
     GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeReference, GcodeSpindle, GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram, check_fits_the_card
+from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
 from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 from cnc_twin.scenario.surface import ForceLoopSpec, RemovalSpec, SurfaceSpec, force_control, preston_model, surface_in_world
@@ -284,8 +284,9 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, 
     if whole is not None:  # one curve block: to the card as programmed, when its memory holds it
         degree, knots, weights, points = whole
         try:
-            curve = _card_curve(op, spec, degree, knots, weights, points.tolist(), axes, model, label, where)
-            return [GcodePath(curve=curve, lines=((float(knots[0]), op.line),), line=op.line, reference=reference)]
+            lines = ((float(knots[0]), op.line),)
+            curve = _card_curve(op, spec, degree, knots, weights, points.tolist(), axes, model, label, where, lines)
+            return [GcodePath(curve=curve, lines=lines, line=op.line, reference=reference)]
         except CardMemoryError:  # too large for the card's memory: cut into pieces below
             pass
     for chunk in _pieces_in_cards(op):
@@ -296,11 +297,8 @@ def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, 
         for k, (_, _, line) in enumerate(chunk):
             if not lines or lines[-1][1] != line:
                 lines.append((float(u[k]), line))
-        curve = _card_curve(op, spec, degree, knots, weights, points, axes, model, label, where, chunk[0][2])
-        try:  # with its program lines too
-            check_fits_the_card(curve, label, lines)
-        except CardMemoryError as exc:
-            raise where(chunk[0][2], exc.message) from None
+        curve = _card_curve(op, spec, degree, knots, weights, points, axes, model, label, where, tuple(lines),
+                            chunk[0][2])
         out.append(GcodePath(curve=curve, lines=tuple(lines), line=chunk[0][2], reference=reference))
     return out
 
@@ -343,12 +341,11 @@ def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where:
         "tool_axis_curve": {"degree": 3, "knots": op.knots.tolist(), "control_points": op.axis_points.tolist()},
         "C": op.c, "settle": 0.0}, label, ("program",))
     try:
-        curve = convert_curve(curve_spec, axes, model, label)
-    except CardMemoryError:
+        curve = convert_curve(curve_spec, axes, model, label, tuple(op.span_lines))
+    except CardMemoryError:  # the caller cuts the run
         raise
     except ScenarioError as exc:
         raise where(op.line, exc.message) from None
-    check_fits_the_card(curve, label, op.span_lines)  # with its program lines: CardMemoryError cuts it
     origin = np.asarray(head.workpiece_origin)
     points = op.program_points * units.MM + origin
     reference = GcodeReference(polyline=points, vertices=points, tolerance=op.tolerance * units.MM, fits=1,
@@ -365,14 +362,15 @@ def _chord_tolerance(spec: GcodeProgramSpec, op) -> float:
 
 
 def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes, model, label: Path, where: _Where,
-                line: int | None = None):
-    """One card curve of a feed path, checked against travel and the card's memory at ``line``."""
+                lines: tuple, line: int | None = None):
+    """One card curve of a feed path, checked against travel and the card's memory (with its
+    program-line marks ``lines``) at ``line``."""
     curve_spec = validate(NurbsCurveProgram, {
         "type": "nurbs_curve", "degree": degree, "knots": knots, "weights": weights, "control_points": points,
         "feed": op.feed, "chord_tolerance": _chord_tolerance(spec, op), "limits": spec.limits.model_dump(),
         "tool_axis": {"A": op.hold[0], "B": op.hold[1]}, "C": op.hold[2], "settle": 0.0}, label, ("program",))
     try:
-        return convert_curve(curve_spec, axes, model, label)
+        return convert_curve(curve_spec, axes, model, label, lines)
     except ScenarioError as exc:
         if line is None and isinstance(exc, CardMemoryError):  # the whole curve block: the caller cuts it
             raise
