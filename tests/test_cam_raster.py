@@ -50,5 +50,5 @@ def test_fitted_runs_the_raster_far_faster_than_segment_by_segment(raster_runs):
     fitted, exact = (raster_runs[n]["program"]["feed"] for n in ("cam_raster", "cam_raster_exact"))
     assert fitted["ideal_time_s"] == pytest.approx(exact["ideal_time_s"], rel=1e-3)  # the same program path
     assert exact["time_s"] >= 3.0 * fitted["time_s"]
-    assert fitted["share_at_95pct"] >= 0.6 and exact["share_at_95pct"] <= 0.1
-    assert fitted["time_s"] <= 1.3 * fitted["ideal_time_s"]
+    assert fitted["share_at_95pct"] >= 0.8 and exact["share_at_95pct"] <= 0.1
+    assert fitted["time_s"] <= 1.10 * fitted["ideal_time_s"]  # the goal: within 10 % of the F-limited time

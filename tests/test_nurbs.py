@@ -149,14 +149,12 @@ def test_stepper_feed_fluctuation_below_1e_6_with_corrector(spec):
             assert np.allclose(point, ref, atol=1e-12)
 
 
-def test_feed_plan_respects_chord_error_and_every_axis_limit():
-    curve = NurbsCurve(**FREEFORM)
-    T = 1e-3
-    limits = PathLimits(feed=0.1, chord_tolerance=1e-6, path_acceleration=2.0, path_jerk=50.0,
-                        normal_acceleration=2.0, normal_jerk=50.0, axis_velocity=(0.4, 0.4, 0.4),
-                        axis_acceleration=(1.0, 0.6, 2.0), axis_jerk=(20.0, 10.0, 50.0))
-    plan = plan_feed(curve, limits, period=T)
-    assert sum(b.length for b in plan.blocks) == pytest.approx(curve.arc_length(), rel=1e-9)
+def _check_stepped_plan(curve: NurbsCurve, limits: PathLimits, plan, T: float, length_rel: float = 1e-9) -> None:
+    """Step the card's stepper along ``plan`` period by period and check, from the stepped
+    points alone: the curve's end reached, the chord error, every axis's velocity, acceleration
+    and jerk (finite differences) and the feed, each within 1.01x its limit. ``length_rel``: how
+    close the blocks' length and ``curve.arc_length()`` (two quadratures) must agree."""
+    assert sum(b.length for b in plan.blocks) == pytest.approx(curve.arc_length(), rel=length_rel)
     assert plan.blocks[0].v0 == 0 and plan.blocks[-1].v1 == 0
     ends = np.cumsum([0] + [b.duration for b in plan.blocks])
     offsets = np.cumsum([0] + [b.length for b in plan.blocks])
@@ -165,15 +163,15 @@ def test_feed_plan_respects_chord_error_and_every_axis_limit():
         i = min(np.searchsorted(ends, t, "right") - 1, len(plan.blocks) - 1)
         return offsets[i] + plan.blocks[i].state(t - ends[i])[0]
 
-    stepper = CurveStepper(curve.span_evaluator(), 0.0)
-    pts, us, prev = [stepper.point], [0.0], 0.0
+    stepper = CurveStepper(curve.span_evaluator(), curve.domain[0])
+    pts, us, prev = [stepper.point], [curve.domain[0]], 0.0
     for k in range(1, int(np.ceil(plan.duration / T)) + 1):
         s = s_at(k * T)
         pts.append(stepper.step(s - prev))
         us.append(stepper.u)
         prev = s
     pts, us = np.array(pts), np.array(us)
-    assert np.allclose(pts[-1], curve.point(1.0)[0], atol=1e-12)
+    assert np.allclose(pts[-1], curve.point(curve.domain[1])[0], atol=1e-12)
     # chord error of every period: farthest curve point from the chord, by dense sampling
     worst = 0.0
     for k in range(0, len(us) - 1, 7):
@@ -185,7 +183,7 @@ def test_feed_plan_respects_chord_error_and_every_axis_limit():
             continue
         proj = a + np.outer(np.clip((c - a) @ d / np.dot(d, d), 0, 1), d)
         worst = max(worst, float(np.max(np.linalg.norm(c - proj, axis=1))))
-    assert worst <= 1e-6
+    assert worst <= limits.chord_tolerance
     v = np.diff(pts, axis=0) / T
     acc = np.diff(v, axis=0) / T
     jerk = np.diff(acc, axis=0) / T
@@ -193,6 +191,43 @@ def test_feed_plan_respects_chord_error_and_every_axis_limit():
     assert np.all(np.max(np.abs(acc), axis=0) <= np.array(limits.axis_acceleration) * 1.01)
     assert np.all(np.max(np.abs(jerk), axis=0) <= np.array(limits.axis_jerk) * 1.01)
     assert np.max(np.linalg.norm(v, axis=1)) <= limits.feed * 1.01
+
+
+def test_feed_plan_respects_chord_error_and_every_axis_limit():
+    curve = NurbsCurve(**FREEFORM)
+    T = 1e-3
+    limits = PathLimits(feed=0.1, chord_tolerance=1e-6, path_acceleration=2.0, path_jerk=50.0,
+                        normal_acceleration=2.0, normal_jerk=50.0, axis_velocity=(0.4, 0.4, 0.4),
+                        axis_acceleration=(1.0, 0.6, 2.0), axis_jerk=(20.0, 10.0, 50.0))
+    _check_stepped_plan(curve, limits, plan_feed(curve, limits, period=T), T)
+
+
+def test_a_curve_of_tight_turns_runs_faster_on_a_share_of_the_tangential_budget(monkeypatch):
+    """The butterfly (published, degree 4): its turns bind the jerk term j / (9 A_t |C_ss|), so the
+    planner takes a share of the tangential budget and the curve runs >= 10 % faster than on the
+    full one, with every limit still held period by period; a curve whose turns do not bind (the
+    freeform test curve at 40 mm/s) keeps the full budget and the same plan."""
+    import cnc_twin.planner.feed as feed
+    from cnc_twin import load_scenario
+    from cnc_twin.planner.curve_program import curve_setup
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    T = 1e-3
+    prog = load_scenario(scenarios_dir() / "published" / "farfalla.yaml").program
+    curve, limits = curve_setup(prog)[0], prog.limits
+    chosen = plan_feed(curve, limits, period=T)
+    calm = NurbsCurve(**FREEFORM)
+    calm_limits = PathLimits(feed=0.04, chord_tolerance=1e-6, path_acceleration=2.0, path_jerk=50.0,
+                             normal_acceleration=2.0, normal_jerk=50.0, axis_velocity=(0.4, 0.4, 0.4),
+                             axis_acceleration=(2.0, 2.0, 2.0), axis_jerk=(50.0, 50.0, 50.0))
+    calm_plan = plan_feed(calm, calm_limits, period=T)
+    monkeypatch.setattr(feed, "BUDGET_SHARES", (1.0,))
+    full = plan_feed(curve, limits, period=T)
+    assert chosen.duration < 0.9 * full.duration, (chosen.duration, full.duration)
+    assert max(b.a_max for b in chosen.blocks) < limits.tangential_acceleration
+    assert max(b.a_max for b in full.blocks) == limits.tangential_acceleration
+    _check_stepped_plan(curve, limits, chosen, T, length_rel=1e-5)  # 358 mm, degree 4: quadratures differ by 1.4 um
+    assert plan_feed(calm, calm_limits, period=T).blocks == calm_plan.blocks
 
 
 def test_windowed_planning_commits_the_same_blocks_as_the_whole_plan():
