@@ -23,10 +23,21 @@ SCENARIO = scenarios_dir() / "freeform_polish.yaml"
 MOMENTS = 10
 
 
+def _short_scenario(beside: Path) -> Path:
+    """The freeform polishing run with a shorter raster (wider margin: 20 s simulated instead of
+    46), written beside the run's folder: every stage a polishing run goes through (workpiece
+    solid, MJCF, planner, seek, force loop, removal map, recording, writing) in half the time."""
+    short = beside / "freeform_short.yaml"
+    if not short.exists():
+        short.write_text(SCENARIO.read_text().replace("margin: 25.0", "margin: 45.0"))
+    return short
+
+
 def _start(folder: Path) -> subprocess.Popen:
     """`cnc-twin run` into ``folder/run``, in a session of its own (its process group is its pid)."""
     folder.mkdir(parents=True)
-    return subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(SCENARIO), "--out", str(folder / "run")],
+    scenario = _short_scenario(folder.parent)
+    return subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(scenario), "--out", str(folder / "run")],
                             cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
 
@@ -172,6 +183,30 @@ def test_a_signal_inside_an_extension_module_import_is_the_interruption(monkeypa
             raise ImportError("initialization failed") from exc
 
     monkeypatch.setattr(cli, "check_writable_parent", interrupted_import)
+    code = cli.main(["run", str(SCENARIO), "--out", str(tmp_path / "run"), "--no-rrd"])
+    err = capsys.readouterr().err
+    assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_signal_that_an_extension_module_loses_in_its_import_error_is_still_the_interruption(
+        monkeypatch, tmp_path, capsys):
+    """Seen while testing: SIGINT while numpy's C core imports ``datetime`` through
+    PyCapsule_Import, which replaces the interruption by its own ImportError, and numpy's "Importing
+    the numpy C-extensions failed" carries no trace of it. The guard received the signal, so the
+    failed import is the interruption: one line, exit 130, nothing written."""
+    import signal as signals
+
+    import cnc_twin.cli as cli
+
+    def import_losing_the_signal(*args, **kwargs):
+        try:
+            signals.raise_signal(signals.SIGINT)  # the guard's handler raises Interrupted here
+        except BaseException:
+            pass  # what PyCapsule_Import does with it
+        raise ImportError("PyCapsule_Import could not import module \"datetime\"")
+
+    monkeypatch.setattr(cli, "check_writable_parent", import_losing_the_signal)
     code = cli.main(["run", str(SCENARIO), "--out", str(tmp_path / "run"), "--no-rrd"])
     err = capsys.readouterr().err
     assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"

@@ -54,7 +54,17 @@ class SignalGuard:
             self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
-    def __exit__(self, *exc) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        self._restore()
+        if exc_type is not None and issubclass(exc_type, ImportError) and self.received is not None \
+                and interruption_in(exc) is None:
+            # the signal came while an extension module initialised (numpy's C core, mujoco...):
+            # the import failed with an error of its own that may not carry the interruption
+            # (numpy's "Importing the numpy C-extensions failed" after PyCapsule_Import lost it)
+            raise Interrupted(self.received) from None
+        return False
+
+    def _restore(self) -> None:
         if self.restore:
             for sig, handler in self._previous.items():
                 signal.signal(sig, handler)
@@ -63,7 +73,6 @@ class SignalGuard:
             # the interpreter's finalization, but leaves an ignored signal ignored
             for sig in SIGNALS:
                 signal.signal(sig, signal.SIG_IGN)
-        return False
 
     def _handle(self, signum: int, frame) -> None:
         first = self.received is None
