@@ -113,17 +113,35 @@ def test_bad_mjcf_is_a_clear_error(write_scenario, tmp_path):
     assert "broken.xml: MJCF does not compile" in info.value.message and "Line number" in info.value.message
 
 
-@pytest.mark.parametrize("label, content, key, fragment", BAD[:6], ids=[b[0] for b in BAD[:6]])
+def _assert_one_line_error(code: int, out: str, err: str, path, key: str) -> None:
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0] == f"error: {path}: {key}: " + lines[0].split(f"{key}: ", 1)[1]
+    assert "Traceback" not in err and out == ""
+
+
+@pytest.mark.parametrize("label, content, key, fragment", BAD[:1], ids=[b[0] for b in BAD[:1]])
 def test_cli_exit_code_2_one_line_no_traceback(write_scenario, label, content, key, fragment):
+    """As the program (a process of its own): exit code 2, one line on stderr, nothing on stdout."""
     path = write_scenario(content)
     for command in ("validate", "run"):
         proc = subprocess.run([sys.executable, "-m", "cnc_twin", command, str(path)],
                               capture_output=True, text=True, timeout=120)
-        assert proc.returncode == 2, proc.stderr
-        lines = proc.stderr.strip().splitlines()
-        assert len(lines) == 1, proc.stderr
-        assert lines[0] == f"error: {path}: {key}: " + lines[0].split(f"{key}: ", 1)[1]
-        assert "Traceback" not in proc.stderr and proc.stdout == ""
+        _assert_one_line_error(proc.returncode, proc.stdout, proc.stderr, path, key)
+
+
+@pytest.mark.parametrize("label, content, key, fragment", BAD[1:6], ids=[b[0] for b in BAD[1:6]])
+def test_cli_main_exit_code_2_one_line_no_traceback(write_scenario, capsys, label, content, key, fragment):
+    """The same through ``cli.main`` in this process (the program's code path after its first
+    lines; a process per case costs a second of start-up each)."""
+    from cnc_twin.cli import main
+
+    path = write_scenario(content)
+    for command in ("validate", "run"):
+        code = main([command, str(path)])
+        captured = capsys.readouterr()
+        _assert_one_line_error(code, captured.out, captured.err, path, key)
 
 
 def test_errors_stay_one_line_whatever_the_input_held():
