@@ -2,6 +2,10 @@
 
 ``bare``: a Python loop of ``mujoco.mj_step(model, data)`` on the same MJCF at the same
 timestep, for the same number of physics steps the twin takes, drives at 0 V.
+``replay``: the same number of physics steps on the run's own model (workpiece included), with
+the drive voltages the run recorded replayed open loop, tick by tick: the fair denominator for a
+run in contact (:mod:`cnc_twin.studies.bench_replay`), with the mean contact count of both
+denominators (``replay_contacts_mean``, ``bare_contacts_mean``).
 ``twin``: the simulated clock of ``Twin.run()`` (exchanges with the planner process, DSP task,
 plant, recording), the loop the ratio is about; ``twin_startup_s`` is the rest of ``run()``
 (spawning and attaching the planner process, metrics, teardown), a fixed cost per run;
@@ -112,6 +116,7 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "bare_mj_step_s": bare_s,
         "twin_s": twin_s,
         "ratio_twin_over_bare": twin_s / bare_s,
+        **_replay_figures(scenario, trace, repeat, twin_s),
         "ratio_python_servo_over_bare": min(python_servo) / bare_s,
         "recording_overhead": twin_s / min(no_record) - 1.0,
         "bare_us_per_step": bare_s / steps * 1e6,
@@ -126,6 +131,24 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         **_rerun_figures(scenario_file, repeat, twin_s),
         "repeat": repeat,
     }
+
+
+def _replay_figures(scenario, trace, repeat: int, twin_s: float) -> dict[str, Any]:
+    """The run's recorded drive voltages replayed open loop into the run's own model
+    (:mod:`cnc_twin.studies.bench_replay`), best of ``repeat``, and the contact counts of both
+    denominators; empty for step-pulse output (no voltages to replay)."""
+    if scenario.command_output != "analog":
+        return {}
+    from cnc_twin.studies.bench_replay import contacts_at_rest, run_model, time_replayed_steps
+
+    model = run_model(scenario)
+    timing = scenario.timing
+    replays = [time_replayed_steps(model, trace.dac, timestep=timing.physics_timestep, substeps=timing.substeps_per_tick)
+               for _ in range(max(1, repeat))]
+    replay_s = min(r.seconds for r in replays)
+    return {"replay_mj_step_s": replay_s, "ratio_twin_over_replay": twin_s / replay_s,
+            "replay_us_per_step": replay_s / (len(trace.dac) * timing.substeps_per_tick) * 1e6,
+            "replay_contacts_mean": replays[0].contacts_mean, "bare_contacts_mean": contacts_at_rest(scenario)}
 
 
 def time_streamed_recording(scenario_file: Path, *, repeat: int = 1) -> dict[str, float]:
