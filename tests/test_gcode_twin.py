@@ -20,6 +20,7 @@ from cnc_twin.gcode.state import ToolTable
 from cnc_twin.geometry.bezier import bezier_pieces, elevate, join, knot_spans
 from cnc_twin.geometry.kinematics import HeadGeometry, rotation_ab
 from cnc_twin.geometry.nurbs import NurbsCurve
+from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.scenario.resources import scenarios_dir
 from conftest import run_cli
 
@@ -191,7 +192,9 @@ def test_the_commanded_tip_follows_the_program_within_its_blend_tolerance(three_
             curve = call.payload.curve()
             programmed.append(curve.point(np.linspace(*curve.domain, 4000)))
             here = np.asarray(call.payload.end)
-    distance = np.min([distance_to_polyline(tips, poly) for poly in programmed], axis=0)
+    # (the tree-searched distance of the path metrics, tests/test_path_metrics.py: the brute force
+    # above, periods x points of every element, took 10 s here)
+    distance = np.min([point_to_polyline(tips, poly) for poly in programmed], axis=0)
     assert distance.max() <= 0.005 + 0.001 + 1e-3, distance.max()  # [mm] P + chord + 1 um of the sampling
 
 

@@ -74,14 +74,18 @@ def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.nd
     if not feeds:
         return None
     speed = np.concatenate([[0.0], np.linalg.norm(np.diff(tips, axis=0), axis=1) / T])
-    time = ideal = below = 0.0
-    for line, feed in feeds.items():
-        on = np.flatnonzero((mark == line) & (u < 0.0) & (speed > 0.0))
-        if on.size:
-            time += on.size * T
-            ideal += float(np.sum(speed[on])) * T / feed
-            below += float(np.count_nonzero(speed[on] < FULL_FEED * feed)) * T
-    return time, ideal, below
+    lines = np.fromiter(feeds.keys(), dtype=np.int64, count=len(feeds))
+    rates = np.fromiter(feeds.values(), dtype=np.float64, count=len(feeds))
+    order = np.argsort(lines, kind="stable")
+    moving = (u < 0.0) & (speed > 0.0)
+    marks, speeds = mark[moving].astype(np.int64), speed[moving]
+    at = np.clip(np.searchsorted(lines[order], marks), 0, len(lines) - 1)
+    ours = lines[order][at] == marks  # periods of a feed move's line (one lookup, not a pass per line)
+    move, speeds = order[at[ours]], speeds[ours]
+    periods = np.bincount(move, minlength=len(lines))
+    length = np.bincount(move, weights=speeds, minlength=len(lines)) * T  # [m] per move
+    slow = np.bincount(move, weights=speeds < FULL_FEED * rates[move], minlength=len(lines))
+    return float(periods.sum()) * T, float(np.sum(length / rates)), float(slow.sum()) * T
 
 
 def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
