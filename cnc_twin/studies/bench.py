@@ -9,7 +9,9 @@ denominators (``replay_contacts_mean``, ``bare_contacts_mean``).
 ``twin``: the simulated clock of ``Twin.run()`` (exchanges with the planner process, DSP task,
 plant, recording), the loop the ratio is about; ``twin_startup_s`` is the rest of ``run()``
 (spawning and attaching the planner process, metrics, teardown), a fixed cost per run;
-``twin_startup_pooled_s`` the same when the planner process is kept warm between runs
+``twin_build_s`` is building the twin before that (the plant's model: for a polishing run the
+workpiece's solid, its collision tiles and the MJCF compile; the removal map; the card);
+``twin_startup_pooled_s`` the same as ``twin_startup_s`` when the planner process is kept warm between runs
 (:class:`~cnc_twin.planner.launch.PlannerPool`, as a sweep's workers do).
 ``twin_no_record``: the same with every tick written to a one-period scratch buffer, so
 ``recording_overhead`` is what keeping the trace costs. ``twin_python_servo``: the same with the
@@ -51,6 +53,16 @@ def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
     start = time.perf_counter()
     for _ in range(steps):
         mj_step(model, data)
+    return time.perf_counter() - start
+
+
+def time_twin_build(scenario_file: Path) -> float:
+    """Wall time [s] of building a run's twin from its loaded scenario: the plant's model (for a
+    polishing run the workpiece's solid, its convex collision tiles and the MJCF compile), the
+    removal map, the card, the compiled servo's set-up."""
+    scenario = load_scenario(scenario_file)
+    start = time.perf_counter()
+    Twin(scenario)
     return time.perf_counter() - start
 
 
@@ -123,6 +135,7 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "twin_us_per_tick": twin_s / ticks * 1e6,
         "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
         "real_time_factor": sim_time / twin_s,
+        "twin_build_s": min(time_twin_build(scenario_file) for _ in range(max(1, repeat))),
         "twin_startup_s": min(totals),
         "twin_startup_pooled_s": min(pooled),
         "trace_bytes": trace.nbytes(),
