@@ -65,7 +65,9 @@ def test_flat_parallel_pad_uniform_disc():
     # a pad pressed 1 mm in, or a non-unit axis: the same patch, the same uniform pressure
     idx2, p2 = m.pressure((0.0, 0.0, -1e-3), 3 * Z, 40.0)
     np.testing.assert_array_equal(np.sort(idx2), np.sort(idx))
-    np.testing.assert_allclose(p2, p[0], rtol=1e-12)
+    # (the patch's sums run term by term, as the compiled patch adds them: over ~8000 points the
+    # two pressures agree to a few 1e-12, where pairwise sums agreed to 1e-12)
+    np.testing.assert_allclose(p2, p[0], rtol=1e-11)
 
 
 def test_plate_grid_layout():

@@ -25,7 +25,7 @@ from cnc_twin.dsp.force import ForceState
 from cnc_twin.motion.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 from cnc_twin.trace.trace import Trace
-from cnc_twin.polishing.removal import Patch, PrestonModel, RemovalGrid
+from cnc_twin.polishing.removal import Patch, PrestonModel, RemovalGrid, sequential_sum, sliding_speed
 
 CONTACT_SETTLE = 0.3
 """after the ramp, time within which the first-contact overshoot is judged [s]"""
@@ -56,9 +56,12 @@ class RemovalTracker:
     """Accumulates the removal map from the MuJoCo state during a run."""
 
     def __init__(self, preston: Preston, friction: float | None, surface: NurbsSurface, model: mujoco.MjModel,
-                 data: mujoco.MjData, period: float):
-        """``friction``: the pad's sliding friction coefficient on the workpiece; None = the model's."""
+                 data: mujoco.MjData, period: float, *, compiled: bool = True):
+        """``friction``: the pad's sliding friction coefficient on the workpiece; None = the model's.
+        ``compiled``: each update in one compiled call (:mod:`cnc_twin.polishing.removal_kernel`);
+        False: the numpy reference (the same numbers bit for bit)."""
         p = preston
+        self.compiled = compiled
         self.surface = surface
         self.scales = parameter_scales(self.surface)[:2]
         self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
@@ -76,6 +79,7 @@ class RemovalTracker:
         self._pad_geom = pad_geom
         self._velocity = np.zeros(6)
         self._wrench = np.zeros(6)
+        self._wrench_out = np.zeros(6)
         self.force_time_integral = 0.0
         """integral of the pad's contact normal force over time [N s]"""
         self.calls = 0
@@ -105,14 +109,41 @@ class RemovalTracker:
             tip = d.site_xpos[self._site]
             axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
             removal = self.model_removal
-            patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
-            if patch is not None:
-                removal.add(patch, self.dt)
-                wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
+            if self.compiled:
+                self._compiled_update(tip, axis, force, d.xipos[self._pad_body], wrench)
+            else:
+                patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
+                if patch is not None:
+                    removal.add(patch, self.dt)
+                    wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
             self.force_time_integral += force * self.dt
         self.calls += 1
         self.cost_ns += time.perf_counter_ns() - started
 
+
+    def _compiled_update(self, tip, axis, force: float, centre, wrench: np.ndarray) -> None:
+        """The patch, its removal and the friction ``wrench`` (written) in one compiled call."""
+        from cnc_twin.polishing.removal_kernel import removal_step
+
+        removal = self.model_removal
+        tip = np.asarray(tip, dtype=np.float64)
+        a = np.asarray(axis, dtype=np.float64)
+        a = a / np.linalg.norm(a)  # as PrestonModel._contact normalises it
+        idx, ball = removal._near(tip)
+        touched = removal_step(idx, ball, tip, a, float(force), removal.pad_radius, removal.slab, removal.pad_modulus,
+                               removal.preston_k * self.dt, self._velocity[3:], self._velocity[:3],
+                               np.asarray(centre, dtype=np.float64), self.friction, FRICTION_SPEED, removal.depth,
+                               self._wrench_out)
+        if touched >= 0:  # a patch: its removal was added (PrestonModel.add)
+            removal.contact_time += self.dt
+            wrench[:] = self._wrench_out
+
+    def warm_up(self) -> None:
+        """Compile (or load) the compiled update before the run's clock starts."""
+        if self.compiled:
+            from cnc_twin.polishing import removal_kernel
+
+            removal_kernel.warm_up()
 
 FRICTION_SPEED = 1e-3
 """sliding speed below which the pad's friction fades linearly to zero (regularisation) [m/s]"""
@@ -124,13 +155,12 @@ def friction_wrench(patch: Patch, areas: np.ndarray, tip: np.ndarray, centre: np
     FRICTION_SPEED)`` per point, ``v`` the pad's tangential sliding velocity there; ``areas`` the
     grid's point areas [m^2]."""
     v = patch.sliding
-    speed = np.sqrt(np.einsum("ij,ij->j", v, v))
-    f = v * (-mu * patch.pressure * areas[patch.index] / np.maximum(speed, FRICTION_SPEED))
-    arm = patch.arm + (tip - centre)[:, None]
-    out = np.empty(6)
-    out[:3] = f.sum(axis=1)
-    out[3:] = np.cross(arm.T, f.T).sum(axis=0)
-    return out
+    f = v * (-mu * patch.pressure * areas[patch.index] / np.maximum(sliding_speed(v), FRICTION_SPEED))
+    arm = patch.arm + (np.asarray(tip) - np.asarray(centre))[:, None]
+    # sums term by term in order, as the compiled patch adds them (removal_kernel)
+    return np.array([sequential_sum(f[0]), sequential_sum(f[1]), sequential_sum(f[2]),
+                     sequential_sum(arm[1] * f[2] - arm[2] * f[1]), sequential_sum(arm[2] * f[0] - arm[0] * f[2]),
+                     sequential_sum(arm[0] * f[1] - arm[1] * f[0])])
 
 
 def polished_band(program: SurfaceProgram, uv: np.ndarray, scales: tuple[float, float]) -> np.ndarray:

@@ -109,6 +109,17 @@ class RemovalGrid:
         return cls(pts, normals, np.full(X.size, dx * dy), (ny, nx), (x[0], x[-1], y[0], y[-1]))
 
 
+def sequential_sum(values: np.ndarray) -> float:
+    """``values[0] + values[1] + ...`` in that order (np.sum adds pairwise: other last bits than a
+    compiled loop); 0 for none."""
+    return float(np.cumsum(values)[-1]) if len(values) else 0.0
+
+
+def sliding_speed(v: np.ndarray) -> np.ndarray:
+    """``|v|`` of each column of ``v`` (3, k), the squares summed x, y, z in that order."""
+    return np.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
+
+
 @dataclass(frozen=True)
 class Patch:
     """The pad's contact patch at one instant (``k`` grid points)."""
@@ -180,25 +191,31 @@ class PrestonModel:
         idx, ball = self._near(tip)
         if idx.size == 0:
             return empty
+        # Every sum in a fixed order, term by term, so that the compiled patch
+        # (cnc_twin.polishing.removal_kernel) gives the same numbers bit for bit: no BLAS dot,
+        # no einsum, no pairwise np.sum (sequential_sum).
         r = ball[:3] - tip[:, None]
-        h = a @ r
-        rho2 = np.einsum("ij,ij->j", r, r) - h * h  # |r - h a|^2 with a unit
-        sel = np.flatnonzero((rho2 <= self.pad_radius ** 2) & (np.abs(h) <= self.slab) & (a @ ball[3:6] > 0))
+        h = (a[0] * r[0] + a[1] * r[1]) + a[2] * r[2]
+        rho2 = ((r[0] * r[0] + r[1] * r[1]) + r[2] * r[2]) - h * h  # |r - h a|^2 with a unit
+        facing = (a[0] * ball[3] + a[1] * ball[4]) + a[2] * ball[5]
+        radius = self.pad_radius
+        sel = np.flatnonzero((rho2 <= radius * radius) & (np.abs(h) <= self.slab) & (facing > 0))
         if sel.size == 0:
             return empty
         idx, h, A = idx[sel], h[sel], ball[6, sel]  # 1-D: plain indexing is fast
         c = force / self.pad_modulus  # = sum_i A_i max(0, h_i + delta) [m^3]
-        W = A.sum()
+        W = sequential_sum(A)
         if not W > 0:
             return empty
-        delta = (c - A @ h) / W
-        if h.min() + delta < 0:  # not every candidate touches: find the segment on h sorted descending
-            order = np.argsort(-h)
-            hs, As = h[order], A[order]
-            W, S = np.cumsum(As), np.cumsum(As * hs)
-            g = S[:-1] - hs[1:] * W[:-1]  # the sum at delta = -h_{k+1}, top k touching; nondecreasing
-            k = int(np.searchsorted(g, c, side="left"))
-            delta = (c - S[k]) / W[k]
+        delta = (c - sequential_sum(A * h)) / W
+        # Not every candidate touches: drop those below the pad at this level and solve again. The
+        # level only falls and the set only shrinks, so this ends, at the one level where every
+        # point kept touches and every point dropped does not (no sort: each pass is linear).
+        keep = h + delta > 0
+        while not keep.all():
+            sel, idx, h, A = sel[keep], idx[keep], h[keep], A[keep]
+            delta = (c - sequential_sum(A * h)) / sequential_sum(A)
+            keep = h + delta > 0
         p = self.pad_modulus * (h + delta)
         touch = np.flatnonzero(p > 0)
         sel = sel[touch]  # np.take: far quicker than fancy indexing along axis 1
@@ -222,20 +239,19 @@ class PrestonModel:
         if idx.size == 0:
             return None
         w = np.asarray(omega, dtype=np.float64)
+        t = np.asarray(v_tip, dtype=np.float64)
         v = np.empty_like(r)  # v_tip + omega x r, row by row: cheaper than np.cross on (3, k)
-        v[0] = w[1] * r[2] - w[2] * r[1]
-        v[1] = w[2] * r[0] - w[0] * r[2]
-        v[2] = w[0] * r[1] - w[1] * r[0]
-        v += np.asarray(v_tip, dtype=np.float64)[:, None]
-        v -= np.einsum("ij,ij->j", v, n) * n  # sliding is tangential only
+        v[0] = (w[1] * r[2] - w[2] * r[1]) + t[0]
+        v[1] = (w[2] * r[0] - w[0] * r[2]) + t[1]
+        v[2] = (w[0] * r[1] - w[1] * r[0]) + t[2]
+        v -= ((v[0] * n[0] + v[1] * n[1]) + v[2] * n[2]) * n  # sliding is tangential only
         return Patch(index=idx, pressure=p, arm=r, sliding=v)
 
     def add(self, patch: "Patch", dt: float) -> int:
         """Add a patch's removal over ``dt`` [s] >= 0; returns how many points got removal."""
         if dt < 0:
             raise ValueError(f"dt must be >= 0, got {dt}")
-        v = patch.sliding
-        inc = (self.preston_k * dt) * patch.pressure * np.sqrt(np.einsum("ij,ij->j", v, v))
+        inc = (self.preston_k * dt) * patch.pressure * sliding_speed(patch.sliding)
         np.add.at(self.depth, patch.index, inc)  # faster than depth[idx] += inc here
         self.contact_time += dt
         return int(np.count_nonzero(inc > 0))

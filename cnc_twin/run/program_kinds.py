@@ -134,7 +134,8 @@ def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction
     model, twin.tiling = build_model(sc.model_file, surface, tile_size=tile_size,
                                      edit=lambda spec: add_obstacles(spec, obstacles))
     plant = Plant(model, timestep=sc.timing.physics_timestep)
-    twin.removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period)
+    twin.removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period,
+                                  compiled=twin.compiled)
     return plant
 
 

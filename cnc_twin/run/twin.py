@@ -68,6 +68,7 @@ class Twin:
     def __init__(self, scenario: Scenario, *, compiled: bool = True, record: bool = True, batch: bool = True):
         self.record = record
         self.batch = batch
+        self.compiled = compiled
         self.scenario = scenario
         timing = scenario.timing
         self.tiling = self.removal = None
@@ -149,6 +150,8 @@ class Twin:
             if self.kernel is not None:  # compiles (or loads) while the planner starts and plans
                 self.kernel.warm_up()
             self.kind.warm_up(self)
+            if self.removal is not None:
+                self.removal.warm_up()
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
