@@ -38,3 +38,26 @@ def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
     benchmark.extra_info.update(runs=len(todo), runs_per_min_1=per_min[1], runs_per_min_2=per_min[2],
                                 speedup=one / two)
     print(f"\n{len(todo)} runs: {per_min[1]:.0f} runs/min on 1 worker, {per_min[2]:.0f} on 2: speedup {one / two:.2f}")
+
+
+def test_force_gain_sweep_on_the_flat_plate(benchmark):
+    """The polishing sweep issue #22 asks for: 64 runs of flat_plate_polish (an 8 x 8 grid of the
+    force loop's kp and ki), on 1 and on 2 local workers: runs per minute and the speed-up
+    (``python -m pytest benchmarks/test_bench_sweep.py -k force_gain --benchmark-only -s -n0``;
+    about 6 minutes)."""
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    path = str(scenarios_dir() / "flat_plate_polish.yaml")
+    todo = cases([parse_param("force.kp=0.002:0.03:0.004"), parse_param("force.ki=1:8:1")])  # 8 x 8
+
+    def measure():
+        return timed(run_local, path, todo, workers=1), timed(run_local, path, todo, workers=2)
+
+    (rows_one, one), (rows_two, two) = benchmark.pedantic(measure, rounds=1)
+    assert len(todo) == 64 and all(row["status"] == "complete" for row in rows_one + rows_two)
+    assert [row["force_rms_pct"] for row in rows_one] == [row["force_rms_pct"] for row in rows_two]
+    per_min = {1: len(todo) / one * 60, 2: len(todo) / two * 60}
+    benchmark.extra_info.update(runs=len(todo), runs_per_min_1=per_min[1], runs_per_min_2=per_min[2],
+                                speedup=one / two)
+    print(f"\n{len(todo)} flat-plate runs: {per_min[1]:.1f} runs/min on 1 worker, {per_min[2]:.1f} on 2: "
+          f"speedup {one / two:.2f}")
