@@ -9,7 +9,6 @@ import pytest
 from cnc_twin import load_scenario
 from cnc_twin.polishing.polish import FRICTION_SPEED, friction_wrench
 from cnc_twin.polishing.removal import PrestonModel, RemovalGrid
-from cnc_twin.polishing.removal_kernel import removal_step
 from cnc_twin.run.twin import Twin
 from cnc_twin.scenario.resources import scenarios_dir
 
@@ -44,10 +43,7 @@ def test_the_compiled_update_is_the_reference_bit_for_bit(seed):
         if patch is not None:
             added = reference.add(patch, dt)
             want = friction_wrench(patch, grid.areas, tip, centre, mu)
-        a = axis / np.linalg.norm(axis)
-        idx, ball = compiled._near(tip)
-        got = removal_step(idx, ball, tip, a, float(force), compiled.pad_radius, compiled.slab, compiled.pad_modulus,
-                           compiled.preston_k * dt, v_tip, omega, centre, mu, FRICTION_SPEED, compiled.depth, wrench)
+        got = compiled.step_compiled(tip, axis, force, v_tip, omega, dt, centre, mu, FRICTION_SPEED, wrench)
         assert got == added
         assert np.array_equal(wrench, want), (wrench, want)
         assert np.array_equal(compiled.depth, reference.depth)

@@ -114,26 +114,17 @@ def tangential_budget(limits: PathLimits, axis_q: np.ndarray | None, s: np.ndarr
     return a_t, j_t
 
 
-def feed_limit(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float,
-               axis_q: np.ndarray | None = None, axis_limits=None, a_t: float | None = None) -> np.ndarray:
-    """The feed limit [m/s] at each sample (see the module docstring).
+def _limit_terms(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float,
+                 axis_q: np.ndarray | None, axis_limits) -> tuple[np.ndarray, np.ndarray]:
+    """The feed limit at each sample (see the module docstring) as ``(rest, coupling)`` [m/s,
+    m^2/s^3], each (N,): the limit is ``min(rest, coupling / A_t)``. ``coupling / A_t`` is the jerk
+    term ``j_i / (9 A_t |C_ss,i|)`` (the tangential acceleration times the curvature), the only
+    one that depends on the tangential budget.
 
     With ``axis_q`` (the machine axes along the samples, shape (N, k)) and ``axis_limits``
     ((velocity, acceleration, jerk) per axis), the axis terms use those axes' derivatives with
     respect to arc length (numerical) instead of the tool tip's: the limits after kinematics.
-    ``a_t``: the tangential acceleration budget, if already known (:func:`tangential_budget`).
     """
-    if a_t is None:
-        a_t = tangential_budget(limits, axis_q, s, axis_limits)[0]
-    rest, coupling = _limit_terms(curve, u, s, limits, period, axis_q, axis_limits)
-    return np.minimum(rest, coupling / a_t)
-
-
-def _limit_terms(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLimits, period: float,
-                 axis_q: np.ndarray | None, axis_limits) -> tuple[np.ndarray, np.ndarray]:
-    """``(rest, coupling)`` [m/s, m^2/s^3], each (N,): the feed limit is ``min(rest, coupling /
-    A_t)``. ``coupling / A_t`` is the jerk term ``j_i / (9 A_t |C_ss,i|)`` (the tangential
-    acceleration times the curvature), the only one that depends on the tangential budget."""
     _, d1, d2 = curve.derivatives(u, 2)
     tangent, c_ss = _arc_length_derivatives(d1, d2)
     kappa = np.linalg.norm(c_ss, axis=1)

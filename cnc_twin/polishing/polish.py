@@ -79,7 +79,6 @@ class RemovalTracker:
         self._pad_geom = pad_geom
         self._velocity = np.zeros(6)
         self._wrench = np.zeros(6)
-        self._wrench_out = np.zeros(6)
         self.force_time_integral = 0.0
         """integral of the pad's contact normal force over time [N s]"""
         self.calls = 0
@@ -109,8 +108,9 @@ class RemovalTracker:
             tip = d.site_xpos[self._site]
             axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
             removal = self.model_removal
-            if self.compiled:
-                self._compiled_update(tip, axis, force, d.xipos[self._pad_body], wrench)
+            if self.compiled:  # written into the wrench only with a patch: else it stays zero
+                removal.step_compiled(tip, axis, force, self._velocity[3:], self._velocity[:3], self.dt,
+                                      d.xipos[self._pad_body], self.friction, FRICTION_SPEED, wrench)
             else:
                 patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
                 if patch is not None:
@@ -120,30 +120,13 @@ class RemovalTracker:
         self.calls += 1
         self.cost_ns += time.perf_counter_ns() - started
 
-
-    def _compiled_update(self, tip, axis, force: float, centre, wrench: np.ndarray) -> None:
-        """The patch, its removal and the friction ``wrench`` (written) in one compiled call."""
-        from cnc_twin.polishing.removal_kernel import removal_step
-
-        removal = self.model_removal
-        tip = np.asarray(tip, dtype=np.float64)
-        a = np.asarray(axis, dtype=np.float64)
-        a = a / np.linalg.norm(a)  # as PrestonModel._contact normalises it
-        idx, ball = removal._near(tip)
-        touched = removal_step(idx, ball, tip, a, float(force), removal.pad_radius, removal.slab, removal.pad_modulus,
-                               removal.preston_k * self.dt, self._velocity[3:], self._velocity[:3],
-                               np.asarray(centre, dtype=np.float64), self.friction, FRICTION_SPEED, removal.depth,
-                               self._wrench_out)
-        if touched >= 0:  # a patch: its removal was added (PrestonModel.add)
-            removal.contact_time += self.dt
-            wrench[:] = self._wrench_out
-
     def warm_up(self) -> None:
         """Compile (or load) the compiled update before the run's clock starts."""
         if self.compiled:
             from cnc_twin.polishing import removal_kernel
 
             removal_kernel.warm_up()
+
 
 FRICTION_SPEED = 1e-3
 """sliding speed below which the pad's friction fades linearly to zero (regularisation) [m/s]"""

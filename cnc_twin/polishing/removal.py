@@ -120,6 +120,15 @@ def sliding_speed(v: np.ndarray) -> np.ndarray:
     return np.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
 
 
+def _unit(axis) -> np.ndarray:
+    """``axis`` (3,) as a unit vector (float64); ValueError when it is zero."""
+    a = np.asarray(axis, dtype=np.float64)
+    norm = np.linalg.norm(a)
+    if not norm > 0:
+        raise ValueError(f"tool axis must be non-zero, got {axis}")
+    return a / norm
+
+
 @dataclass(frozen=True)
 class Patch:
     """The pad's contact patch at one instant (``k`` grid points)."""
@@ -183,11 +192,7 @@ class PrestonModel:
         if not force > 0:
             return empty
         tip = np.asarray(tip, dtype=np.float64)
-        a = np.asarray(axis, dtype=np.float64)
-        norm = np.linalg.norm(a)
-        if not norm > 0:
-            raise ValueError(f"tool axis must be non-zero, got {axis}")
-        a = a / norm
+        a = _unit(axis)
         idx, ball = self._near(tip)
         if idx.size == 0:
             return empty
@@ -255,6 +260,27 @@ class PrestonModel:
         np.add.at(self.depth, patch.index, inc)  # faster than depth[idx] += inc here
         self.contact_time += dt
         return int(np.count_nonzero(inc > 0))
+
+    def step_compiled(self, tip, axis, force, v_tip, omega, dt, centre, mu: float, friction_speed: float,
+                      wrench: np.ndarray) -> int:
+        """:meth:`patch`, :meth:`add` and the pad's friction wrench about ``centre`` in one compiled
+        call (:mod:`cnc_twin.polishing.removal_kernel`), bit for bit those references:
+        ``wrench`` (6,) is written (zero without contact); returns how many points got removal,
+        -1 without a patch (nothing added, as :meth:`accumulate` adds none)."""
+        from cnc_twin.polishing.removal_kernel import removal_step
+
+        if dt < 0:
+            raise ValueError(f"dt must be >= 0, got {dt}")
+        tip = np.asarray(tip, dtype=np.float64)
+        a = _unit(axis)
+        idx, ball = self._near(tip)
+        touched = removal_step(idx, ball, tip, a, float(force), self.pad_radius, self.slab, self.pad_modulus,
+                               self.preston_k * dt, np.asarray(v_tip, dtype=np.float64),
+                               np.asarray(omega, dtype=np.float64), np.asarray(centre, dtype=np.float64), mu,
+                               friction_speed, self.depth, wrench)
+        if touched >= 0:
+            self.contact_time += dt
+        return touched
 
     def accumulate(self, tip, axis, force, v_tip, omega, dt) -> int:
         """Add one time step's removal (:meth:`patch`, then :meth:`add`); returns how many points
