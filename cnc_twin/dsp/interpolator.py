@@ -169,7 +169,7 @@ class SegmentInterpolator:
             self._queue.append((seq, record))
             self._path_open = False
         elif isinstance(record, SurfaceCurve):
-            self._pending_curve = SurfaceRun(self._surface, record, self.programmed[5])
+            self._pending_curve = SurfaceRun(self._surface, record, self.programmed[5], self.compiled)
             self.programmed = self._pending_curve.end
             self._queue.append((seq, self._pending_curve))
         elif isinstance(record, ForceControlRecord):

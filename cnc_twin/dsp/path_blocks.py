@@ -18,12 +18,12 @@ time scale follows.
   shape ``(3,)`` each. Shared by the sections that follow it.
 - :class:`SurfaceRun` (from a SurfaceCurve record, one section of a surface path): ``surface``
   (the :class:`Surface`); ``evaluator``, the surface-path evaluator of the (u, v) curve on it
-  (:mod:`cnc_twin.geometry.surface_path`); ``stepper``, a
-  :class:`~cnc_twin.dsp.curve_stepper.CurveStepper` on it; ``c_hold``, the held C [rad];
+  (:mod:`cnc_twin.geometry.surface_path`); ``stepper``, its arc-length stepper (compiled
+  or Python, as for a curve); ``c_hold``, the held C [rad];
   ``start`` and ``end``, the machine positions at the section's ends, shape ``(6,)``, with
   ``start_axis`` and ``end_axis``, the tool axis there (world frame, unit), shape ``(3,)``;
   ``axis``, the tool axis of the last pose, shape ``(3,)``. ``pose(point, u)``: the tool
-  axis is the surface normal at the last evaluated point with lead and tilt, and the head's
+  axis is the surface normal at the stepper's point with lead and tilt, and the head's
   inverse kinematics solve X, Y, Z [m], A, B [rad]; C is held.
 - :class:`ForceWait` (from a ForceControlRecord): force control switching on (seek, ramp up) at
   the following section's (or curve's) start or off (ramp down, retract) at the last one's end.
@@ -60,7 +60,7 @@ from cnc_twin.dsp.feed_slew import stop_distance
 from cnc_twin.geometry.kinematics import pose_to_axes, tool_axis
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface, SurfaceSpanEvaluator
-from cnc_twin.geometry.surface_path import SurfacePathEvaluator
+from cnc_twin.geometry.surface_path import SurfacePathEvaluator, tool_axis_at
 from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, ForceControlRecord, SurfaceCurve, SurfaceGeometry
 
 SLEW_MARGIN = 0.9
@@ -123,23 +123,29 @@ class SurfaceRun:
     """One path section on a surface: its stepper, the tool axis along the surface normal (with
     lead and tilt), the kinematics per period. ``axis`` is the tool axis of the last pose."""
 
-    def __init__(self, surface: Surface, section: SurfaceCurve, c_hold: float):
+    def __init__(self, surface: Surface, section: SurfaceCurve, c_hold: float, compiled: bool = True):
         c = section.curve
         uv = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
         self.surface = surface
         self.evaluator = SurfacePathEvaluator(surface.evaluator, uv.span_evaluator())
         self.c_hold = c_hold
         t0, t1 = uv.domain
-        self.end = self.pose(self.evaluator.evaluate(t1)[0], t1)
+        ev = self.evaluator
+        self.end = self._pose(ev.evaluate(t1)[0], ev.last_su, ev.last_sv, ev.last_c1)
         self.end_axis = self.axis
-        self.stepper = CurveStepper(self.evaluator, t0)  # evaluates t0 last: the kept tangents are the start's
+        # the stepper keeps the tangents of the point it last evaluated: the tool axis of its pose
+        self.stepper = (CompiledCurveStepper if compiled else CurveStepper)(ev, t0)
+        self._tangents = self.stepper.tangents if compiled else lambda: (ev.last_su, ev.last_sv, ev.last_c1)
         self.start = self.pose(self.stepper.point, t0)
         self.start_axis = self.axis
 
     def pose(self, point: list[float], u: float) -> tuple[float, ...]:
-        """Machine position for the tip at ``point``, with the tool axis at the last evaluated point."""
+        """Machine position for the tip at ``point``, with the tool axis at the stepper's point."""
+        return self._pose(point, *self._tangents())
+
+    def _pose(self, point, su, sv, c1) -> tuple[float, ...]:
         sf = self.surface
-        self.axis = self.evaluator.tool_axis(sf.lead, sf.tilt)
+        self.axis = tool_axis_at(su, sv, c1, sf.lead, sf.tilt)
         return (*pose_to_axes(point, self.axis, sf.pivot, sf.offset), self.c_hold)
 
 

@@ -23,7 +23,8 @@ normal is undefined and returned as nan.
 
 For the DSP's per-period work, :class:`SurfaceSpanEvaluator` holds each patch's power-basis
 coefficients of ``A`` and its five partials in one block, so a point with its first and second
-partials costs one small matrix product.
+partials costs one pass over the block's rows (the compiled twin of it:
+:mod:`cnc_twin.dsp.span_kernel`).
 
 Units are whatever the control net is in (the twin uses metres).
 """
@@ -233,8 +234,8 @@ class SurfaceSpanEvaluator:
     ``x = u - u_i``, ``y = v - v_j``: the tensor product of the basis functions' right-hand Taylor
     coefficients at the patch corner, so exact. The evaluation block ``((p + 1)(q + 1), 24)``
     holds the coefficients of ``A`` and its five partials side by side (shifted and scaled
-    ``H``), so one evaluation = the ``x^a y^b`` products, one matrix product, the quotient rule
-    on plain floats.
+    ``H``), so one evaluation = the ``x^a y^b`` products, the block's rows scaled by them and
+    summed in row order, the quotient rule on plain floats.
     """
 
     def __init__(self, surface: NurbsSurface):
@@ -252,6 +253,10 @@ class SurfaceSpanEvaluator:
         net = surface._homogeneous_net
         self.coefficients = [[np.einsum("ai,bj,ijc->abc", tu, tv, net) for tv in Tv] for tu in Tu]
         self._blocks = [[self._block(H) for H in row] for row in self.coefficients]
+        self.patches = np.array(self._blocks)
+        """the patches' evaluation blocks, shape ``(spans_u, spans_v, (p + 1)(q + 1), 24)``"""
+        self.starts_u, self.starts_v = np.array(self._starts_u), np.array(self._starts_v)
+        """the patches' first parameters, shapes ``(spans_u,)`` and ``(spans_v,)``"""
 
     @staticmethod
     def _block(H: np.ndarray) -> np.ndarray:
@@ -278,7 +283,10 @@ class SurfaceSpanEvaluator:
             px.append(px[-1] * x)
         for _ in range(self.degree_v):
             py.append(py[-1] * y)
-        return (np.array([a * b for a in px for b in py]) @ self._blocks[i][j]).tolist()
+        # the monomials' rows summed in row order, term by term (a BLAS product sums in an order
+        # of its own): the compiled evaluation (cnc_twin.dsp.span_kernel) gives the same bits
+        terms = np.array([a * b for a in px for b in py])[:, None] * self._blocks[i][j]
+        return np.add.accumulate(terms, axis=0)[-1].tolist()
 
     def evaluate(self, u: float, v: float) -> tuple[list[float], ...]:
         """``(S, S_u, S_v, S_uu, S_uv, S_vv)`` at scalar ``(u, v)`` (clamped), each a list of 3 floats."""

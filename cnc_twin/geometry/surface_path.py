@@ -142,19 +142,24 @@ class SurfacePathEvaluator:
 
     def tool_axis(self, lead: float, tilt: float) -> tuple[float, float, float]:
         """The tool axis at the last evaluated point (see the module docstring)."""
-        su, sv, c1 = self.last_su, self.last_sv, self.last_c1
-        nx, ny, nz = su[1] * sv[2] - su[2] * sv[1], su[2] * sv[0] - su[0] * sv[2], su[0] * sv[1] - su[1] * sv[0]
-        if nz < 0.0:  # out of the material: up
-            nx, ny, nz = -nx, -ny, -nz
-        inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
-        nx, ny, nz = nx * inv, ny * inv, nz * inv
-        if lead == 0.0 and tilt == 0.0:
-            return nx, ny, nz
-        dot = c1[0] * nx + c1[1] * ny + c1[2] * nz
-        fx, fy, fz = c1[0] - dot * nx, c1[1] - dot * ny, c1[2] - dot * nz
-        inv = 1.0 / math.sqrt(fx * fx + fy * fy + fz * fz)
-        fx, fy, fz = fx * inv, fy * inv, fz * inv
-        sx, sy, sz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
-        cl, sl, ct, st = math.cos(lead), math.sin(lead), math.cos(tilt), math.sin(tilt)
-        return ((nx * cl + fx * sl) * ct + sx * st, (ny * cl + fy * sl) * ct + sy * st,
-                (nz * cl + fz * sl) * ct + sz * st)
+        return tool_axis_at(self.last_su, self.last_sv, self.last_c1, lead, tilt)
+
+
+def tool_axis_at(su, sv, c1, lead: float, tilt: float) -> tuple[float, float, float]:
+    """The tool axis (unit, 3 floats) from the surface tangents ``su``, ``sv`` and the path's
+    ``c1 = C'`` at a point (3 floats each), with ``lead`` and ``tilt`` [rad] (module docstring)."""
+    nx, ny, nz = su[1] * sv[2] - su[2] * sv[1], su[2] * sv[0] - su[0] * sv[2], su[0] * sv[1] - su[1] * sv[0]
+    if nz < 0.0:  # out of the material: up
+        nx, ny, nz = -nx, -ny, -nz
+    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx * inv, ny * inv, nz * inv
+    if lead == 0.0 and tilt == 0.0:
+        return nx, ny, nz
+    dot = c1[0] * nx + c1[1] * ny + c1[2] * nz
+    fx, fy, fz = c1[0] - dot * nx, c1[1] - dot * ny, c1[2] - dot * nz
+    inv = 1.0 / math.sqrt(fx * fx + fy * fy + fz * fz)
+    fx, fy, fz = fx * inv, fy * inv, fz * inv
+    sx, sy, sz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
+    cl, sl, ct, st = math.cos(lead), math.sin(lead), math.cos(tilt), math.sin(tilt)
+    return ((nx * cl + fx * sl) * ct + sx * st, (ny * cl + fy * sl) * ct + sy * st,
+            (nz * cl + fz * sl) * ct + sz * st)

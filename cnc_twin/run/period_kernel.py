@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit
 
-from cnc_twin.dsp import curve_kernel
+from cnc_twin.dsp import curve_kernel, span_kernel
 from cnc_twin.run import c_clock, servo_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
@@ -53,7 +53,7 @@ from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
 # the batch kernel calls the curve stepper, the servo ticks and the clock: recompile when they change
-purge_stale(__file__, [curve_kernel.__file__, servo_kernel.__file__, c_clock.__file__, feed_slew.__file__])
+purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, servo_kernel.__file__, c_clock.__file__, feed_slew.__file__])
 
 _stop_distance = njit(cache=True)(feed_slew.stop_distance)
 """the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
@@ -84,7 +84,7 @@ def _scurve_state(phases, times, duration, length, v0, v1, t, out):
     if t <= 0.0:
         out[0], out[1], out[2] = 0.0, v0, 0.0
         return
-    p = curve_kernel.bisect_right(times, t) - 1
+    p = span_kernel.bisect_right(times, t) - 1
     t0, s0, pv0, a0, jk = phases[p, 0], phases[p, 1], phases[p, 2], phases[p, 3], phases[p, 4]
     dt = t - t0
     out[0] = s0 + dt * (pv0 + dt * (0.5 * a0 + dt * jk / 6.0))
@@ -117,7 +117,8 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
 
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
     ``servo_kernel.run_ticks`` but the first row; ``feed`` / ``check`` / ``cs``: the blocks
-    above (updated to the last committed period); ``sstate`` the stepper's state; ``axis_args``:
+    above (updated to the last committed period); ``curve_args``: the path's ``ev``
+    (:mod:`cnc_twin.dsp.span_kernel`) and the corrector flag; ``sstate`` the stepper's state; ``axis_args``:
     the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: the tool axis is held) and the
     head geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
     displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit,
@@ -127,7 +128,8 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
     """
     (model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
-    starts, blocks, lo, hi, d, correct = curve_args
+    ev, correct = curve_args
+    d = span_kernel.path_dim(ev)
     a_starts, a_blocks, a_lo, a_hi, a_d, head = axis_args
     tilting = a_starts.shape[0] > 0
     direction = np.empty(3)
@@ -186,11 +188,11 @@ def run_periods(n_max, mode, servo_args, feed, phases, times, v1, curve_args, ss
             # --- the curve, tentatively (committed below) ---
             trial[:] = sstate
             if ds > 0.0:
-                curve_kernel.step(starts, blocks, lo, hi, d, correct, ds, trial, sscratch)
+                curve_kernel.step(ev, correct, ds, trial, sscratch)
             for i in range(n):
                 pose[i] = trial[2 + 2 * d + i] if i < 3 else check[HOLD, i - 3]
             if tilting:  # Curve.pose: the tool axis at u, then the head's inverse kinematics
-                curve_kernel.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1, a_c2)
+                span_kernel.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1, a_c2)
                 _pose_to_axes(trial[2 + 2 * d:2 + 3 * d], direction, head[0], head[1], pose)
             for i in range(n):
                 setpoint[i] = (pose[i] - check[POWER_ON, i]) * check[CPU, i]
@@ -306,8 +308,8 @@ class PeriodBatch:
         self.switches = np.array([(i, bit, adr, sign) for i, bit, adr, sign in plant_switches],
                                  dtype=np.float64).reshape(-1, 4)
         self._segment = None
-        self._no_curve = (np.zeros(1), np.zeros((1, 2, 12)), 0.0, 1.0, 3, True)
-        self._no_stepper = (np.zeros(11), np.zeros(21))
+        self._no_curve = (curve_kernel.NO_PATH, True)
+        self._no_stepper = (np.zeros(curve_kernel.state_size(3)), np.zeros(curve_kernel.scratch_size(3)))
         self._no_phases = (np.zeros((7, 5)), np.zeros(7))
         self._no_axis = (np.zeros(0), np.zeros((0, 2, 12)), 0.0, 1.0, 3, np.zeros((2, 3)))
         self.periods = 0
@@ -387,7 +389,7 @@ class PeriodBatch:
             axis_args = self._axis_args
             stepper = segment.curve.stepper
             phases, times, v1 = self._phases, self._times, prof.v1
-            curve_args, sstate, sscratch = (*stepper._args, stepper.correct), stepper._state, stepper._scratch
+            curve_args, sstate, sscratch = (stepper._args, stepper.correct), stepper._state, stepper._scratch
             feed[S_DONE] = interp._s
             feed[QUEUED_PATH] = interp._queued_path
             feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
