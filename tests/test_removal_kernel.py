@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from cnc_twin import load_scenario
+from cnc_twin.machine.workpiece import PAD_CONTACT_SLOTS
+from cnc_twin.polishing import removal_kernel as rk
 from cnc_twin.polishing.polish import FRICTION_SPEED, friction_wrench
 from cnc_twin.polishing.removal import PrestonModel, RemovalGrid
 from cnc_twin.run.twin import Twin
@@ -60,8 +62,14 @@ def test_a_polishing_run_gives_the_same_trace_and_map_compiled_or_not(tmp_path):
     runs = {}
     for compiled in (True, False):
         twin = Twin(scenario, compiled=compiled)
-        runs[compiled] = (twin.run(), twin.removal.model_removal.depth.copy())
-    (fast, fast_depth), (ref, ref_depth) = runs[True], runs[False]
+        assert twin.removal.compiled == compiled
+        runs[compiled] = (twin.run(), twin.removal.model_removal.depth.copy(), twin.removal.totals.copy())
+    (fast, fast_depth, fast_totals), (ref, ref_depth, ref_totals) = runs[True], runs[False]
     for name in ("command", "actual", "dac", "pad_force"):
         assert np.array_equal(getattr(fast.trace, name), getattr(ref.trace, name)), name
     assert np.array_equal(fast_depth, ref_depth) and fast_depth.max() > 0
+    # contact time, force integral, updates, most pad contacts: the same (the cost is not)
+    keep = [rk.CONTACT_TIME, rk.FORCE_TIME, rk.CALLS, rk.MOST_CONTACTS]
+    assert np.array_equal(fast_totals[keep], ref_totals[keep]) and fast_totals[rk.CONTACT_TIME] > 0
+    assert 1 <= fast_totals[rk.MOST_CONTACTS] <= PAD_CONTACT_SLOTS
+    assert fast.metrics["polish"]["removal"]["contact_time_s"] == fast_totals[rk.CONTACT_TIME]

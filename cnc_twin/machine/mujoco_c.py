@@ -1,4 +1,4 @@
-"""MuJoCo's C functions for compiled (numba) kernels: ``mj_step`` and ``mj_kinematics``.
+"""MuJoCo's C functions for compiled (numba) kernels: ``mj_step``, ``mj_kinematics``, ``mj_objectVelocity``.
 
 The kernels link them by name from MuJoCo's shared library (the one the ``mujoco`` package
 ships and has already loaded) and take ``MjModel._address`` / ``MjData._address`` as the
@@ -29,6 +29,10 @@ try:
     """``mj_step(model_ptr, data_ptr)`` inside a numba kernel"""
     mj_kinematics = types.ExternalFunction("mj_kinematics", types.void(types.voidptr, types.voidptr))
     """``mj_kinematics(model_ptr, data_ptr)`` inside a numba kernel"""
+    mj_objectVelocity = types.ExternalFunction("mj_objectVelocity", types.void(
+        types.voidptr, types.voidptr, types.int32, types.int32, types.voidptr, types.int32))
+    """``mj_objectVelocity(model_ptr, data_ptr, objtype, objid, result.ctypes.data, flg_local)`` inside a
+    numba kernel: ``result`` (6,) float64 gets the object's [angular, linear] velocity"""
 except ImportError as exc:  # pragma: no cover - numba and mujoco are dependencies
     IMPORT_ERROR = str(exc)
 

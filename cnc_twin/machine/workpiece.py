@@ -13,7 +13,8 @@ where the face allows.
 
 :func:`build_model` loads the scene with ``mujoco.MjSpec``, removes the block workpiece
 (geom ``workpiece_collision``), adds the tiles (collision group 3, contype 1 / conaffinity 2 like
-the block; frictionless, with the pad, see below) and a fine visual mesh of the surface (group 2, no contact), and compiles.
+the block; frictionless, with the pad, see below), a fine visual mesh of the surface (group 2, no
+contact) and a contact sensor on the pad (:data:`PAD_CONTACTS`, read by the removal map), and compiles.
 Units: m, world frame (the workpiece body sits at the world origin).
 """
 
@@ -32,6 +33,13 @@ from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 WORKPIECE_BODY = "workpiece"
 BLOCK_GEOM = "workpiece_collision"
 PAD_GEOM = "pad_collision"
+PAD_CONTACTS = "pad_contacts"
+"""the contact sensor on the pad's geom: per slot the matches found, the contact force (normal
+first, contact frame) and the contact normal, for every pad contact in MuJoCo's order"""
+PAD_CONTACT_SLOTS = 16
+"""pad contacts the sensor reports at most (a pad on a tiled face makes 1-6)"""
+PAD_CONTACT_FIELDS = 7
+"""values per slot: found, force (3), normal (3)"""
 CONVEX_TOLERANCE = 1e-6
 """a face whose single hull stands no more than this above it is meshed as one tile [m]"""
 ONE_TILE_POINTS = 33
@@ -128,6 +136,10 @@ def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, la
         for key, value in contact.items():
             setattr(geom, key, value)
         geom.condim = 1
+    fields = sum(1 << int(f) for f in (mujoco.mjtConDataField.mjCONDATA_FOUND, mujoco.mjtConDataField.mjCONDATA_FORCE,
+                                       mujoco.mjtConDataField.mjCONDATA_NORMAL))
+    spec.add_sensor(name=PAD_CONTACTS, type=mujoco.mjtSensor.mjSENS_CONTACT, objtype=mujoco.mjtObj.mjOBJ_GEOM,
+                    objname=PAD_GEOM, intprm=[fields, 0, PAD_CONTACT_SLOTS])  # reduce 0: all, in contact order
     vertices, faces = surface.tessellate(64, 64)
     visual = spec.add_mesh(name="surface_visual")
     visual.uservert = vertices.ravel().tolist()

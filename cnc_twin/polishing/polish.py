@@ -25,6 +25,7 @@ from cnc_twin.dsp.force import ForceState
 from cnc_twin.motion.scurve import ramp_distance
 from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 from cnc_twin.trace.trace import Trace
+from cnc_twin.polishing import removal_kernel as rk
 from cnc_twin.polishing.removal import Patch, PrestonModel, RemovalGrid, sequential_sum, sliding_speed
 
 CONTACT_SETTLE = 0.3
@@ -53,52 +54,109 @@ def removal_grid(surface: NurbsSurface, spacing: float, scales: tuple[float, flo
 
 
 class RemovalTracker:
-    """Accumulates the removal map from the MuJoCo state during a run."""
+    """Accumulates the removal map from the MuJoCo state during a run.
+
+    The figures it keeps (``totals``, float64, indexed as in
+    :mod:`cnc_twin.polishing.removal_kernel`): contact time [s], the integral of the contact force
+    [N s], updates, their wall-clock cost [ns], and the most pad contacts seen at once.
+    """
 
     def __init__(self, preston: Preston, friction: float | None, surface: NurbsSurface, model: mujoco.MjModel,
                  data: mujoco.MjData, period: float, *, compiled: bool = True):
         """``friction``: the pad's sliding friction coefficient on the workpiece; None = the model's.
-        ``compiled``: each update in one compiled call (:mod:`cnc_twin.polishing.removal_kernel`);
+        ``compiled``: each update in one compiled call (:func:`~cnc_twin.polishing.removal_kernel.tracker_update`);
         False: the numpy reference (the same numbers bit for bit)."""
+        from cnc_twin.machine import mujoco_c
+        from cnc_twin.machine.workpiece import PAD_CONTACT_FIELDS, PAD_CONTACTS, pad_friction
+
         p = preston
-        self.compiled = compiled
+        self.compiled = compiled and mujoco_c.available()
         self.surface = surface
         self.scales = parameter_scales(self.surface)[:2]
         self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
-        self.model_removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
-                                          pad_modulus=p.pad_modulus)
+        self.model_removal = removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
+                                                    pad_modulus=p.pad_modulus)
         self.model, self.data = model, data
-        from cnc_twin.machine.workpiece import pad_friction
-
         self.friction = friction if friction is not None else pad_friction(model)
         self.dt = p.every * period
         self.every = p.every
         self._site = model.site("tool_site").id
         self._pad_body = model.body("pad").id
-        pad_geom = model.geom("pad_collision").id
-        self._pad_geom = pad_geom
+        sensor = model.sensor(PAD_CONTACTS)
+        self._contacts = (int(model.sensor_adr[sensor.id]), int(model.sensor_intprm[sensor.id, 2]))
+        """the pad's contact sensor: its address in ``sensordata`` and its slots"""
         self._velocity = np.zeros(6)
-        self._wrench = np.zeros(6)
-        self.force_time_integral = 0.0
+        self.totals = np.zeros(rk.N_TOTALS)
+        self.ids = np.array([self._site, self._pad_body, *self._contacts, PAD_CONTACT_FIELDS], dtype=np.int64)
+        params = np.zeros(rk.N_PARAMS)
+        params[[rk.RADIUS, rk.SLAB, rk.MODULUS, rk.K_DT, rk.MU, rk.FRICTION_SPEED, rk.DT]] = (
+            removal.pad_radius, removal.slab, removal.pad_modulus, removal.preston_k * self.dt, self.friction,
+            FRICTION_SPEED, self.dt)
+        params[[rk.BALL_R2, rk.MARGIN2]] = removal.ball_limits
+        self.params = params
+        points = len(self.grid.points)
+        # the compiled update's ball of candidates: indices, packed rows, centre and size
+        self._ball_idx, self._ball = np.zeros(points, dtype=np.intp), np.zeros((7, points))
+        self._ball_state = np.array([np.inf, np.inf, np.inf, 0.0])
+
+    @property
+    def calls(self) -> int:
+        """updates so far"""
+        return int(self.totals[rk.CALLS])
+
+    @property
+    def cost_ns(self) -> float:
+        """their wall-clock cost [ns]"""
+        return float(self.totals[rk.COST_NS])
+
+    @property
+    def force_time_integral(self) -> float:
         """integral of the pad's contact normal force over time [N s]"""
-        self.calls = 0
-        self.cost_ns = 0
+        return float(self.totals[rk.FORCE_TIME])
+
+    @property
+    def contact_time(self) -> float:
+        """time with a contact patch [s]"""
+        return float(self.totals[rk.CONTACT_TIME])
+
+    def finished_map(self) -> PrestonModel:
+        """The removal map, its contact time the run's (the compiled update keeps it in ``totals``)."""
+        self.model_removal.contact_time = self.contact_time
+        return self.model_removal
+
+    def kernel_args(self) -> tuple:
+        """The arguments of :func:`~cnc_twin.polishing.removal_kernel.tracker_update`."""
+        d = self.data
+        return (self.model._address, d._address, d.sensordata, d.xmat, d.site_xpos, d.xipos, d.xfrc_applied, self.ids,
+                self.params, self.model_removal._packed, self.model_removal.depth, self._ball_idx, self._ball,
+                self._ball_state, self._velocity, self.totals)
 
     def contact_force(self) -> float:
         """Normal force of the pad's contacts along the tool axis [N] (a contact on a tile's side
-        face, pushing sideways, does not press the pad onto the surface)."""
-        d, total = self.data, 0.0
-        axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
-        for i in range(d.ncon):
-            c = d.contact[i]
-            if c.geom1 == self._pad_geom or c.geom2 == self._pad_geom:
-                mujoco.mj_contactForce(self.model, d, i, self._wrench)
-                total += self._wrench[0] * abs(float(c.frame[:3] @ axis))
-        return total
+        face, pushing sideways, does not press the pad onto the surface): from the pad's contact
+        sensor, slot by slot in MuJoCo's contact order (what ``mj_contactForce`` gives per contact)."""
+        adr, slots = self._contacts
+        fields = int(self.ids[rk.FIELDS])
+        sd = self.data.sensordata
+        ax = self.data.xmat[self._pad_body]
+        found = int(sd[adr])
+        self.totals[rk.MOST_CONTACTS] = max(self.totals[rk.MOST_CONTACTS], found)
+        total = 0.0
+        for i in range(min(found, slots)):
+            base = adr + fields * i
+            total += sd[base + 1] * abs((sd[base + 4] * ax[2] + sd[base + 5] * ax[5]) + sd[base + 6] * ax[8])
+        return float(total)
 
     def update(self) -> None:
         """Add the removal of the last ``every`` periods (called once per such interval)."""
         started = time.perf_counter_ns()
+        if self.compiled:
+            rk.tracker_update(*self.kernel_args())
+        else:
+            self._update_reference()
+        self.totals[rk.COST_NS] += time.perf_counter_ns() - started
+
+    def _update_reference(self) -> None:
         d = self.data
         force = self.contact_force()
         wrench = d.xfrc_applied[self._pad_body]
@@ -108,24 +166,23 @@ class RemovalTracker:
             tip = d.site_xpos[self._site]
             axis = d.xmat[self._pad_body].reshape(3, 3)[:, 2]
             removal = self.model_removal
-            if self.compiled:  # written into the wrench only with a patch: else it stays zero
-                removal.step_compiled(tip, axis, force, self._velocity[3:], self._velocity[:3], self.dt,
-                                      d.xipos[self._pad_body], self.friction, FRICTION_SPEED, wrench)
-            else:
-                patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
-                if patch is not None:
-                    removal.add(patch, self.dt)
-                    wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
-            self.force_time_integral += force * self.dt
-        self.calls += 1
-        self.cost_ns += time.perf_counter_ns() - started
+            patch = removal.patch(tip, axis, force, self._velocity[3:], self._velocity[:3])
+            if patch is not None:
+                removal.add(patch, self.dt)
+                self.totals[rk.CONTACT_TIME] += self.dt
+                wrench[:] = friction_wrench(patch, removal.grid.areas, tip, d.xipos[self._pad_body], self.friction)
+            self.totals[rk.FORCE_TIME] += force * self.dt
+        self.totals[rk.CALLS] += 1.0
 
     def warm_up(self) -> None:
-        """Compile (or load) the compiled update before the run's clock starts."""
+        """Compile (or load) the compiled update before the run's clock starts: one update of the
+        machine as it stands (the run's types), into copies of everything it writes."""
         if self.compiled:
-            from cnc_twin.polishing import removal_kernel
-
-            removal_kernel.warm_up()
+            rk.warm_up()
+            args = list(self.kernel_args())
+            for i in (6, 10, 11, 12, 13, 14, 15):  # xfrc_applied, depth, the ball, velocity, totals
+                args[i] = args[i].copy()
+            rk.tracker_update(*args)
 
 
 FRICTION_SPEED = 1e-3
@@ -217,7 +274,8 @@ def removal_metrics(tracker: RemovalTracker, wall_time: float, band: np.ndarray 
         "volume_mm3": model.volume() * 1e9,
         "touched": model.stats(),
         "middle_band": model.stats(touched_band) if touched_band is not None and np.any(touched_band) else None,
-        "contact_time_s": model.contact_time,
+        "contact_time_s": tracker.contact_time,
+        "most_pad_contacts": int(tracker.totals[rk.MOST_CONTACTS]),
         "force_time_integral_ns": tracker.force_time_integral,
         "grid_points": int(len(model.depth)),
         "updates": tracker.calls,

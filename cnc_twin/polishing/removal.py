@@ -32,9 +32,10 @@ component along the surface normal: ``V = |v - (v . n) n|``.
 Over a time step ``dt``: ``depth_i += k_p * p_i * V_i * dt``. SI units throughout (m, N, s, rad).
 
 Cost: :meth:`PrestonModel.accumulate` runs every few milliseconds of simulated time, so it only
-touches the points near the pad: a KD-tree ball query of radius ``sqrt(R^2 + slab^2) + margin``,
-cached and reused while the tip stays within ``margin`` (0.1 R) of the ball's centre; the rest is
-vectorised over those points.
+touches the points near the pad: the ball of radius ``sqrt(R^2 + slab^2) + margin`` around the tip,
+found by one pass over the grid and reused while the tip stays within ``margin`` (0.1 R) of the
+ball's centre; the rest is vectorised over those points. Every distance is summed x, y, z in that
+order, so the compiled update (:mod:`cnc_twin.polishing.removal_kernel`) finds the same ball.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -121,9 +121,10 @@ def sliding_speed(v: np.ndarray) -> np.ndarray:
 
 
 def _unit(axis) -> np.ndarray:
-    """``axis`` (3,) as a unit vector (float64); ValueError when it is zero."""
+    """``axis`` (3,) as a unit vector (float64), its length summed x, y, z in order; ValueError
+    when it is zero."""
     a = np.asarray(axis, dtype=np.float64)
-    norm = np.linalg.norm(a)
+    norm = math.sqrt((a[0] * a[0] + a[1] * a[1]) + a[2] * a[2])
     if not norm > 0:
         raise ValueError(f"tool axis must be non-zero, got {axis}")
     return a / norm
@@ -164,13 +165,14 @@ class PrestonModel:
         self.pad_modulus, self.slab = float(pad_modulus), float(slab)
         self.depth = np.zeros(len(grid.points))
         self.contact_time = 0.0
-        self._tree = cKDTree(grid.points)
         # every candidate has rho <= R and |h| <= slab, so it lies within this ball of the tip
         self._reach = math.hypot(self.pad_radius, self.slab) * (1 + 1e-9)
-        # The tip moves well under a millimetre between calls: one ball query of radius reach +
-        # margin serves every tip within margin of its centre (exactly: the triangle inequality),
-        # so the costly query (a Python list) is amortised over many calls.
+        # The tip moves well under a millimetre between calls: one ball of radius reach + margin
+        # serves every tip within margin of its centre (exactly: the triangle inequality), so the
+        # pass over the whole grid is amortised over many calls.
         self._margin = 0.1 * self.pad_radius
+        self.ball_limits = np.array([(self._reach + self._margin) ** 2, self._margin * self._margin])
+        """squared radius of the ball and squared margin of its reuse [m^2]"""
         # packed rows x y z nx ny nz area, one row each (structure of arrays): one gather per query
         self._packed = np.ascontiguousarray(np.vstack([grid.points.T, grid.normals.T, grid.areas]))
         self._ball_centre = np.full(3, np.inf)
@@ -179,12 +181,16 @@ class PrestonModel:
     def _near(self, tip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Indices (k,) and packed rows (7, k) of a superset of the points within reach of ``tip``."""
         off = tip - self._ball_centre
-        if not off @ off <= self._margin ** 2:
-            idx = self._tree.query_ball_point(tip, self._reach + self._margin, return_sorted=True)
-            self._ball_idx = np.asarray(idx, dtype=np.intp)
+        if not (off[0] * off[0] + off[1] * off[1]) + off[2] * off[2] <= self.ball_limits[1]:
+            self._ball_idx = self._ball_around(tip)
             self._ball = np.take(self._packed, self._ball_idx, axis=1)
             self._ball_centre = tip.copy()
         return self._ball_idx, self._ball
+
+    def _ball_around(self, tip: np.ndarray) -> np.ndarray:
+        """Indices (increasing) of the grid points within the ball's radius of ``tip``."""
+        r = self._packed[:3] - tip[:, None]
+        return np.flatnonzero((r[0] * r[0] + r[1] * r[1]) + r[2] * r[2] <= self.ball_limits[0])
 
     def _contact(self, tip, axis, force):
         """Points in contact: indices (k,), pressures (k,) [Pa], r = q - tip (3, k), normals (3, k)."""

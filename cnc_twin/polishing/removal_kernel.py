@@ -1,5 +1,8 @@
 """The removal map's update, compiled: the contact patch, its Preston removal and the pad's
-friction wrench in one call.
+friction wrench in one call (:func:`removal_step`), and the whole update of
+:class:`~cnc_twin.polishing.polish.RemovalTracker` from MuJoCo's data (:func:`tracker_update`: the
+pad's contact force from its contact sensor, the tip's velocity, the ball of candidates, the
+step, the wrench into ``xfrc_applied``), which the polishing batch calls between periods.
 
 :meth:`~cnc_twin.polishing.removal.PrestonModel.patch`, :meth:`~cnc_twin.polishing.removal.PrestonModel.add`
 and :func:`~cnc_twin.polishing.polish.friction_wrench` are the reference (numpy over the
@@ -18,9 +21,21 @@ import numpy as np
 from numba import njit
 
 from cnc_twin.core.kernel_cache import purge_stale
+from cnc_twin.machine import mujoco_c
 
+# the whole update calls MuJoCo through mujoco_c's bindings: recompile when they change
+purge_stale(__file__, [mujoco_c.__file__])
 
-purge_stale(__file__, [])
+# the tracker's totals (float64): what RemovalTracker.update accumulates
+CONTACT_TIME, FORCE_TIME, CALLS, COST_NS, MOST_CONTACTS = range(5)
+N_TOTALS = 5
+# the tracker's parameters (float64)
+RADIUS, SLAB, MODULUS, K_DT, MU, FRICTION_SPEED, DT, BALL_R2, MARGIN2 = range(9)
+N_PARAMS = 9
+# the tracker's ids (int64): the tool site, the pad body, the contact sensor's address and slots
+SITE, PAD_BODY, SENSOR_ADR, SLOTS, FIELDS = range(5)
+_MJOBJ_SITE = 6
+"""``mujoco.mjtObj.mjOBJ_SITE``"""
 
 
 @njit(cache=True, error_model="numpy")
@@ -115,6 +130,74 @@ def removal_step(ball_idx, ball, tip, a, force, radius, slab, modulus, k_dt, v_t
         return -1
     wrench[0], wrench[1], wrench[2], wrench[3], wrench[4], wrench[5] = f0, f1, f2, t0, t1, t2
     return touched
+
+
+@njit(cache=True, error_model="numpy")
+def contact_force(sensordata, ids, ax0, ax1, ax2, totals):
+    """The pad's contact normal force along the (not necessarily unit) axis ``ax`` [N], as
+    :meth:`RemovalTracker.contact_force`: slot by slot of the contact sensor, in MuJoCo's contact
+    order; ``totals[MOST_CONTACTS]`` keeps the most contacts seen."""
+    adr, slots, fields = ids[SENSOR_ADR], ids[SLOTS], ids[FIELDS]
+    found = int(sensordata[adr])
+    if found > totals[MOST_CONTACTS]:
+        totals[MOST_CONTACTS] = found
+    total = 0.0
+    for i in range(min(found, slots)):
+        base = adr + fields * i
+        dot = (sensordata[base + 4] * ax0 + sensordata[base + 5] * ax1) + sensordata[base + 6] * ax2
+        total += sensordata[base + 1] * abs(dot)
+    return total
+
+
+@njit(cache=True, error_model="numpy")
+def _refresh_ball(packed, tip, limit2, ball_idx, ball):
+    """The grid points within the ball around ``tip`` into ``ball_idx`` / ``ball`` (their first
+    columns); how many. As :meth:`PrestonModel._ball_around` and its gather."""
+    n = 0
+    for j in range(packed.shape[1]):
+        r0, r1, r2 = packed[0, j] - tip[0], packed[1, j] - tip[1], packed[2, j] - tip[2]
+        if (r0 * r0 + r1 * r1) + r2 * r2 <= limit2:
+            ball_idx[n] = j
+            for row in range(7):
+                ball[row, n] = packed[row, j]
+            n += 1
+    return n
+
+
+if mujoco_c.IMPORT_ERROR is None:
+    _mj_object_velocity = mujoco_c.mj_objectVelocity
+
+    @njit(cache=True, error_model="numpy")
+    def tracker_update(model_ptr, data_ptr, sensordata, xmat, site_xpos, xipos, xfrc, ids, params, packed, depth,
+                       ball_idx, ball, ball_state, velocity, totals):  # pragma: no cover - compiled
+        """One update of the removal map from MuJoCo's data, as :meth:`RemovalTracker.update` on the
+        reference path: ``xfrc[pad body]`` gets the friction wrench (zero without contact), ``depth``
+        the removal, ``totals`` the figures. ``ball_state``: the ball's centre (3) and size;
+        ``velocity`` (6,) scratch."""
+        site, body = ids[SITE], ids[PAD_BODY]
+        ax0, ax1, ax2 = xmat[body, 2], xmat[body, 5], xmat[body, 8]  # the pad's z axis
+        force = contact_force(sensordata, ids, ax0, ax1, ax2, totals)
+        wrench = xfrc[body]
+        for i in range(6):
+            wrench[i] = 0.0
+        if force > 0.0:
+            _mj_object_velocity(model_ptr, data_ptr, _MJOBJ_SITE, site, velocity.ctypes.data, 0)
+            tip = site_xpos[site]
+            norm = math.sqrt((ax0 * ax0 + ax1 * ax1) + ax2 * ax2)
+            a = np.empty(3)
+            a[0], a[1], a[2] = ax0 / norm, ax1 / norm, ax2 / norm
+            o0, o1, o2 = tip[0] - ball_state[0], tip[1] - ball_state[1], tip[2] - ball_state[2]
+            if not (o0 * o0 + o1 * o1) + o2 * o2 <= params[MARGIN2]:
+                ball_state[3] = _refresh_ball(packed, tip, params[BALL_R2], ball_idx, ball)
+                ball_state[0], ball_state[1], ball_state[2] = tip[0], tip[1], tip[2]
+            n = int(ball_state[3])
+            touched = removal_step(ball_idx[:n], ball[:, :n], tip, a, force, params[RADIUS], params[SLAB],
+                                   params[MODULUS], params[K_DT], velocity[3:], velocity[:3], xipos[body], params[MU],
+                                   params[FRICTION_SPEED], depth, wrench)
+            if touched >= 0:
+                totals[CONTACT_TIME] += params[DT]
+            totals[FORCE_TIME] += force * params[DT]
+        totals[CALLS] += 1.0
 
 
 def warm_up() -> None:

@@ -249,7 +249,7 @@ class Twin:
             metrics["status"] = "fault"
         latency = (np.asarray(port.latency_period, dtype=np.int64), np.asarray(port.latency_ns, dtype=np.float64) / 1e3)
         return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency,
-                         removal=None if self.removal is None else self.removal.model_removal)
+                         removal=None if self.removal is None else self.removal.finished_map())
 
 
 def _release(planner: PlannerProcess | None, planners: PlannerPool | None) -> None:
