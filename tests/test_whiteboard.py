@@ -155,7 +155,7 @@ def test_benchmark_paths_move_and_verify_every_record():
 
 @pytest.mark.parametrize("path", ["batched", "compiled-servo", "python-servo"])
 def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, monkeypatch):
-    from cnc_twin.run.period_kernel import PeriodBatch
+    from cnc_twin.run.period_batch import PeriodBatch
     from cnc_twin.run.twin import Twin
 
     twin = Twin(JOG, compiled=path != "python-servo", batch=path == "batched")

@@ -200,6 +200,13 @@ if mujoco_c.IMPORT_ERROR is None:
         totals[CALLS] += 1.0
 
 
+def no_tracker() -> tuple:
+    """Arguments of :func:`tracker_update`'s types for a run without a removal map (never called)."""
+    return (0, 0, np.zeros(1), np.zeros((1, 9)), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 6)),
+            np.zeros(5, dtype=np.int64), np.zeros(N_PARAMS), np.zeros((7, 0)), np.zeros(0), np.zeros(0, dtype=np.intp),
+            np.zeros((7, 0)), np.zeros(4), np.zeros(6), np.zeros(N_TOTALS))
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) before a run's clock starts."""
     ball = np.zeros((7, 1))

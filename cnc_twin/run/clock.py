@@ -14,10 +14,10 @@ Where periods differ, the variants are named:
 
 - **hung card** (:meth:`Clock.hung_period`, fault ``dsp_hang``): no task, no servo interrupt;
   the plant steps on with the DACs held and the watchdog counts the missed ticks;
-- **batch** (:class:`cnc_twin.run.period_kernel.PeriodBatch`): lockstep and solo, in the steady
-  middle of a curve block, a move or a dwell, up to 64 whole periods (task and ticks) in one
-  compiled call; it ends before any period that would do anything else, which then takes the
-  path above;
+- **batch** (:class:`cnc_twin.run.period_batch.PeriodBatch`): lockstep and solo, in the steady
+  middle of a curve block (a surface path's, with the force loop tracking, too), a move or a
+  dwell, up to 64 whole periods (task, ticks and removal updates) in one compiled call; it ends
+  before any period that would do anything else, which then takes the path above;
 - the servo ticks, one of (:meth:`Clock.servo_ticks` picks):
   **compiled** (analog output, drives on, no injected card fault: the four ticks with their
   physics and recording in one call, :mod:`cnc_twin.run.servo_kernel`), **drives off** (a stop
@@ -105,14 +105,14 @@ class Clock:
         self._plant_calls = (plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
                              self.recorder.record_tick)
         twin.late_periods = twin.missed_ticks = 0
-        # the steady middle of curve blocks, moves and dwells, many periods per compiled call
-        # (lockstep only: real time paces every period; not for surfaces: the removal map
-        # updates between periods)
+        # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
+        # per compiled call, the removal map's updates included (lockstep only: real time paces
+        # every period)
         twin.period_batch = self.batch = None
-        if twin.kernel is not None and twin.batch and not self.realtime and twin.removal is None:
-            from cnc_twin.run.period_kernel import PeriodBatch
+        if twin.kernel is not None and twin.batch and not self.realtime:
+            from cnc_twin.run.period_batch import PeriodBatch
 
-            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder)
+            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder, twin.removal)
             self.batch.warm_up()
 
     def run(self) -> tuple[float, int]:

@@ -117,7 +117,7 @@ class Twin:
         self.expected_periods = 0
         self.recorder: Recorder | None = None
         self.period_batch = None
-        """the run's :class:`~cnc_twin.run.period_kernel.PeriodBatch`, if it had one"""
+        """the run's :class:`~cnc_twin.run.period_batch.PeriodBatch`, if it had one"""
         self.late_periods = self.missed_ticks = 0
 
     def request_stop(self, reason: str) -> None:

@@ -1,0 +1,295 @@
+"""The card's side of the period batch: when a period can be batched, the kernel's arguments from
+the card's objects, and the objects left as the Python task would leave them.
+
+:func:`cnc_twin.run.period_kernel.run_periods` runs the periods (see that module for what a batch
+does and where it ends); :class:`PeriodBatch` decides per period whether one may start
+(:meth:`PeriodBatch._mode`), hands the kernel the state of the card, the force loop, the spindle,
+the path and the removal map, and after the call writes back everything the Python task would
+have changed (:meth:`PeriodBatch._commit`), so the next period, batched or not, starts from the
+same state.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cnc_twin.dsp import curve_kernel, force_kernel
+from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
+from cnc_twin.dsp.force import ForceState
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, SurfaceRun
+from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
+from cnc_twin.motion.scurve import SCurve
+from cnc_twin.motion.segments import MoveSegment
+from cnc_twin.polishing import removal_kernel
+from cnc_twin.run import c_clock
+from cnc_twin.run.period_kernel import (
+    A_NOW, A_STOP, ACCEL, AXIS_X, AXIS_Z, C_HOLD, C_OFFSET, CHECK_SWITCHES, COS_LEAD, COS_TILT, CPU, CURVE, DURATION,
+    DWELL, DWELL_LEFT, EVERY, FERR_LIMIT, FORCE_ON, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK,
+    MAX_BATCH, MAX_FORCE, MOVE, N_CHECK, N_CHECK_SCALARS, N_FEED, N_OUT, N_PROCESS, OPEN_END, OUT_DEPTH, OUT_MARK,
+    OUT_PATH_DS, OUT_PATH_U, OUT_TARGET, PATH_S, PERIOD, POWER_ON, PREV_ACTUAL, PREV_COMMAND, PREV_FORCE,
+    QUEUED_PATH, S_DONE, S_NOW, SAT_LIMIT, SAT_RUN, SAT_SEEN, SIN_LEAD, SIN_TILT, SOFT_HI, SOFT_LO, SPIN, SPINNING,
+    SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, TICKS, V0, V_NOW, run_periods,
+)
+from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, VELOCITY
+from cnc_twin.whiteboard.records import Dwell
+from cnc_twin.whiteboard.status import DspState
+
+
+class PeriodBatch:
+    """Runs the steady middle of curve blocks (surface paths with the force loop tracking and the
+    spindle at speed included), moves and dwells many periods per call. ``periods`` counts the
+    periods it ran.
+
+    Parameters
+    ----------
+    dsp : the card's period task; its servo must be driven by ``kernel``.
+    kernel : the compiled servo period.
+    recorder : the run's recorder.
+    removal : the run's removal map (:class:`~cnc_twin.polishing.polish.RemovalTracker`, compiled),
+        updated inside the batch every ``removal.every`` periods; None without one.
+    """
+
+    def __init__(self, dsp, kernel, recorder, removal=None):
+        self.dsp, self.kernel, self.recorder, self.removal = dsp, kernel, recorder, removal
+        self.interp = dsp.interpolator
+        self.servo = dsp.servo
+        n = self.servo.n_axes
+        self.check = np.zeros((N_CHECK, n))
+        self.cs = np.zeros(N_CHECK_SCALARS)
+        self.feed = np.zeros(N_FEED)
+        self.move = np.zeros((2, n))
+        self.process = np.zeros(N_PROCESS)
+        self.out = np.zeros((N_OUT, MAX_BATCH))
+        self.interp_ns = np.zeros(MAX_BATCH, dtype=np.int64)
+        self._timespec = c_clock.timespec()
+        interp = self.interp
+        self.check[POWER_ON] = interp.power_on
+        self.check[CPU] = interp.counts_per_unit
+        self.cs[INV_T] = self.servo._inv_period
+        self.feed[PERIOD] = interp.period
+        sup = dsp.supervisor
+        self.check[SOFT_LO], self.check[SOFT_HI] = -np.inf, np.inf
+        if sup is not None:
+            self.cs[SUPERVISED] = 1.0
+            for i, limit in sup._ferr_limit:
+                self.check[FERR_LIMIT, i] = limit
+            for i, lo, hi in sup._soft:
+                self.check[SOFT_LO, i], self.check[SOFT_HI, i] = lo, hi
+            self.cs[SAT_LIMIT] = sup._sat_limit
+            self.cs[TICKS] = sup.ticks_per_period
+            self.cs[MAX_FORCE] = sup.config.max_force
+            self.cs[CHECK_SWITCHES] = 1.0 if sup.check_switches and dsp.read_inputs is not None else 0.0
+        plant_switches = getattr(getattr(dsp.read_inputs, "__self__", None), "_switches", [])
+        self.switches = np.array([(i, bit, adr, sign) for i, bit, adr, sign in plant_switches],
+                                 dtype=np.float64).reshape(-1, 4)
+        if removal is not None:
+            self.process[EVERY] = removal.every
+            self._removal_args = removal.kernel_args()
+        else:
+            self._removal_args = removal_kernel.no_tracker()
+        self._segment = None
+        self._no_curve = (curve_kernel.NO_PATH, True)
+        self._no_stepper = (np.zeros(curve_kernel.state_size(3)), np.zeros(curve_kernel.scratch_size(3)))
+        self._no_phases = (np.zeros((7, 5)), np.zeros(7))
+        self._no_axis = (np.zeros(0), np.zeros((0, 2, 12)), 0.0, 1.0, 3, np.zeros((2, 3)))
+        self._no_lines = (np.zeros(0), np.zeros(0))
+        self.periods = 0
+        """periods run in batches so far"""
+
+    def warm_up(self) -> None:
+        """Compile the batch kernel (or load it from numba's cache) now, not in the timed run: a
+        call of no periods with arguments of the run's types."""
+        rec = self.recorder
+        servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0]), 0, 0)
+        # no periods: nothing is read or written, only the argument types count
+        run_periods(0, CURVE, 0, servo_args, self.feed, *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
+                    self._no_axis, self.move, self.check, self.cs, self.switches, self.process,
+                    force_kernel.arrays_of(self.interp.force), self._no_lines, self._removal_args, self.out, False,
+                    self.interp_ns, self._timespec)
+
+    def _servo_args(self, columns: tuple, row0: int, row_step: int) -> tuple:
+        """``servo_args`` of :func:`run_periods`: the compiled servo's arrays, the recorder's
+        ``columns`` (command, actual, dac, pad_force) and the first row and rows per period."""
+        kernel = self.kernel
+        return (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, kernel.fstate, kernel.istate,
+                kernel.scalars, kernel.fractions, kernel.tick_commands, *kernel._args_plant, *columns, row0, row_step)
+
+    def _mode(self, k: int) -> int | None:
+        """What period ``k`` would run, if it can be batched; else None."""
+        dsp, interp = self.dsp, self.interp
+        if (dsp.state != DspState.RUNNING or dsp.stop is not None or not dsp.drives_enabled or dsp.planner_lost
+                or dsp.retract is not None or not dsp.port.solo):
+            return None
+        # the card's liveness check of this period, as DspTask.begin_period makes it: a lost
+        # planner leaves the period to the Python task, which raises the fault
+        if k % SOLO_LIVENESS_PERIODS == 0 and not dsp.port.planner_alive():
+            return None
+        current = interp._current
+        if current is None or interp.hold or interp._starved_hold:
+            return None
+        # the spindle at its speed (or stopped), the force loop tracking (or off)
+        if not (interp._spin == interp.spindle_speed if interp.spindle_on else interp._spin == 0.0):
+            return None
+        force = interp.force
+        tracking = force.state == ForceState.TRACK and not force.frozen
+        if not (tracking or force.state == ForceState.OFF):
+            return None
+        if self.removal is not None and not self.removal.compiled:
+            return None
+        if interp.wants_records(QUEUE_AHEAD) and dsp.port.fifo.fill() != 0:
+            return None
+        segment = current[1]
+        if isinstance(segment, MoveSegment):
+            return MOVE if not tracking and interp.override == min(interp.override_target, interp._lam_max) else None
+        if isinstance(segment, Dwell):
+            return None if tracking else DWELL
+        curve = getattr(segment, "curve", None)
+        if (isinstance(curve, (Curve, SurfaceRun)) and isinstance(curve.stepper, CompiledCurveStepper)
+                and isinstance(segment.profile, SCurve) and interp._path_accel is None
+                and interp.override == interp.override_target * force.feed_factor):
+            return CURVE
+        return None
+
+    def _curve_args(self, segment) -> None:
+        """The per-curve arguments (S-curve phases, held axes or the head's kinematics, line marks),
+        once per block."""
+        self._segment = segment
+        prof, curve, check, process = segment.profile, segment.curve, self.check, self.process
+        self._phases = np.array(prof._starts, dtype=np.float64)
+        self._times = np.array(prof._times, dtype=np.float64)
+        self._lines = self._no_lines
+        process[SURFACE] = 0.0
+        if isinstance(curve, SurfaceRun):
+            sf = curve.surface
+            process[SURFACE], process[C_HOLD] = 1.0, curve.c_hold
+            process[LEANED] = 0.0 if sf.lead == 0.0 and sf.tilt == 0.0 else 1.0
+            process[COS_LEAD], process[SIN_LEAD] = math.cos(sf.lead), math.sin(sf.lead)
+            process[COS_TILT], process[SIN_TILT] = math.cos(sf.tilt), math.sin(sf.tilt)
+            self._axis_args = (*self._no_axis[:5], np.array([sf.pivot, sf.offset], dtype=np.float64))
+            return
+        check[HOLD, :3] = curve.hold
+        tool_axis = curve.axis
+        self._axis_args = self._no_axis if tool_axis is None else (
+            tool_axis.starts, np.ascontiguousarray(tool_axis.blocks), float(tool_axis.domain[0]),
+            float(tool_axis.domain[1]), tool_axis.dim, np.array([curve.pivot, curve.offset], dtype=np.float64))
+        if curve.line_us:
+            self._lines = (np.array(curve.line_us, dtype=np.float64), np.array(curve.line_numbers, dtype=np.float64))
+
+    def run(self, k: int, t: int, n_max: int) -> int:
+        """Run up to ``n_max`` periods from period ``k``, recorder tick ``t``; how many ran (0 when
+        period ``k`` cannot be batched: the caller runs it on the Python task)."""
+        n_max = min(n_max, MAX_BATCH, SOLO_LIVENESS_PERIODS - k % SOLO_LIVENESS_PERIODS)  # one check per batch
+        mode = self._mode(k) if n_max > 0 else None
+        if mode is None:
+            return 0
+        dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
+        kernel.load()
+        segment = interp._current[1]
+        feed, check, cs, move, process = self.feed, self.check, self.cs, self.move, self.process
+        feed[TAU], feed[LAM] = interp._tau, interp.override
+        phases, times, v1 = self._no_phases[0], self._no_phases[1], 0.0
+        curve_args, (sstate, sscratch), axis_args, lines = self._no_curve, self._no_stepper, self._no_axis, self._no_lines
+        if mode == CURVE:
+            prof = segment.profile
+            if self._segment is not segment:
+                self._curve_args(segment)
+            axis_args, lines = self._axis_args, self._lines
+            stepper = segment.curve.stepper
+            phases, times, v1 = self._phases, self._times, prof.v1
+            curve_args, sstate, sscratch = (stepper._args, stepper.correct), stepper._state, stepper._scratch
+            feed[S_DONE] = interp._s
+            feed[QUEUED_PATH] = interp._queued_path
+            feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
+            open_end = interp._path_open if interp._queue else prof.v1 > 0.0
+            feed[OPEN_END] = 1.0 if open_end else 0.0
+            feed[LENGTH], feed[DURATION], feed[V0] = prof.length, prof.duration, prof.v0
+            state = interp._block_state
+            feed[HAS_STATE] = 0.0 if state is None else 1.0
+            if state is not None:
+                feed[S_NOW], feed[V_NOW], feed[A_NOW] = state
+        elif mode == MOVE:
+            prof = segment.profile
+            feed[DURATION], feed[T_ACC], feed[ACCEL] = prof.duration, prof.t_acc, prof.accel
+            feed[T_FLAT], feed[V0] = prof.t_flat, prof.v_peak
+            move[0], move[1] = interp._start_counts, interp._delta_counts
+        else:
+            feed[DWELL_LEFT] = interp._dwell_left
+        check[HELD] = interp._hold_counts
+        force = interp.force
+        process[FORCE_ON] = 1.0 if force.state == ForceState.TRACK else 0.0
+        process[PATH_S], process[C_OFFSET], process[MARK] = interp.path_s, interp._c_offset, interp.mark
+        process[SPINNING] = 1.0 if interp.spindle_on else 0.0
+        process[SPIN] = interp._spin
+        process[AXIS_X:AXIS_Z + 1] = interp._axis
+        force_args = force_kernel.arrays_of(force)
+        n = servo.n_axes
+        frame = servo.frame
+        check[PREV_COMMAND] = frame[0:n]
+        check[PREV_ACTUAL] = frame[n:2 * n]
+        cs[PREV_FORCE] = frame[3 * n]
+        sup = dsp.supervisor
+        if sup is not None:
+            check[SAT_SEEN], check[SAT_RUN] = sup._sat_seen, sup._sat_run
+        kernel.take_setpoint()
+        servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
+                                      0 if rec.scratch else len(kernel.fractions))
+        # DspTask times the interpolation on a curve and on the way to one (its first block queued)
+        timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
+        done = run_periods(n_max, mode, k, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch,
+                           axis_args, move, check, cs, self.switches, process, force_args, lines, self._removal_args,
+                           self.out, timed, self.interp_ns, self._timespec)
+        if done:
+            self._commit(mode, segment, k, t, done, force_args[3])
+            if timed:
+                dsp.interpolator_ns.extend(self.interp_ns[:done].tolist())
+            self.periods += done
+        return done
+
+    def _commit(self, mode: int, segment, k: int, t: int, done: int, force_state: np.ndarray) -> None:
+        """Leave every object as the Python task would after period ``k + done - 1``."""
+        dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
+        feed, check, process, out = self.feed, self.check, self.process, self.out
+        if mode == CURVE:
+            curve = segment.curve
+            stepper = curve.stepper
+            stepper.u = float(stepper._state[0])
+            stepper.point = stepper._state[stepper._point].tolist()
+            interp._tau, interp._s = float(feed[TAU]), float(feed[S_DONE])
+            interp._block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
+            if isinstance(curve, SurfaceRun):
+                interp.path_s = float(process[PATH_S])
+                interp._axis = curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
+            if interp.force.state == ForceState.TRACK:
+                force_kernel.store(interp.force, force_state)
+        elif mode == MOVE:
+            interp._tau = float(feed[TAU])
+        else:
+            interp._dwell_left = int(feed[DWELL_LEFT])
+        interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
+        interp.mark = int(process[MARK])
+        interp._c_offset = float(process[C_OFFSET])
+        interp._hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
+        interp.tick_commands = None
+        interp.events = []
+        fstate = kernel.fstate
+        servo._p_prev, servo._p_next = fstate[P_PREV].tolist(), fstate[P_NEXT].tolist()
+        servo._velocity, servo._acceleration = fstate[VELOCITY].tolist(), fstate[ACCELERATION].tolist()
+        servo._tick_commands = None
+        sup = dsp.supervisor
+        if sup is not None and sup._sat_limit:
+            sup._sat_seen[:] = [int(x) for x in check[SAT_SEEN]]
+            sup._sat_run[:] = [int(x) for x in check[SAT_RUN]]
+        # the servo frame as the last period left it: the last tick, then the per-period fields
+        kernel.leave_frame(rec, rec.row(t + done * len(kernel.fractions) - 1), saturated=True)
+        dsp.write_period_fields(0)  # a batched period raises no events
+        # the period records: the fields that stay constant, then those that change per period
+        periods = rec.periods[0:1] if rec.scratch else rec.periods[k:k + done]
+        periods[:] = tuple(servo.frame[servo.period_slot:])
+        if not rec.scratch:
+            periods["path_u"] = out[OUT_PATH_U, :done]
+            periods["path_ds"] = out[OUT_PATH_DS, :done]
+            periods["force_setpoint"] = out[OUT_TARGET, :done]
+            periods["force_depth"] = out[OUT_DEPTH, :done]
+            periods["mark"] = out[OUT_MARK, :done]
