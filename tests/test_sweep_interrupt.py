@@ -228,3 +228,32 @@ def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[
             os.unlink(f"/dev/shm/{name}")
         except FileNotFoundError:
             pass
+
+
+def test_a_sigterm_lost_inside_a_c_callback_still_stops_the_run_and_then_the_worker():
+    """A worker's SIGTERM raises SystemExit from its handler; landing inside a C callback (numba
+    loading a cached kernel calls back into Python) that exception is printed and lost. The
+    running twin was asked to stop as well, and the worker leaves once the case has ended."""
+    code = """
+import ctypes, os, signal
+from cnc_twin.studies import sweep_stop
+
+class Twin:
+    reason = None
+    def request_stop(self, reason):
+        self.reason = reason
+
+sweep_stop.exit_on_sigterm()
+twin = Twin()
+callback = ctypes.CFUNCTYPE(None)(lambda: os.kill(os.getpid(), signal.SIGTERM))
+try:
+    with sweep_stop.stoppable(twin):
+        callback()
+        print("the case went on, its twin asked to stop by", twin.reason, flush=True)
+except SystemExit as exc:
+    print("the worker leaves with", exc.code, flush=True)
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "Exception ignored" in proc.stderr  # the lost SystemExit: what the fix is about
+    assert proc.stdout.splitlines() == ["the case went on, its twin asked to stop by SIGTERM",
+                                        "the worker leaves with 143"], proc.stdout

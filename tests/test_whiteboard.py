@@ -211,3 +211,25 @@ def test_card_goes_solo_once_the_program_is_streamed_and_still_notices_a_dead_pl
     assert killed and faulted.status == "fault"
     assert faulted.metrics["fault"]["code"] == "PLANNER_LOST"
     assert faulted.metrics["final_state"] == "FAULT"
+
+
+def test_the_fifo_interrupt_leaves_the_trace_as_an_exchange_every_period_does():
+    """A program larger than the FIFO (two passes of the freeform raster): with the card's
+    FIFO-threshold interrupt the planner is asked only when its next record fits, a handful of
+    exchanges instead of thousands, and every record reaches the card in the same period, so the
+    lockstep trace is the same bit for bit."""
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    runs = {}
+    for interrupt in (True, False):
+        scenario = load_scenario(scenarios_dir() / "freeform_polish.yaml", overrides={
+            "program.path.margin": 45.0, "whiteboard.fifo_interrupt": interrupt})
+        runs[interrupt] = run_scenario(scenario)
+    on, off = runs[True], runs[False]
+    fill = on.trace.period_signals.per_period("fifo_fill")
+    assert fill.max() > 0.9 * (8192 // 2 - 32)  # the FIFO was full: the planner had to wait for room
+    cols_on, cols_off = on.trace.columns(), off.trace.columns()
+    for key in cols_on:
+        assert np.array_equal(cols_on[key], cols_off[key]), key
+    assert on.metrics["whiteboard"]["exchanges"] < 20 < 1000 < off.metrics["whiteboard"]["exchanges"]
+    assert on.metrics["whiteboard"]["records_accepted"] == off.metrics["whiteboard"]["records_accepted"]

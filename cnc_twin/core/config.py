@@ -406,6 +406,9 @@ class WhiteboardConfig:
     """RAM size [16-bit words]"""
     chunk_words: int
     """most FIFO words the planner writes per exchange"""
+    fifo_interrupt: bool = True
+    """the card's FIFO-threshold interrupt: while the planner's next record does not fit, the card
+    exchanges only once it does (False: an exchange every period, however full the FIFO)"""
 
 
 PLANNER_FAULTS = frozenset({"planner_stall", "planner_delay", "planner_kill", "record_bitflip"})

@@ -12,7 +12,9 @@ Once per interpolation period, before the servo ticks::
         if bad or seq != expected_seq:        # reject, count, flush the FIFO: the PC goes back
             reject; stop                      # to expected_seq (it sees records_rejected grow)
         interpolator.push(seq, record); expected_seq += 1
-    if acquired: port.publish(status for period k)
+    if acquired and not port.quiet(): port.publish(status for period k)
+                                              # (quiet: the PC's next record does not fit the
+                                              # FIFO yet; it asked to be woken when it does)
     setpoint = interpolator.next_period()     # honours hold / override
 
 The FIFO is the card's command buffer: records stay there until the card needs them, so its
@@ -51,7 +53,8 @@ from cnc_twin.whiteboard.records import GeometryPart
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 SOLO_LIVENESS_PERIODS = 64
-"""while solo, how often the card checks that the planner process is still there [periods]"""
+"""while solo or quiet (no exchange under way), how often the card checks that the planner
+process is still there [periods]"""
 
 REST_PERIODS = 20
 """drives disabled: the axes count as at rest once no encoder has moved for this many periods"""
@@ -135,11 +138,12 @@ class DspTask:
                 acquired = self.port.acquire(k)
             except PlannerLost as exc:
                 self.raise_fault(FaultCode.PLANNER_LOST, str(exc), k)
-            if self.port.solo and k % SOLO_LIVENESS_PERIODS == 0 and not self.port.planner_alive():
+            if self.port.idle and k % SOLO_LIVENESS_PERIODS == 0 and not self.port.planner_alive():
                 self.raise_fault(FaultCode.PLANNER_LOST, "planner process exited", k)
         if self.interpolator.wants_records(QUEUE_AHEAD):
             self._accept_records()
-        if acquired:
+        # no status while the PC waits for FIFO room it has not got yet (its answer would be empty)
+        if acquired and (self.stop is not None or not self.port.quiet()):
             self._publish(k)
         interp = self.interpolator
         servo = self.servo
@@ -252,7 +256,7 @@ class DspTask:
                 # can resend from expected_seq in order (exchanging again if the card was solo).
                 self.records_rejected += 1
                 fifo.flush()
-                self.port.solo = False
+                self.port.resume()
                 return
             if record is not None:  # None: a geometry part joined, the whole record not yet complete
                 interp.push(seq, record)

@@ -34,6 +34,8 @@ class PlannerJob:
     faults: tuple[FaultInjection, ...] = ()
     lockstep: bool = True
     """plan windows inside the exchange loop (deterministic); False: in a background thread"""
+    fifo_interrupt: bool = True
+    """ask the card for the next exchange only once the next record fits (see the whiteboard's WAKE_FREE)"""
     window: float = 0.05
     """curve length planned per window [m]"""
 

@@ -78,6 +78,9 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
             wb.records_sent[0] = streamer.next_index
             wb.retransmits[0] = wb.retransmits[0] + (streamer.retransmitted - before)
             port.set_all_sent(streamer.all_sent and faults.idle)
+            # the card's FIFO-threshold interrupt: the next exchange once the next record fits
+            # (not while scheduled faults need the status stream)
+            port.set_wake(streamer.wake_free if job.fifo_interrupt and faults.idle else 0)
             port.end()
             port.set_state(L.PcState.STREAMING)
             if int(st["state"]) in (DspState.FINISHED, DspState.FAULT):

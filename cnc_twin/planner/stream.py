@@ -127,6 +127,9 @@ class Streamer:
         self.complete = False
         self._rejected_seen = 0
         self.retransmitted = 0
+        self.wake_free = 0
+        """after :meth:`answer`: 0, or the free FIFO words the next record needs when it stopped
+        for want of room (no exchange can write anything before the card has freed that much)"""
 
     def add(self, records: list[Record], periods: list[int]) -> None:
         """Encode ``records`` (``periods`` each) in order; a curve or surface longer than one
@@ -165,14 +168,18 @@ class Streamer:
         written = 0
         fifo = port.fifo
         free = fifo.free()
+        self.wake_free = 0
         while self.next_index < len(self.encoded):
             queued = on_card + (self.cumulative[self.next_index] - self.cumulative[accepted])
             if (self.lookahead_periods and queued >= self.lookahead_periods and self.next_index > executed + 1
                     and int(st["state"]) != DspState.FEED_HOLD):  # a card holding for data gets data
                 break
             words = self.encoded[self.next_index]
+            if len(words) > free:  # the FIFO must drain first, whatever the chunk budget
+                self.wake_free = len(words)
+                break
             # a record longer than the chunk goes alone, first in its exchange (else it never would)
-            if (len(words) > budget and written) or len(words) > free:
+            if len(words) > budget and written:
                 break
             if corrupt is not None:
                 words = corrupt(words)

@@ -120,7 +120,11 @@ class PeriodBatch:
         """What period ``k`` would run, if it can be batched; else None."""
         dsp, interp = self.dsp, self.interp
         if (dsp.state != DspState.RUNNING or dsp.stop is not None or not dsp.drives_enabled or dsp.planner_lost
-                or dsp.retract is not None or not dsp.port.solo):
+                or dsp.retract is not None):
+            return None
+        # no exchange due: the program all sent, or none under way and the PC waiting for room
+        port = dsp.port
+        if not (port.solo or (port.answered and port.last_posted is not None and port.quiet())):
             return None
         # the card's liveness check of this period, as DspTask.begin_period makes it: a lost
         # planner leaves the period to the Python task, which raises the fault

@@ -142,6 +142,9 @@ def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction
 class SurfaceKind(_PathKind):
     """Polishing a NURBS surface: the workpiece in the plant, the removal map, the force metrics."""
 
+    def warm_up(self, twin: Twin) -> None:
+        _warm_curve_stepper(twin)
+
     def build_plant(self, twin: Twin, obstacles: list) -> Plant:
         prog = twin.scenario.program
         return _workpiece_plant(twin, obstacles, prog.surface, prog.preston, prog.friction, prog.surface_tile_size)

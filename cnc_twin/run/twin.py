@@ -98,6 +98,7 @@ class Twin:
             lookahead_periods=lookahead_periods(scenario),
             faults=tuple(f for f in scenario.faults if f.kind in PLANNER_FAULTS),
             lockstep=timing.mode == "lockstep",
+            fifo_interrupt=scenario.whiteboard.fifo_interrupt,
         )
         self.supervisor = Supervisor(scenario.axes, scenario.supervisor, power_on=scenario.home,
                                      period=timing.interpolation_period, ticks_per_period=timing.ticks_per_period,

@@ -155,6 +155,8 @@ class WhiteboardSpec(Strict):
 
     words: int = Field(8192, description="size [16-bit words]; a power of two from 2048 to 32768")
     chunk: int = Field(4096, ge=64, description="most bytes of records the planner writes per exchange [bytes]")
+    fifo_interrupt: bool = Field(True, description="the card's FIFO-threshold interrupt: while the planner's next "
+                                 "record does not fit, no exchange until it does (false: an exchange every period)")
 
     @model_validator(mode="after")
     def _power_of_two(self) -> "WhiteboardSpec":

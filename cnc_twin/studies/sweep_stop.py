@@ -31,6 +31,8 @@ _stopped = False
 """in a worker: SIGINT or SIGTERM came; cases from now on are not run"""
 _running: Any = None
 """in a worker: the twin of the case running now (a SIGINT asks it to stop)"""
+_terminated = False
+"""in a worker: SIGTERM came; the worker leaves once the case running has cleaned up"""
 
 
 class SweepStop:
@@ -119,8 +121,13 @@ def exit_on_sigterm() -> None:
 
 
 def _on_sigterm(signum, _frame) -> None:
-    global _stopped
-    _stopped = True
+    global _stopped, _terminated
+    _stopped = _terminated = True
+    # The SystemExit below is lost when the signal lands inside a C callback (numba loading a
+    # kernel from its cache calls back into Python): the running twin then stops at its next
+    # period anyway, and the worker leaves as the case ends (stoppable).
+    if _running is not None:
+        _running.request_stop("SIGTERM")
     raise SystemExit(128 + signum)
 
 
@@ -148,3 +155,5 @@ def stoppable(twin) -> Iterator[None]:
         yield
     finally:
         _running = None
+    if _terminated:  # a SIGTERM whose SystemExit was lost: the run has cleaned up, now leave
+        raise SystemExit(128 + signal.SIGTERM)

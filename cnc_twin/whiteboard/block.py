@@ -60,6 +60,7 @@ class Whiteboard:
         self.PC_VERSION = pc + L.PC_VERSION
         self.HOLD = pc + L.PC_HOLD
         self.ALL_SENT = pc + L.PC_ALL_SENT
+        self.WAKE_FREE = pc + L.PC_WAKE_FREE
         self.HOLDA = dsp + L.DSP_HOLDA
         self.SHUTDOWN = dsp + L.DSP_SHUTDOWN
         self.MAILBOX_TO_DSP = layout.mailbox_to_dsp

@@ -74,6 +74,11 @@ class FifoReader:
         """Words published up to the snapshot and not yet consumed."""
         return (self._limit - int(self._read[0])) % _U32
 
+    def free(self) -> int:
+        """Free words as of the snapshot (what the PC's :meth:`FifoWriter.free` was when it answered,
+        plus what the card has consumed since)."""
+        return self.capacity - self.fill()
+
     def _take(self, pos: int, n: int) -> np.ndarray:
         end = pos + n
         if end <= self.capacity:

@@ -50,6 +50,8 @@ PC_PLAN_US = 20       # u32, wall-clock time the planner spent planning the prog
 PC_PLAN_BLOCKS = 22   # u32, motion blocks (moves, curve blocks) it planned
 PC_ALL_SENT = 24      # u16, 1 when the whole program is in the FIFO and no fault is scheduled:
                       # the card may stop exchanging (it resumes to ask for a resend)
+PC_WAKE_FREE = 25     # u16, 0, or the free FIFO words the PC's next record needs: the card need
+                      # not exchange until its FIFO has that much room (its FIFO-threshold interrupt)
 
 # DSP control block, word offsets from the DSP half's base.
 DSP_HOLDA = 0         # u16, 1 while the bus is granted to the PC

@@ -12,10 +12,19 @@ Per period ``k`` on the DSP::
 
     acquire(k):  lockstep  -> wait for the PC's ack of the last status (planner-lost checks while waiting)
                  real-time -> if no ack yet or HOLD high: missed exchange, skip the rest this period
+                 (no status outstanding, the card having skipped its last publish: nothing to wait for)
     poll():      during a stop, either mode -> take the bus only if the PC has answered; else skip
                  the rest this period (no wait, no miss counted, no FIFO snapshot)
-    (the FIFO's write index is snapshotted: records up to it are consumed as the card needs them)
+    (on the PC's answer the FIFO's write index is snapshotted: records up to it are consumed as
+    the card needs them; and the PC's ALL_SENT and WAKE_FREE words are read)
     publish(status):  status block; HOLDA = 1; mailbox DSP -> PC = (k + 1) & 0xFFFF
+                 skipped while ``quiet()``: the PC asked for the next exchange only once the FIFO
+                 has WAKE_FREE free words (its next record does not fit before), so until then
+                 every answer would be empty
+
+The PC-side wake is the card's FIFO-threshold interrupt: instead of an empty exchange every period
+while the FIFO is full, one exchange when the next record fits. The records reach the card in
+the same periods as with an exchange every period, so a lockstep trace is the same either way.
 
 On the PC, in a loop::
 
@@ -86,6 +95,13 @@ class DspPort:
         self.last_posted: int | None = None
         self.solo = False
         """the planner reported the whole program sent: no exchanges until the card needs one"""
+        self.wake_free = 0
+        """0, or the free FIFO words before which the PC wants no exchange (its WAKE_FREE word)"""
+        self.answered = True
+        """no status is outstanding: the PC answered the last one posted (or none was posted)"""
+        self.idle = False
+        """the last :meth:`acquire` found no exchange under way (solo, or no status outstanding
+        after a skipped publish): the card waited for nothing, so it checks the planner's liveness"""
         self.missed_exchanges = 0
         self.post_ns = 0
         self.latency_ns = array.array("q")
@@ -112,7 +128,11 @@ class DspPort:
         """Take the bus for this period's exchange; False when the exchange is missed (real-time)
         or not needed (``solo``: the whole program is already in the FIFO)."""
         if self.solo:
+            self.idle = True
             return False
+        self.idle = self.answered and self.last_posted is not None
+        if self.idle:  # the last publish was skipped: the PC has written nothing since its answer
+            return True
         if self.last_posted is not None:
             ack = mailbox_value(self.last_posted)
             words, hold, mailbox = self.words, self.wb.HOLD, self.wb.MAILBOX_TO_DSP
@@ -124,12 +144,24 @@ class DspPort:
                 return False
             self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
             self.latency_period.append(self.last_posted)
+        self.answered = True
         self.words[self.wb.HOLDA] = 0
         self.fifo.snapshot()
         # Read while the DSP owns the bus, right after the PC's answer: the same period on every
-        # lockstep run, so going solo never changes what the card does.
+        # lockstep run, so going solo or quiet never changes what the card does.
         self.solo = bool(self.words[self.wb.ALL_SENT])
+        self.wake_free = int(self.words[self.wb.WAKE_FREE])
         return True
+
+    def quiet(self) -> bool:
+        """The PC asked for no exchange before the FIFO has ``wake_free`` free words, and it has
+        fewer (the card's view: its last snapshot of the write index, its own read index)."""
+        return self.wake_free > 0 and self.fifo.free() < self.wake_free
+
+    def resume(self) -> None:
+        """Exchange from the next period on, whatever the PC said (a rejected record: it must resend)."""
+        self.solo = False
+        self.wake_free = 0
 
     def poll(self) -> bool:
         """Take the bus only if the PC has already answered the last status: the card's exchange
@@ -138,11 +170,12 @@ class DspPort:
         here on changes nothing the card executes or records; True when the card may publish."""
         if self.solo:
             return False
-        if self.last_posted is not None:
+        if self.last_posted is not None and not self.answered:
             if self.words[self.wb.MAILBOX_TO_DSP] != mailbox_value(self.last_posted) or self.words[self.wb.HOLD]:
                 return False  # not answered yet: the status block stays the PC's until it is
             self.latency_ns.append(int(self._pc_ack_time[0]) - self.post_ns)
             self.latency_period.append(self.last_posted)
+        self.answered = True
         self.words[self.wb.HOLDA] = 0
         return True
 
@@ -187,6 +220,7 @@ class DspPort:
         self.words[self.wb.MAILBOX_TO_PC] = mailbox_value(period)
         self.ring_pc.ring()
         self.last_posted = period
+        self.answered = False
 
 
 class PcPort:
@@ -265,3 +299,8 @@ class PcPort:
     def set_all_sent(self, value: bool) -> None:
         """Raise (or drop, before a resend) the "whole program sent" flag; call before :meth:`end`."""
         self.words[self.wb.ALL_SENT] = 1 if value else 0
+
+    def set_wake(self, free_words: int) -> None:
+        """Ask for the next exchange only once the FIFO has ``free_words`` free (0: every period);
+        call before :meth:`end`."""
+        self.words[self.wb.WAKE_FREE] = free_words
