@@ -115,3 +115,24 @@ def test_an_idle_planner_that_died_is_replaced():
         second = Twin(_short())
         assert second.run(planners=pool).status == "complete"
         assert second.process.pid != first.process.pid and pool.started == 2
+
+
+def test_a_pooled_planner_replays_a_surface_plan_for_other_gains_with_the_same_trace():
+    """A sweep's runs differ in the gains, not the path: the pooled planner's second run hands out
+    the feed plans it kept (its planning time drops to a few ms), and the trace is
+    that of a fresh planner planning from scratch; a changed path plans again."""
+    short = {"program.path.step_over": 30.0}
+    with PlannerPool() as pool:
+        first = Twin(load_scenario(scenarios_dir() / "flat_plate_polish.yaml", overrides={**short, "program.force.kp": 0.004}))
+        first.run(planners=pool)
+        gains = load_scenario(scenarios_dir() / "flat_plate_polish.yaml", overrides={**short, "program.force.kp": 0.01})
+        replayed = Twin(gains)
+        replay = replayed.run(planners=pool)
+        moved = Twin(load_scenario(scenarios_dir() / "flat_plate_polish.yaml",
+                                   overrides={"program.path.step_over": 25.0, "program.force.kp": 0.01}))
+        moved.run(planners=pool)
+    fresh = Twin(gains)
+    _same(replay, fresh.run())
+    # another path in the same warm process is planned, not replayed (a fresh process's figure
+    # also holds its first imports)
+    assert replayed.plan_us < 0.2 * moved.plan_us < fresh.plan_us

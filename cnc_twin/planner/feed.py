@@ -37,7 +37,10 @@ Units: SI (m, s). The tool axis is held fixed, so X/Y/Z move with the tool tip o
 
 from __future__ import annotations
 
+import hashlib
 import math
+import pickle
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -320,8 +323,19 @@ def _traverse_time(s: np.ndarray, limit: np.ndarray, a: float) -> float:
     return float(np.sum(ds / np.maximum(mean, 1e-9)))
 
 
+PLANS_KEPT = 256
+"""window plans a process keeps for a later run (:func:`plan_feed_windows`' ``key``)"""
+_PLANS: OrderedDict[bytes, list] = OrderedDict()
+
+
+def plan_key(*inputs) -> bytes:
+    """A key for :func:`plan_feed_windows` from everything its plan depends on (picklable values:
+    the path's definition, the limits, the period, the window, the kinematics' parameters)."""
+    return hashlib.sha256(pickle.dumps(inputs, protocol=pickle.HIGHEST_PROTOCOL)).digest()
+
+
 def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float = 0.1,
-                      axis_path=None, axis_limits=None, samples: _Samples | None = None):
+                      axis_path=None, axis_limits=None, samples: _Samples | None = None, key: bytes | None = None):
     """Plan the curve window by window; yields lists of committed S-curve blocks in path order.
 
     Each window of about ``window`` metres is planned to end at rest. Blocks up to the last
@@ -329,10 +343,26 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     unaffected by that forced stop (the backward scan cannot reach them), so they are final and
     identical to a whole-curve plan's; the next window starts there at the committed speed.
     ``samples``: from :func:`sample_limits`, if already taken.
+
+    ``key`` (:func:`plan_key` of the plan's inputs): a plan completed under the same key in this
+    process is handed out again instead of planned (the same blocks: a pooled planner serving a
+    sweep whose gains change the card, not the path); a completed plan is kept under it (the
+    last :data:`PLANS_KEPT`). None: plan, keep nothing.
     """
+    if key is not None and key in _PLANS:
+        _PLANS.move_to_end(key)
+        yield from _PLANS[key]
+        return
     if samples is None:
         samples = _sample(curve, limits, period, axis_path, axis_limits)
-    yield from _windows(samples, limits, window)
+    planned = []
+    for blocks in _windows(samples, limits, window):
+        planned.append(blocks)
+        yield blocks
+    if key is not None:  # complete (a run that stops early keeps nothing)
+        _PLANS[key] = planned
+        while len(_PLANS) > PLANS_KEPT:
+            _PLANS.popitem(last=False)
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,

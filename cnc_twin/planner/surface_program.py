@@ -88,7 +88,7 @@ class SurfacePlan:
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
-        from cnc_twin.planner.feed import plan_feed_windows
+        from cnc_twin.planner.feed import plan_feed_windows, plan_key
 
         prog, T = self.prog, self.period
         first: list[Record] = []
@@ -114,8 +114,12 @@ class SurfacePlan:
             def axis_path(t, path=path):
                 return section_poses(prog, path, t)
 
+            # everything the section's plan depends on: a sweep of the force loop's or the servo's
+            # gains replays it from the planner process's last runs
+            key = plan_key(prog.surface, section, prog.limits, T, 0.05, prog.lead, prog.tilt, prog.pivot_home,
+                           prog.tool_offset, axis_limits)
             for blocks in plan_feed_windows(path, prog.limits, period=T, window=0.05,
-                                            axis_path=axis_path, axis_limits=axis_limits):
+                                            axis_path=axis_path, axis_limits=axis_limits, key=key):
                 yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
         tail: list[Record] = [ForceControlRecord(on=False, params=prog.force),
                               Spindle(on=False, speed=0.0), Dwell(periods=spin)]
