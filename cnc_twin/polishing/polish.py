@@ -98,6 +98,7 @@ class RemovalTracker:
         # the compiled update's ball of candidates: indices, packed rows, centre and size
         self._ball_idx, self._ball = np.zeros(points, dtype=np.intp), np.zeros((7, points))
         self._ball_state = np.array([np.inf, np.inf, np.inf, 0.0])
+        self._boxes = rk.chunk_boxes(removal._packed)
 
     @property
     def calls(self) -> int:
@@ -128,8 +129,8 @@ class RemovalTracker:
         """The arguments of :func:`~cnc_twin.polishing.removal_kernel.tracker_update`."""
         d = self.data
         return (self.model._address, d._address, d.sensordata, d.xmat, d.site_xpos, d.xipos, d.xfrc_applied, self.ids,
-                self.params, self.model_removal._packed, self.model_removal.depth, self._ball_idx, self._ball,
-                self._ball_state, self._velocity, self.totals)
+                self.params, self.model_removal._packed, self._boxes, self.model_removal.depth, self._ball_idx,
+                self._ball, self._ball_state, self._velocity, self.totals)
 
     def contact_force(self) -> float:
         """Normal force of the pad's contacts along the tool axis [N] (a contact on a tile's side
@@ -180,7 +181,7 @@ class RemovalTracker:
         if self.compiled:
             rk.warm_up()
             args = list(self.kernel_args())
-            for i in (6, 10, 11, 12, 13, 14, 15):  # xfrc_applied, depth, the ball, velocity, totals
+            for i in (6, 11, 12, 13, 14, 15, 16):  # xfrc_applied, depth, the ball, velocity, totals
                 args[i] = args[i].copy()
             rk.tracker_update(*args)
 

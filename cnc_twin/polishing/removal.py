@@ -109,6 +109,11 @@ class RemovalGrid:
         return cls(pts, normals, np.full(X.size, dx * dy), (ny, nx), (x[0], x[-1], y[0], y[-1]))
 
 
+BALL_MARGIN = 0.1
+"""how far the tip may move from the centre of its ball of candidates before the ball is found
+again [pad radii]: a larger ball is scanned at every update, a smaller one found more often"""
+
+
 def sequential_sum(values: np.ndarray) -> float:
     """``values[0] + values[1] + ...`` in that order (np.sum adds pairwise: other last bits than a
     compiled loop); 0 for none."""
@@ -170,7 +175,7 @@ class PrestonModel:
         # The tip moves well under a millimetre between calls: one ball of radius reach + margin
         # serves every tip within margin of its centre (exactly: the triangle inequality), so the
         # pass over the whole grid is amortised over many calls.
-        self._margin = 0.1 * self.pad_radius
+        self._margin = BALL_MARGIN * self.pad_radius
         self.ball_limits = np.array([(self._reach + self._margin) ** 2, self._margin * self._margin])
         """squared radius of the ball and squared margin of its reuse [m^2]"""
         # packed rows x y z nx ny nz area, one row each (structure of arrays): one gather per query
