@@ -18,7 +18,7 @@ import numpy as np
 from cnc_twin.dsp import curve_kernel, force_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
-from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, SurfaceRun
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, ForceWait, SurfaceRun
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.motion.segments import MoveSegment
@@ -26,10 +26,10 @@ from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock
 from cnc_twin.run.period_kernel import (
     A_NOW, A_STOP, ACCEL, AXIS_X, AXIS_Z, C_HOLD, C_OFFSET, CHECK_SWITCHES, COS_LEAD, COS_TILT, CPU, CURVE, DURATION,
-    DWELL, DWELL_LEFT, EVERY, FERR_LIMIT, FORCE_ON, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK,
+    DWELL, DWELL_LEFT, FORCE_WAIT, EVERY, FERR_LIMIT, FORCE_ON, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK,
     MAX_BATCH, MAX_FORCE, MOVE, N_CHECK, N_CHECK_SCALARS, N_FEED, N_OUT, N_PROCESS, OPEN_END, OUT_DEPTH, OUT_MARK,
     OUT_PATH_DS, OUT_PATH_U, OUT_TARGET, PATH_S, PERIOD, POWER_ON, PREV_ACTUAL, PREV_COMMAND, PREV_FORCE,
-    QUEUED_PATH, S_DONE, S_NOW, SAT_LIMIT, SAT_RUN, SAT_SEEN, SIN_LEAD, SIN_TILT, SOFT_HI, SOFT_LO, SPIN, SPINNING,
+    QUEUED_PATH, S_DONE, S_NOW, SAT_LIMIT, SAT_RUN, SAT_SEEN, SIN_LEAD, SIN_TILT, SOFT_HI, SOFT_LO, SPIN, SPIN_STEP, SPIN_TARGET, SPINDLE_ON,
     SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, TICKS, V0, V_NOW, run_periods,
 )
 from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, VELOCITY
@@ -133,18 +133,19 @@ class PeriodBatch:
         current = interp._current
         if current is None or interp.hold or interp._starved_hold:
             return None
-        # the spindle at its speed (or stopped), the force loop tracking (or off)
-        if not (interp._spin == interp.spindle_speed if interp.spindle_on else interp._spin == 0.0):
-            return None
         force = interp.force
-        tracking = force.state == ForceState.TRACK and not force.frozen
-        if not (tracking or force.state == ForceState.OFF):
+        if force.frozen:
             return None
+        tracking = force.state == ForceState.TRACK
         if self.removal is not None and not self.removal.compiled:
             return None
         if interp.wants_records(QUEUE_AHEAD) and dsp.port.fifo.fill() != 0:
             return None
         segment = current[1]
+        if isinstance(segment, ForceWait):  # seek, ramp, ramp down, retract (until the state changes)
+            return FORCE_WAIT if force.state not in (ForceState.OFF, ForceState.TRACK) else None
+        if force.state not in (ForceState.OFF, ForceState.TRACK):
+            return None
         if isinstance(segment, MoveSegment):
             return MOVE if not tracking and interp.override == min(interp.override_target, interp._lam_max) else None
         if isinstance(segment, Dwell):
@@ -218,14 +219,19 @@ class PeriodBatch:
             feed[DURATION], feed[T_ACC], feed[ACCEL] = prof.duration, prof.t_acc, prof.accel
             feed[T_FLAT], feed[V0] = prof.t_flat, prof.v_peak
             move[0], move[1] = interp._start_counts, interp._delta_counts
-        else:
+        elif mode == DWELL:
             feed[DWELL_LEFT] = interp._dwell_left
+        else:  # the pose at the path's end, along its tool axis
+            move[0] = interp._counts_of(segment.base)
+            interp._axis = segment.axis
         check[HELD] = interp._hold_counts
         force = interp.force
-        process[FORCE_ON] = 1.0 if force.state == ForceState.TRACK else 0.0
+        process[FORCE_ON] = 0.0 if force.state == ForceState.OFF else 1.0
         process[PATH_S], process[C_OFFSET], process[MARK] = interp.path_s, interp._c_offset, interp.mark
-        process[SPINNING] = 1.0 if interp.spindle_on else 0.0
+        process[SPINDLE_ON] = 1.0 if interp.spindle_on else 0.0
         process[SPIN] = interp._spin
+        process[SPIN_TARGET] = interp.spindle_speed if interp.spindle_on else 0.0
+        process[SPIN_STEP] = interp._spindle_accel * interp.period
         process[AXIS_X:AXIS_Z + 1] = interp._axis
         force_args = force_kernel.arrays_of(force)
         n = servo.n_axes
@@ -265,15 +271,16 @@ class PeriodBatch:
             if isinstance(curve, SurfaceRun):
                 interp.path_s = float(process[PATH_S])
                 interp._axis = curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
-            if interp.force.state == ForceState.TRACK:
-                force_kernel.store(interp.force, force_state)
         elif mode == MOVE:
             interp._tau = float(feed[TAU])
-        else:
+        elif mode == DWELL:
             interp._dwell_left = int(feed[DWELL_LEFT])
+        if interp.force.state != ForceState.OFF:
+            force_kernel.store(interp.force, force_state)
         interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
         interp.mark = int(process[MARK])
         interp._c_offset = float(process[C_OFFSET])
+        interp._spin = float(process[SPIN])
         interp._hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
         interp.tick_commands = None
         interp.events = []

@@ -14,6 +14,7 @@ and the removal map's update do, in the same order with the same IEEE operations
 
     check:   following error, limit switches, DAC saturation run, pad force   (a trip -> stop)
     force:   TRACK: setpoint(path length), PI, feed adaptation                (new feed factor -> stop)
+             at a path's end: seek, ramp, ramp down, retract at the held pose (new state -> stop)
     feed:    tau += lambda T; (s, v, a) = S-curve(tau)                        (block end -> stop)
              starved-hold latch (queued path within the stopping distance)   (latch -> stop)
     path:    u, point = stepper(ds); pose: held A, B, C, the tool-axis curve's or the surface
@@ -29,8 +30,8 @@ is not committed: the batch ends before it and the card's Python task runs that 
 So the trace is the one the Python task gives, bit for bit (``tests/test_servo_kernel.py`` and
 ``tests/test_polish_batch.py`` compare whole runs against ``compiled=False``).
 
-Not batched: the force loop's seek, ramps and retract, a spindle changing speed, feed holds and
-override changes, exchanges with the planner, injected faults, pulse output, real-time mode. A
+Not batched: the periods where the force loop changes state, a spindle changing speed, feed holds
+and override changes, exchanges with the planner, injected faults, pulse output, real-time mode. A
 batch starts at most once per 64 periods' liveness check of the planner, which it makes first, as
 the card's task does.
 """
@@ -65,8 +66,9 @@ MAX_BATCH = SOLO_LIVENESS_PERIODS
 TAU, S_DONE, LAM, PERIOD, QUEUED_PATH, A_STOP, OPEN_END, HAS_STATE, S_NOW, V_NOW, A_NOW, LENGTH, DURATION, V0, \
     DWELL_LEFT, T_ACC, ACCEL, T_FLAT, J_STOP = range(19)
 N_FEED = 19
-CURVE, MOVE, DWELL = 0, 1, 2
-"""what runs: a curve block (or a surface path's), a point-to-point move (its trapezoid), a dwell"""
+CURVE, MOVE, DWELL, FORCE_WAIT = 0, 1, 2, 3
+"""what runs: a curve block (or a surface path's), a point-to-point move (its trapezoid), a dwell,
+the force loop making or releasing contact at a path's end (its seek, ramp, ramp down, retract)"""
 # the check block (float64, shape (N_CHECK, 6)): per axis
 FERR_LIMIT, SOFT_LO, SOFT_HI, PREV_COMMAND, PREV_ACTUAL, SAT_SEEN, SAT_RUN, POWER_ON, CPU, HOLD, HELD = range(11)
 N_CHECK = 11
@@ -76,9 +78,9 @@ force loop's and the spindle's offsets [counts] (the interpolator's ``_hold_coun
 CHECK_SWITCHES, SAT_LIMIT, TICKS, MAX_FORCE, PREV_FORCE, INV_T, SUPERVISED = range(7)
 N_CHECK_SCALARS = 7
 # the process block (float64): path length, spindle, force loop, the surface's tool axis, removal
-PATH_S, C_OFFSET, SPIN, SPINNING, FORCE_ON, SURFACE, LEANED, COS_LEAD, SIN_LEAD, COS_TILT, SIN_TILT, C_HOLD, \
-    AXIS_X, AXIS_Y, AXIS_Z, EVERY, MARK = range(17)
-N_PROCESS = 17
+PATH_S, C_OFFSET, SPIN, SPINDLE_ON, SPIN_TARGET, SPIN_STEP, FORCE_ON, SURFACE, LEANED, COS_LEAD, SIN_LEAD, COS_TILT, \
+    SIN_TILT, C_HOLD, AXIS_X, AXIS_Y, AXIS_Z, EVERY, MARK = range(19)
+N_PROCESS = 19
 """``AXIS_*``: the tool axis the force loop pushes along (the interpolator's ``_axis``); ``EVERY``:
 periods between removal updates (0: none); ``MARK``: the program line of the last period"""
 # the per-period outputs (float64, shape (N_OUT, MAX_BATCH))
@@ -230,8 +232,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             # --- the force loop first, on the load cell and the path so far (ForceController.update) ---
             if force_on:
                 force_trial[:] = force
-                force_kernel.track(fp, fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial)
-                if force_trial[force_kernel.FEED_FACTOR] != force[force_kernel.FEED_FACTOR]:
+                if not force_kernel.advance(fp, fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
                     return k  # the feed adapts from this period on: the Python task slews it
             # --- the feed along the block (SegmentInterpolator._advance_block) ---
             if feed[HAS_STATE] != 0.0:
@@ -285,11 +286,17 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
                 s = 1.0 - 0.5 * a * rest * rest if rest > 0.0 else 1.0
             for i in range(n):
                 held[i] = move[0, i] + s * move[1, i]
-        else:  # a dwell holds the setpoint
+        elif mode == DWELL:  # a dwell holds the setpoint
             if feed[DWELL_LEFT] - 1.0 <= 0.0:
                 return k  # the dwell ends in this period
             for i in range(n):
                 held[i] = check[HELD, i]
+        else:  # the force loop at a path's end: the pose there (move row 0) and the loop's push
+            force_trial[:] = force
+            if not force_kernel.advance(fp, fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
+                return k  # contact, or a ramp's or the retract's end: the Python task takes it on
+            for i in range(n):
+                held[i] = move[0, i]
         # --- the force loop's push along the tool axis, the spindle's turn of C ---
         for i in range(n):
             setpoint[i] = held[i]
@@ -299,9 +306,12 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
                 for i in range(3):
                     setpoint[i] = held[i] - depth * tool[i] * check[CPU, i]
         c_offset = process[C_OFFSET]
-        if process[SPINNING] != 0.0:  # at its speed: SegmentInterpolator._turn_spindle
-            spin = process[SPIN]
-            c_offset += 0.5 * (spin + spin) * T
+        spin = process[SPIN]
+        if process[SPINDLE_ON] != 0.0 or spin != 0.0:  # SegmentInterpolator._turn_spindle
+            target, step = process[SPIN_TARGET], process[SPIN_STEP]
+            turned = min(target, spin + step) if target > spin else max(target, spin - step)
+            c_offset += 0.5 * (spin + turned) * T
+            spin = turned
         if c_offset != 0.0:
             setpoint[5] = setpoint[5] + c_offset * check[CPU, 5]
         if timed:
@@ -322,8 +332,6 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             feed[S_NOW], feed[V_NOW], feed[A_NOW] = state[0], state[1], state[2]
             feed[HAS_STATE] = 1.0
             sstate[:] = trial
-            if force_on:
-                force[:] = force_trial
             if surface:
                 process[PATH_S] += ds
                 process[AXIS_X], process[AXIS_Y], process[AXIS_Z] = tool[0], tool[1], tool[2]
@@ -331,15 +339,18 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         else:
             if mode == MOVE:
                 feed[TAU] = tau
-            else:
+            elif mode == DWELL:
                 feed[DWELL_LEFT] -= 1.0
             out[OUT_PATH_U, k] = -1.0
+        if force_on:
+            force[:] = force_trial
         out[OUT_PATH_DS, k] = ds
         out[OUT_TARGET, k] = force[force_kernel.TARGET]
         out[OUT_DEPTH, k] = force[force_kernel.DEPTH]
         out[OUT_MARK, k] = mark
         process[MARK] = mark
         process[C_OFFSET] = c_offset
+        process[SPIN] = spin
         for i in range(n):
             check[HELD, i] = held[i]
         inv_t = cs[INV_T]
