@@ -44,7 +44,7 @@ def test_force_gain_sweep_on_the_flat_plate(benchmark):
     """The polishing sweep issue #22 asks for: 64 runs of flat_plate_polish (an 8 x 8 grid of the
     force loop's kp and ki), on 1 and on 2 local workers: runs per minute and the speed-up
     (``python -m pytest benchmarks/test_bench_sweep.py -k force_gain --benchmark-only -s -n0``;
-    about 6 minutes)."""
+    about 2 minutes)."""
     from cnc_twin.scenario.resources import scenarios_dir
 
     path = str(scenarios_dir() / "flat_plate_polish.yaml")
