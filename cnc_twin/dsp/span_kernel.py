@@ -131,10 +131,8 @@ def _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, ncols, out)
 
 
 @njit(cache=True)
-def surface_tangents(starts_u, starts_v, patches, p, q, box, u, v, h, s):
-    """``S, S_u, S_v`` at ``(u, v)`` into ``s[0:9]``, as the first three of
-    :meth:`SurfaceSpanEvaluator.evaluate` (the first 12 columns of the block are all they use)."""
-    _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, 12, h)
+def _first_partials(h, s):
+    """``S, S_u, S_v`` into ``s[0:9]`` from the block sum ``h`` (the quotient rule); ``1 / w``."""
     w, wu, wv = h[3], h[7], h[11]
     inv = 1.0 / w
     for k in range(3):
@@ -143,6 +141,15 @@ def surface_tangents(starts_u, starts_v, patches, p, q, box, u, v, h, s):
         s[3 + k] = (h[4 + k] - wu * s[k]) * inv
     for k in range(3):
         s[6 + k] = (h[8 + k] - wv * s[k]) * inv
+    return inv
+
+
+@njit(cache=True)
+def surface_tangents(starts_u, starts_v, patches, p, q, box, u, v, h, s):
+    """``S, S_u, S_v`` at ``(u, v)`` into ``s[0:9]``, as the first three of
+    :meth:`SurfaceSpanEvaluator.evaluate` (the first 12 columns of the block are all they use)."""
+    _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, 12, h)
+    _first_partials(h, s)
 
 
 @njit(cache=True)
@@ -150,14 +157,8 @@ def surface_evaluate(starts_u, starts_v, patches, p, q, box, u, v, h, s):
     """``S, S_u, S_v, S_uu, S_uv, S_vv`` at ``(u, v)`` into ``s[0:18]``, as
     :meth:`SurfaceSpanEvaluator.evaluate`."""
     _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, 24, h)
-    w, wu, wv, wuu, wuv, wvv = h[3], h[7], h[11], h[15], h[19], h[23]
-    inv = 1.0 / w
-    for k in range(3):
-        s[k] = h[k] * inv
-    for k in range(3):
-        s[3 + k] = (h[4 + k] - wu * s[k]) * inv
-    for k in range(3):
-        s[6 + k] = (h[8 + k] - wv * s[k]) * inv
+    inv = _first_partials(h, s)
+    wu, wv, wuu, wuv, wvv = h[7], h[11], h[15], h[19], h[23]
     for k in range(3):
         s[9 + k] = (h[12 + k] - 2.0 * wu * s[3 + k] - wuu * s[k]) * inv
     for k in range(3):
