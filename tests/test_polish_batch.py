@@ -105,3 +105,15 @@ def test_the_feed_adaptation_hands_the_slew_to_the_python_task():
     _same(batched, _run(scenario, compiled=False))
     assert batched[0].metrics["polish"]["force"]["reduced_feed_s"] > 0
     assert _batched_share(*batched) > 0.7
+
+
+def test_a_force_spike_runs_the_card_in_python_and_stays_the_reference():
+    """An injected force spike (the load cell reads 40 N more for 20 ms mid-pass): injected card
+    faults run the card's Python servo, so no batch; the compiled path stepper and removal update
+    still run, and the run is the reference's bit for bit, the spike's dip in the force included."""
+    scenario = load_scenario(scenarios_dir() / "freeform_polish.yaml", overrides={
+        **SHORT_FREEFORM, "faults": [{"type": "force_spike", "at": 8.0, "force": 40.0, "duration": 20.0}]})
+    compiled = _run(scenario)
+    assert compiled[1].period_batch is None and compiled[1].removal.compiled
+    _same(compiled, _run(scenario, compiled=False))
+    assert compiled[0].metrics["polish"]["force"]["tracking"]["max_error_pct"] > 50  # the loop backed off
