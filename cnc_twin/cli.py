@@ -209,7 +209,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
             from cnc_twin.run.period_kernel import kernels_cached
 
             if not kernels_cached():
-                print("compiling the twin's kernels for this machine (once after installing, about 10 s) ...",
+                print("compiling the twin's kernels for this machine (once after installing, about 15 s) ...",
                       file=sys.stderr, flush=True)
         if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
             print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)

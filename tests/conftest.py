@@ -118,7 +118,7 @@ def pytest_xdist_auto_num_workers(config):
 def pytest_configure(config):
     """With workers (xdist), the controller has numba compile the twin's kernels once before the
     workers start, when a fresh install has none cached: otherwise every worker compiles them at
-    once (about 10 s of CPU each, on the same cores)."""
+    once (about 15 s of CPU each, on the same cores)."""
     if getattr(config, "workerinput", None) is not None or not config.getoption("numprocesses", None):
         return
     from cnc_twin.run.period_kernel import kernels_cached
@@ -129,5 +129,6 @@ def pytest_configure(config):
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.scenario.resources import scenarios_dir
 
-    for name in ("jog_axes.yaml", "nurbs_circle.yaml"):  # the point and curve kernels
+    # the point and curve kernels, and the polishing ones (force loop, removal map)
+    for name in ("jog_axes.yaml", "nurbs_circle.yaml", "flat_plate_polish.yaml"):
         run_scenario(load_scenario(scenarios_dir() / name, overrides={"max_time": 0.5}))

@@ -179,7 +179,6 @@ class RemovalTracker:
         """Compile (or load) the compiled update before the run's clock starts: one update of the
         machine as it stands (the run's types), into copies of everything it writes."""
         if self.compiled:
-            rk.warm_up()
             args = list(self.kernel_args())
             for i in (6, 11, 12, 13, 14, 15, 16):  # xfrc_applied, depth, the ball, velocity, totals
                 args[i] = args[i].copy()

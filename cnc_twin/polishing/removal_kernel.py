@@ -265,11 +265,3 @@ def no_tracker() -> tuple:
             np.zeros(5, dtype=np.int64), np.zeros(N_PARAMS), np.zeros((7, 0)), np.zeros((6, 0)), np.zeros(0),
             np.zeros(0, dtype=np.intp),
             np.zeros((7, 0)), np.zeros(4), np.zeros(6), np.zeros(N_TOTALS))
-
-
-def warm_up() -> None:
-    """Compile (or load from the cache) before a run's clock starts."""
-    ball = np.zeros((7, 1))
-    ball[5, 0] = ball[6, 0] = 1.0
-    removal_step(np.zeros(1, dtype=np.intp), ball, np.zeros(3), np.array([0.0, 0.0, 1.0]), 1.0, 1.0, 1.0, 1.0,
-                 1.0, np.zeros(3), np.zeros(3), np.zeros(3), 0.5, 1e-3, np.zeros(1), np.zeros(6))

@@ -380,12 +380,12 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
 
 def kernels_cached() -> bool:
     """Whether numba's on-disk cache holds the batch and servo kernels already (False on the first
-    run after installing, which compiles them: about 8 s). Reads numba's cache index paths; True
+    run after installing, which compiles them: about 15 s). Reads numba's cache index paths; True
     when they cannot be found out (nothing to warn about then)."""
     try:
         from pathlib import Path
 
         return all(Path(kernel._cache._cache_file._index_path).exists()
-                   for kernel in (run_periods, servo_kernel.run_ticks))
+                   for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update))
     except AttributeError:  # another numba's internals
         return True
