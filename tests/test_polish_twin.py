@@ -68,3 +68,40 @@ def test_freeform_scenario_through_the_cli(tmp_path):
     assert metrics["polish"]["tile_hull_gap_mm"] < 1e-3  # a convex face: one exact hull
     removal = np.load(out / "removal.npz")
     assert removal["depth"].max() > 0 and (out / "removal.png").stat().st_size > 1000
+
+
+def test_a_later_run_of_the_same_workpiece_takes_it_built_and_a_model_of_its_own(tmp_path):
+    """The collision tiles, the compiled scene and the removal grid are built once per process
+    (cnc_twin/run/workpiece_cache.py): a second twin of the scenario shares the tiling's figures
+    and the grid, gets its own copy of the model, and runs the same; another tile size, or an
+    edited scene (or a file it includes), builds anew."""
+    import os
+    import shutil
+    from pathlib import Path
+
+    from cnc_twin import load_scenario
+    from cnc_twin.run.twin import Twin
+
+    plate = scenarios_dir() / "flat_plate_polish.yaml"
+    short = {"program.path.step_over": 30.0}
+    first, second = Twin(load_scenario(plate, overrides=short)), Twin(load_scenario(plate, overrides=short))
+    assert second.tiling is first.tiling and second.removal.grid is first.removal.grid
+    assert second.plant.model._address != first.plant.model._address
+    second.plant.model.opt.timestep *= 2.0  # a run's own model: the other's is untouched
+    assert first.plant.model.opt.timestep != second.plant.model.opt.timestep
+    a, b = first.run(), Twin(load_scenario(plate, overrides=short)).run()
+    assert all(np.array_equal(x, y) for x, y in zip(a.trace.columns().values(), b.trace.columns().values()))
+    retiled = Twin(load_scenario(plate, overrides={**short, "program.surface.tile_size": 30.0}))
+    assert retiled.tiling is not first.tiling
+    # a file the scene includes, edited between runs (a new modification time): built again
+    from cnc_twin.run.workpiece_cache import workpiece
+
+    models = shutil.copytree(Path(first.scenario.model_file).parent, tmp_path / "models")
+    scene = models / Path(first.scenario.model_file).name
+    program = first.scenario.program
+    args = (program.surface, program.surface_tile_size, [], program.preston.grid_spacing)
+    tiling = workpiece(scene, *args)[2]
+    assert workpiece(scene, *args)[2] is tiling
+    included = models / "polisher.xml"
+    os.utime(included, ns=(included.stat().st_atime_ns, included.stat().st_mtime_ns + 1_000_000))
+    assert workpiece(scene, *args)[2] is not tiling

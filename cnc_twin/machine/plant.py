@@ -51,7 +51,7 @@ _COMPILED: dict[tuple, mujoco.MjModel] = {}
 _COMPILED_MAX = 8
 
 
-def _folder_state(path: Path) -> tuple:
+def folder_state(path: Path) -> tuple:
     """What a compiled model depends on: the file and everything next to it (includes, meshes),
     by name, size and modification time."""
     try:
@@ -74,7 +74,7 @@ def load_model(path: Path) -> mujoco.MjModel:
     ScenarioError
         If the file does not compile or lacks a required joint, actuator, sensor or keyframe.
     """
-    key = _folder_state(Path(path))
+    key = folder_state(Path(path))
     compiled = _COMPILED.get(key)
     if compiled is None:
         try:

@@ -62,18 +62,21 @@ class RemovalTracker:
     """
 
     def __init__(self, preston: Preston, friction: float | None, surface: NurbsSurface, model: mujoco.MjModel,
-                 data: mujoco.MjData, period: float, *, compiled: bool = True):
+                 data: mujoco.MjData, period: float, *, compiled: bool = True, grid: tuple | None = None):
         """``friction``: the pad's sliding friction coefficient on the workpiece; None = the model's.
         ``compiled``: each update in one compiled call (:func:`~cnc_twin.polishing.removal_kernel.tracker_update`);
-        False: the numpy reference (the same numbers bit for bit)."""
+        False: the numpy reference (the same numbers bit for bit). ``grid``: ``(scales, grid, uv)``
+        as made for this surface and ``preston.grid_spacing`` already (else made here)."""
         from cnc_twin.machine import mujoco_c
         from cnc_twin.machine.workpiece import PAD_CONTACT_FIELDS, PAD_CONTACTS, pad_friction
 
         p = preston
         self.compiled = compiled and mujoco_c.available()
         self.surface = surface
-        self.scales = parameter_scales(self.surface)[:2]
-        self.grid, self.uv = removal_grid(self.surface, p.grid_spacing, self.scales)
+        if grid is None:
+            scales = parameter_scales(self.surface)[:2]
+            grid = (scales, *removal_grid(self.surface, p.grid_spacing, scales))
+        self.scales, self.grid, self.uv = grid
         self.model_removal = removal = PrestonModel(self.grid, preston_k=p.k, pad_radius=p.pad_radius,
                                                     pad_modulus=p.pad_modulus)
         self.model, self.data = model, data

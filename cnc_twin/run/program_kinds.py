@@ -30,7 +30,7 @@ import numpy as np
 from cnc_twin.core.config import (
     ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
 )
-from cnc_twin.machine.plant import Plant, add_obstacles, load_model_with_obstacles
+from cnc_twin.machine.plant import Plant, load_model_with_obstacles
 
 if TYPE_CHECKING:  # the twin hands itself to the hooks; typing only, no import at run time
     from cnc_twin.dsp.task import DspTask
@@ -124,18 +124,17 @@ class ContourKind(_PathKind):
 
 def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction, tile_size: float) -> Plant:
     """The scene with ``surface_def`` (:class:`~cnc_twin.core.config.SurfaceDef`) as its workpiece
-    and the removal map on it (sets ``twin.removal`` and ``twin.tiling``)."""
-    from cnc_twin.geometry.surface import NurbsSurface
-    from cnc_twin.machine.workpiece import build_model
+    and the removal map on it (sets ``twin.removal`` and ``twin.tiling``); the workpiece as the
+    process built it for an earlier run, if it did (:mod:`cnc_twin.run.workpiece_cache`)."""
     from cnc_twin.polishing.polish import RemovalTracker
+    from cnc_twin.run.workpiece_cache import workpiece
 
     sc = twin.scenario
-    surface = NurbsSurface.from_def(surface_def)
-    model, twin.tiling = build_model(sc.model_file, surface, tile_size=tile_size,
-                                     edit=lambda spec: add_obstacles(spec, obstacles))
+    surface, model, twin.tiling, grid = workpiece(sc.model_file, surface_def, tile_size, obstacles,
+                                                  preston.grid_spacing)
     plant = Plant(model, timestep=sc.timing.physics_timestep)
     twin.removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period,
-                                  compiled=twin.compiled)
+                                  compiled=twin.compiled, grid=grid)
     return plant
 
 
