@@ -54,3 +54,8 @@ def workpiece(model_file: Path, surface_def, tile_size: float, obstacles: list, 
         _BUILT.move_to_end(key)
     surface, model, tiling, grid = built
     return surface, copy.copy(model), tiling, grid
+
+
+def forget() -> None:
+    """Drop every workpiece kept (the next run builds its own again)."""
+    _BUILT.clear()

@@ -10,7 +10,9 @@ denominators (``replay_contacts_mean``, ``bare_contacts_mean``).
 plant, recording), the loop the ratio is about; ``twin_startup_s`` is the rest of ``run()``
 (spawning and attaching the planner process, metrics, teardown), a fixed cost per run;
 ``twin_build_s`` is building the twin before that (the plant's model: for a polishing run the
-workpiece's solid, its collision tiles and the MJCF compile; the removal map; the card);
+workpiece's solid, its collision tiles and the MJCF compile; the removal map; the card), and
+``twin_build_kept_s`` the same when an earlier run of the process built that workpiece (a sweep's
+later runs: :mod:`cnc_twin.run.workpiece_cache`);
 ``twin_startup_pooled_s`` the same as ``twin_startup_s`` when the planner process is kept warm between runs
 (:class:`~cnc_twin.planner.launch.PlannerPool`, as a sweep's workers do).
 ``twin_no_record``: the same with every tick written to a one-period scratch buffer, so
@@ -56,11 +58,19 @@ def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
     return time.perf_counter() - start
 
 
-def time_twin_build(scenario_file: Path) -> float:
+def time_twin_build(scenario_file: Path, *, kept: bool = False) -> float:
     """Wall time [s] of building a run's twin from its loaded scenario: the plant's model (for a
     polishing run the workpiece's solid, its convex collision tiles and the MJCF compile), the
-    removal map, the card, the compiled servo's set-up."""
+    removal map, the card, the compiled servo's set-up. ``kept``: with the workpiece an earlier
+    run of the process built (:mod:`cnc_twin.run.workpiece_cache`, a sweep's later runs); else
+    built from scratch."""
+    from cnc_twin.run import workpiece_cache
+
     scenario = load_scenario(scenario_file)
+    if kept:
+        Twin(scenario)
+    else:
+        workpiece_cache.forget()
     start = time.perf_counter()
     Twin(scenario)
     return time.perf_counter() - start
@@ -136,6 +146,7 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
         "real_time_factor": sim_time / twin_s,
         "twin_build_s": min(time_twin_build(scenario_file) for _ in range(max(1, repeat))),
+        "twin_build_kept_s": min(time_twin_build(scenario_file, kept=True) for _ in range(max(1, repeat))),
         "twin_startup_s": min(totals),
         "twin_startup_pooled_s": min(pooled),
         "trace_bytes": trace.nbytes(),
