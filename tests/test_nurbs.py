@@ -244,3 +244,28 @@ def test_windowed_planning_commits_the_same_blocks_as_the_whole_plan():
     assert windowed.duration == pytest.approx(whole.duration, abs=1e-3)
     for a, b in zip(windowed.blocks[:-1], windowed.blocks[1:]):
         assert a.v1 == pytest.approx(b.v0)  # continuous speed across every block boundary
+
+
+def test_a_keyed_window_plan_is_kept_and_handed_out_again(monkeypatch):
+    """plan_feed_windows(key=...): a plan completed under a key is handed out again, the same
+    blocks without sampling the curve again; another key plans; a plan left half-way keeps nothing."""
+    from cnc_twin.planner import feed
+
+    curve = NurbsCurve(**FREEFORM)
+    limits = PathLimits(feed=0.1, chord_tolerance=1e-6, path_acceleration=2.0, path_jerk=50.0,
+                        normal_acceleration=2.0, normal_jerk=50.0, axis_velocity=(0.4, 0.4, 0.4),
+                        axis_acceleration=(2.0, 2.0, 2.0), axis_jerk=(50.0, 50.0, 50.0))
+    sampled = []
+    real_sample = feed._sample
+    monkeypatch.setattr(feed, "_sample", lambda *args: sampled.append(1) or real_sample(*args))
+    monkeypatch.setattr(feed, "_PLANS", type(feed._PLANS)())
+    key = feed.plan_key("freeform", limits, 1e-3, 0.03)
+    first = list(feed.plan_feed_windows(curve, limits, period=1e-3, window=0.03, key=key))
+    again = list(feed.plan_feed_windows(curve, limits, period=1e-3, window=0.03, key=key))
+    assert len(sampled) == 1 and len(first) > 1
+    assert all(a is b for wa, wb in zip(first, again) for a, b in zip(wa, wb))
+    other = feed.plan_key("freeform", limits, 1e-3, 0.05)
+    next(iter(feed.plan_feed_windows(curve, limits, period=1e-3, window=0.05, key=other)))  # left half-way
+    assert len(sampled) == 2 and other not in feed._PLANS
+    list(feed.plan_feed_windows(curve, limits, period=1e-3, window=0.05, key=other))
+    assert len(sampled) == 3 and other in feed._PLANS and feed.plan_key("freeform", limits, 1e-3, 0.05) == other

@@ -133,6 +133,7 @@ def test_a_pooled_planner_replays_a_surface_plan_for_other_gains_with_the_same_t
         moved.run(planners=pool)
     fresh = Twin(gains)
     _same(replay, fresh.run())
-    # another path in the same warm process is planned, not replayed (a fresh process's figure
-    # also holds its first imports)
-    assert replayed.plan_us < 0.2 * moved.plan_us < fresh.plan_us
+    # another path in the same warm process is planned, not replayed (about ten times the work;
+    # a fresh process's figure also holds its first imports). Wall-clock figures: loose bounds,
+    # the replay itself is checked in tests/test_nurbs.py
+    assert replayed.plan_us < moved.plan_us < fresh.plan_us
