@@ -269,3 +269,8 @@ def test_a_keyed_window_plan_is_kept_and_handed_out_again(monkeypatch):
     assert len(sampled) == 2 and other not in feed._PLANS
     list(feed.plan_feed_windows(curve, limits, period=1e-3, window=0.05, key=other))
     assert len(sampled) == 3 and other in feed._PLANS and feed.plan_key("freeform", limits, 1e-3, 0.05) == other
+    # the samples a curve program takes before its windows: kept under their key as well
+    monkeypatch.setattr(feed, "_SAMPLES", type(feed._SAMPLES)())
+    taken = feed.sample_limits(curve, limits, period=1e-3, key=key)
+    assert feed.sample_limits(curve, limits, period=1e-3, key=key) is taken and len(sampled) == 4
+    assert feed.sample_limits(curve, limits, period=1e-3) is not taken and len(sampled) == 5

@@ -137,3 +137,17 @@ def test_a_pooled_planner_replays_a_surface_plan_for_other_gains_with_the_same_t
     # a fresh process's figure also holds its first imports). Wall-clock figures: loose bounds,
     # the replay itself is checked in tests/test_nurbs.py
     assert replayed.plan_us < moved.plan_us < fresh.plan_us
+
+
+def test_a_pooled_planner_replays_a_curve_plan_for_other_servo_gains_with_the_same_trace():
+    """A servo-gain sweep on a curve: the program, the period and the window are the same, so the
+    pooled planner hands out the samples and the feed plan it kept; the trace is a fresh planner's."""
+    circle = scenarios_dir() / "nurbs_circle.yaml"
+    with PlannerPool() as pool:
+        Twin(load_scenario(circle, overrides={"servo.X.kp": 40})).run(planners=pool)
+        gains = load_scenario(circle, overrides={"servo.X.kp": 70})
+        replayed = Twin(gains)
+        replay = replayed.run(planners=pool)
+    fresh = Twin(gains)
+    _same(replay, fresh.run())
+    assert replayed.plan_us < fresh.plan_us

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 from cnc_twin.core.config import AxisConfig, NurbsProgram
-from cnc_twin.planner.feed import plan_feed_windows, sample_limits, traverse_time
+from cnc_twin.planner.feed import plan_feed_windows, plan_key, sample_limits, traverse_time
 from cnc_twin.planner.ptp import dwell_chunk, plan_move
 from cnc_twin.whiteboard.records import CurveBlock, CurveGeometry, EndOfProgram, Move, Record
 
@@ -57,9 +57,12 @@ class CurvePlan:
         self.curve, start, self.axis_path, self.axis_limits, self.geometry = curve_setup(prog)
         self.approach = plan_move(tuple(home), start, axes, feed=prog.approach_feed, period=period)
         # sampled here, before the planner reports ready: the windows then plan on the samples in
-        # the planning thread, which never holds the interpreter long while the card waits for an answer
+        # the planning thread, which never holds the interpreter long while the card waits for an answer.
+        # The plan depends on the program, the period and the window alone (the axes' limits are
+        # the program's): a sweep of the servo's gains replays it in a pooled planner
+        self.key = plan_key(prog, period, window)
         self.samples = sample_limits(self.curve, prog.limits, period=period, axis_path=self.axis_path,
-                                     axis_limits=self.axis_limits)
+                                     axis_limits=self.axis_limits, key=self.key)
 
     @property
     def estimated_periods(self) -> int:
@@ -88,7 +91,8 @@ class CurvePlan:
         periods.append(0)
         yield records, periods
         for blocks in plan_feed_windows(self.curve, prog.limits, period=period, window=self.window,
-                                        axis_path=self.axis_path, axis_limits=self.axis_limits, samples=self.samples):
+                                        axis_path=self.axis_path, axis_limits=self.axis_limits, samples=self.samples,
+                                        key=self.key):
             yield ([CurveBlock(b) for b in blocks], [math.ceil(b.duration / period) for b in blocks])
         tail, tail_periods = dwell_chunk(prog.settle, period)
         yield tail + [EndOfProgram()], tail_periods + [0]

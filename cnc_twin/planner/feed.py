@@ -297,11 +297,26 @@ def _windows(sm: _Samples, limits: PathLimits, window: float):
         a, v_a = critical[k], speeds[k]
 
 
+SAMPLES_KEPT = 8
+"""sampled curves a process keeps for a later run (:func:`sample_limits`' ``key``; they are large)"""
+_SAMPLES: OrderedDict[bytes, _Samples] = OrderedDict()
+
+
 def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_path=None,
-                  axis_limits=None) -> _Samples:
+                  axis_limits=None, key: bytes | None = None) -> _Samples:
     """The curve sampled for planning with its feed limit: the bulk of the work before the first
-    window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`)."""
-    return _sample(curve, limits, period, axis_path, axis_limits)
+    window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`).
+    ``key`` (:func:`plan_key`): the samples taken under the same key earlier in this process, if
+    kept (the last :data:`SAMPLES_KEPT`), as :func:`plan_feed_windows` keeps its plans."""
+    if key is not None and key in _SAMPLES:
+        _SAMPLES.move_to_end(key)
+        return _SAMPLES[key]
+    samples = _sample(curve, limits, period, axis_path, axis_limits)
+    if key is not None:
+        _SAMPLES[key] = samples
+        while len(_SAMPLES) > SAMPLES_KEPT:
+            _SAMPLES.popitem(last=False)
+    return samples
 
 
 def traverse_time(samples: _Samples) -> float:
