@@ -139,13 +139,15 @@ def test_a_pooled_planner_replays_a_surface_plan_for_other_gains_with_the_same_t
     assert replayed.plan_us < moved.plan_us < fresh.plan_us
 
 
-def test_a_pooled_planner_replays_a_curve_plan_for_other_servo_gains_with_the_same_trace():
-    """A servo-gain sweep on a curve: the program, the period and the window are the same, so the
-    pooled planner hands out the samples and the feed plan it kept; the trace is a fresh planner's."""
-    circle = scenarios_dir() / "nurbs_circle.yaml"
+@pytest.mark.parametrize("name", ["nurbs_circle", "gcode_3plus2"])
+def test_a_pooled_planner_replays_a_curve_plan_for_other_servo_gains_with_the_same_trace(name):
+    """A servo-gain sweep on a curve (or a G-code program's paths): the program, the period and the
+    window are the same, so the pooled planner hands out the feed plans it kept (and a curve
+    program's samples); the trace is a fresh planner's."""
+    path = scenarios_dir() / f"{name}.yaml"
     with PlannerPool() as pool:
-        Twin(load_scenario(circle, overrides={"servo.X.kp": 40})).run(planners=pool)
-        gains = load_scenario(circle, overrides={"servo.X.kp": 70})
+        Twin(load_scenario(path, overrides={"servo.X.kp": 40})).run(planners=pool)
+        gains = load_scenario(path, overrides={"servo.X.kp": 70})
         replayed = Twin(gains)
         replay = replayed.run(planners=pool)
     fresh = Twin(gains)

@@ -58,7 +58,7 @@ class ContourPlan:
 
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
-        from cnc_twin.planner.feed import plan_feed_windows
+        from cnc_twin.planner.feed import plan_feed_windows, plan_key
         from cnc_twin.planner.curve_program import curve_setup
 
         prog, T = self.prog, self.period
@@ -71,7 +71,10 @@ class ContourPlan:
                 if method == "nurbs":
                     curve, _, _, _, geometry = curve_setup(curve_prog)
                     yield [geometry], [0]
-                    for blocks in plan_feed_windows(curve, curve_prog.limits, period=T, window=0.05):
+                    # the element's plan depends on its curve program and the period alone: kept
+                    # for a later run in the same planner process (a sweep's next gains)
+                    for blocks in plan_feed_windows(curve, curve_prog.limits, period=T, window=0.05,
+                                                    key=plan_key(curve_prog, T, 0.05)):
                         yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
                 else:
                     rec = step_record(prog, method, i)

@@ -92,7 +92,7 @@ class GcodePlan:
     def chunks(self):
         """Successive ``(records, periods)`` chunks, planned as they are asked for."""
         from cnc_twin.planner.curve_program import curve_setup
-        from cnc_twin.planner.feed import plan_feed_windows
+        from cnc_twin.planner.feed import plan_feed_windows, plan_key
 
         T = self.period
         here = self.home
@@ -121,9 +121,11 @@ class GcodePlan:
                     periods.append(0)
                     force, force_on = force_on, None
                 yield records, periods
-                # a varying tool axis: planned against every axis after the kinematics, as a curve program
+                # a varying tool axis: planned against every axis after the kinematics, as a curve
+                # program; kept for a later run in the same planner process (a sweep's next gains)
                 for blocks in plan_feed_windows(curve, step.curve.limits, period=T, window=self.window,
-                                                axis_path=axis_path, axis_limits=axis_limits):
+                                                axis_path=axis_path, axis_limits=axis_limits,
+                                                key=plan_key(step.curve, T, self.window)):
                     yield [CurveBlock(b) for b in blocks], [math.ceil(b.duration / T) for b in blocks]
                 here = _end_pose(curve, axis_path, step.curve.hold)
             elif isinstance(step, GcodePause):
