@@ -123,8 +123,7 @@ class PeriodBatch:
                 or dsp.retract is not None):
             return None
         # no exchange due: the program all sent, or none under way and the PC waiting for room
-        port = dsp.port
-        if not (port.solo or (port.answered and port.last_posted is not None and port.quiet())):
+        if dsp.port.exchange_due():
             return None
         # the card's liveness check of this period, as DspTask.begin_period makes it: a lost
         # planner leaves the period to the Python task, which raises the fault
@@ -223,7 +222,6 @@ class PeriodBatch:
             feed[DWELL_LEFT] = interp._dwell_left
         else:  # the pose at the path's end, along its tool axis
             move[0] = interp._counts_of(segment.base)
-            interp._axis = segment.axis
         check[HELD] = interp._hold_counts
         force = interp.force
         process[FORCE_ON] = 0.0 if force.state == ForceState.OFF else 1.0
@@ -232,7 +230,8 @@ class PeriodBatch:
         process[SPIN] = interp._spin
         process[SPIN_TARGET] = interp.spindle_speed if interp.spindle_on else 0.0
         process[SPIN_STEP] = interp._spindle_accel * interp.period
-        process[AXIS_X:AXIS_Z + 1] = interp._axis
+        # the axis the force loop pushes along: a force wait's own (as its periods set it), else the last
+        process[AXIS_X:AXIS_Z + 1] = segment.axis if mode == FORCE_WAIT else interp._axis
         force_args = force_kernel.arrays_of(force)
         n = servo.n_axes
         frame = servo.frame
@@ -270,7 +269,7 @@ class PeriodBatch:
             interp._block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
             if isinstance(curve, SurfaceRun):
                 interp.path_s = float(process[PATH_S])
-                interp._axis = curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
+                curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
         elif mode == MOVE:
             interp._tau = float(feed[TAU])
         elif mode == DWELL:
@@ -279,6 +278,7 @@ class PeriodBatch:
             force_kernel.store(interp.force, force_state)
         interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
         interp.mark = int(process[MARK])
+        interp._axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
         interp._c_offset = float(process[C_OFFSET])
         interp._spin = float(process[SPIN])
         interp._hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset

@@ -130,7 +130,7 @@ class DspPort:
         if self.solo:
             self.idle = True
             return False
-        self.idle = self.answered and self.last_posted is not None
+        self.idle = self.between_exchanges
         if self.idle:  # the last publish was skipped: the PC has written nothing since its answer
             return True
         if self.last_posted is not None:
@@ -153,10 +153,21 @@ class DspPort:
         self.wake_free = int(self.words[self.wb.WAKE_FREE])
         return True
 
+    @property
+    def between_exchanges(self) -> bool:
+        """A status was posted and answered, and none posted since (the card skipped its publish):
+        the next :meth:`acquire` has nothing to wait for."""
+        return self.answered and self.last_posted is not None
+
     def quiet(self) -> bool:
         """The PC asked for no exchange before the FIFO has ``wake_free`` free words, and it has
         fewer (the card's view: its last snapshot of the write index, its own read index)."""
         return self.wake_free > 0 and self.fifo.free() < self.wake_free
+
+    def exchange_due(self) -> bool:
+        """Whether the coming period may exchange with the PC: not solo, and not between
+        exchanges while quiet (a period that pops no records stays quiet)."""
+        return not (self.solo or (self.between_exchanges and self.quiet()))
 
     def resume(self) -> None:
         """Exchange from the next period on, whatever the PC said (a rejected record: it must resend)."""
