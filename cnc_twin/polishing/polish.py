@@ -85,12 +85,13 @@ class RemovalTracker:
         self.every = p.every
         self._site = model.site("tool_site").id
         self._pad_body = model.body("pad").id
-        sensor = model.sensor(PAD_CONTACTS)
-        self._contacts = (int(model.sensor_adr[sensor.id]), int(model.sensor_intprm[sensor.id, 2]))
-        """the pad's contact sensor: its address in ``sensordata`` and its slots"""
+        sensor = model.sensor(PAD_CONTACTS).id
         self._velocity = np.zeros(6)
         self.totals = np.zeros(rk.N_TOTALS)
-        self.ids = np.array([self._site, self._pad_body, *self._contacts, PAD_CONTACT_FIELDS], dtype=np.int64)
+        self.ids = np.array([self._site, self._pad_body, model.sensor_adr[sensor], model.sensor_intprm[sensor, 2],
+                             PAD_CONTACT_FIELDS], dtype=np.int64)
+        """the tool site, the pad body, the pad's contact sensor (its address in ``sensordata``, its
+        slots, the values per slot), indexed as in :mod:`~cnc_twin.polishing.removal_kernel`"""
         params = np.zeros(rk.N_PARAMS)
         params[[rk.RADIUS, rk.SLAB, rk.MODULUS, rk.K_DT, rk.MU, rk.FRICTION_SPEED, rk.DT]] = (
             removal.pad_radius, removal.slab, removal.pad_modulus, removal.preston_k * self.dt, self.friction,
@@ -128,19 +129,24 @@ class RemovalTracker:
         self.model_removal.contact_time = self.contact_time
         return self.model_removal
 
-    def kernel_args(self) -> tuple:
-        """The arguments of :func:`~cnc_twin.polishing.removal_kernel.tracker_update`."""
+    def kernel_args(self, *, copies: bool = False) -> tuple:
+        """The arguments of :func:`~cnc_twin.polishing.removal_kernel.tracker_update`; with
+        ``copies``, copies of every array it writes (the pad's applied wrench, the map, the ball,
+        the velocity, the totals), so a call changes nothing of the run's."""
         d = self.data
-        return (self.model._address, d._address, d.sensordata, d.xmat, d.site_xpos, d.xipos, d.xfrc_applied, self.ids,
-                self.params, self.model_removal._packed, self._boxes, self.model_removal.depth, self._ball_idx,
-                self._ball, self._ball_state, self._velocity, self.totals)
+        written = (d.xfrc_applied, self.model_removal.depth, self._ball_idx, self._ball, self._ball_state,
+                   self._velocity, self.totals)
+        xfrc, depth, ball_idx, ball, ball_state, velocity, totals = (
+            tuple(a.copy() for a in written) if copies else written)
+        return (self.model._address, d._address, d.sensordata, d.xmat, d.site_xpos, d.xipos, xfrc, self.ids,
+                self.params, self.model_removal._packed, self._boxes, depth, ball_idx, ball, ball_state, velocity,
+                totals)
 
     def contact_force(self) -> float:
         """Normal force of the pad's contacts along the tool axis [N] (a contact on a tile's side
         face, pushing sideways, does not press the pad onto the surface): from the pad's contact
         sensor, slot by slot in MuJoCo's contact order (what ``mj_contactForce`` gives per contact)."""
-        adr, slots = self._contacts
-        fields = int(self.ids[rk.FIELDS])
+        adr, slots, fields = (int(x) for x in self.ids[[rk.SENSOR_ADR, rk.SLOTS, rk.FIELDS]])
         sd = self.data.sensordata
         ax = self.data.xmat[self._pad_body]
         found = int(sd[adr])
@@ -182,10 +188,7 @@ class RemovalTracker:
         """Compile (or load) the compiled update before the run's clock starts: one update of the
         machine as it stands (the run's types), into copies of everything it writes."""
         if self.compiled:
-            args = list(self.kernel_args())
-            for i in (6, 11, 12, 13, 14, 15, 16):  # xfrc_applied, depth, the ball, velocity, totals
-                args[i] = args[i].copy()
-            rk.tracker_update(*args)
+            rk.tracker_update(*self.kernel_args(copies=True))
 
 
 FRICTION_SPEED = 1e-3
