@@ -8,8 +8,8 @@ step, the wrench into ``xfrc_applied``), which the polishing batch calls between
 and :func:`~cnc_twin.polishing.polish.friction_wrench` are the reference (numpy over the
 candidate points). :func:`removal_step` does the same arithmetic point by point in a numba
 kernel: every product and sum in the same order (the references add term by term:
-``sequential_sum``, no BLAS dot, no einsum), the same stable sort and search for the touching
-set, no fast-math; so the two agree bit for bit (``tests/test_removal_kernel.py``), and a
+``sequential_sum``, no BLAS dot, no einsum), the same passes that drop the points below the pad
+until the level holds, no fast-math; so the two agree bit for bit (``tests/test_removal_kernel.py``), and a
 polishing run's trace is the same either way.
 """
 
@@ -55,10 +55,9 @@ def removal_step(ball_idx, ball, tip, a, force, radius, slab, modulus, k_dt, v_t
     sel = np.empty(m, dtype=np.int64)
     hh = np.empty(m)
     aa = np.empty(m)
-    # the candidates, and the sums the first level needs, in index order (sequential_sum(A),
+    # first h and the test of every point, branch-free (the compiler vectorises it); then the
+    # candidates in index order with the sums the first level needs (sequential_sum(A),
     # sequential_sum(A * h): each its own running sum, so fused into one pass the same bits)
-    # first h and the test of every point, branch-free (the compiler vectorises it), then the
-    # candidates in index order
     a0, a1, a2, q0, q1, q2 = a[0], a[1], a[2], tip[0], tip[1], tip[2]  # the axis, the tip
     inside = np.empty(m, dtype=np.bool_)
     for j in range(m):
