@@ -302,20 +302,33 @@ SAMPLES_KEPT = 8
 _SAMPLES: OrderedDict[bytes, _Samples] = OrderedDict()
 
 
+def _kept(kept: OrderedDict, key: bytes | None):
+    """What ``kept`` holds under ``key`` (now its most recently used), or None."""
+    if key is None or key not in kept:
+        return None
+    kept.move_to_end(key)
+    return kept[key]
+
+
+def _keep(kept: OrderedDict, key: bytes | None, value, most: int) -> None:
+    """Keep ``value`` under ``key`` (None: keep nothing), dropping the least recently used beyond ``most``."""
+    if key is None:
+        return
+    kept[key] = value
+    while len(kept) > most:
+        kept.popitem(last=False)
+
+
 def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_path=None,
                   axis_limits=None, key: bytes | None = None) -> _Samples:
     """The curve sampled for planning with its feed limit: the bulk of the work before the first
     window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`).
     ``key`` (:func:`plan_key`): the samples taken under the same key earlier in this process, if
     kept (the last :data:`SAMPLES_KEPT`), as :func:`plan_feed_windows` keeps its plans."""
-    if key is not None and key in _SAMPLES:
-        _SAMPLES.move_to_end(key)
-        return _SAMPLES[key]
-    samples = _sample(curve, limits, period, axis_path, axis_limits)
-    if key is not None:
-        _SAMPLES[key] = samples
-        while len(_SAMPLES) > SAMPLES_KEPT:
-            _SAMPLES.popitem(last=False)
+    samples = _kept(_SAMPLES, key)
+    if samples is None:
+        samples = _sample(curve, limits, period, axis_path, axis_limits)
+        _keep(_SAMPLES, key, samples, SAMPLES_KEPT)
     return samples
 
 
@@ -364,9 +377,9 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     sweep whose gains change the card, not the path); a completed plan is kept under it (the
     last :data:`PLANS_KEPT`). None: plan, keep nothing.
     """
-    if key is not None and key in _PLANS:
-        _PLANS.move_to_end(key)
-        yield from _PLANS[key]
+    planned = _kept(_PLANS, key)
+    if planned is not None:
+        yield from planned
         return
     if samples is None:
         samples = _sample(curve, limits, period, axis_path, axis_limits)
@@ -374,10 +387,7 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     for blocks in _windows(samples, limits, window):
         planned.append(blocks)
         yield blocks
-    if key is not None:  # complete (a run that stops early keeps nothing)
-        _PLANS[key] = planned
-        while len(_PLANS) > PLANS_KEPT:
-            _PLANS.popitem(last=False)
+    _keep(_PLANS, key, planned, PLANS_KEPT)  # complete: a run that stops early keeps nothing
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,
