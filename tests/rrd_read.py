@@ -42,3 +42,10 @@ def rrd_contents(path: Path) -> dict[tuple[str, str, bool], list]:
             out[(chunk.entity_path, column, chunk.is_static)].extend(
                 (times[0][i], times[1][i], repr(values[i])) for i in range(n))
     return {key: sorted(rows, key=lambda r: (r[1] is not None, r[1] or 0, r[0] or 0, r[2])) for key, rows in out.items()}
+
+
+def entity_columns(contents: dict, entity: str, static: bool) -> list[list]:
+    """The value columns :func:`rrd_contents` holds for ``entity`` (static, or over time), each its
+    list of rows, whatever rerun names the column (``Archetype:field`` in rerun 0.41, its own
+    scheme, which has changed between versions)."""
+    return [rows for (path, _, is_static), rows in contents.items() if path == entity and is_static == static]

@@ -153,7 +153,8 @@ def test_a_stop_does_not_wait_for_the_planner():
 
 
 @pytest.mark.parametrize("fault, key, fragment", [
-    ({"type": "encoder_loss", "at": 0.1, "axis": "W", "counts": 5}, "faults[0].axis", "X"),
+    # pydantic words the allowed axes ("expected 'X', 'Y', ..."): the fragment is our end of the line
+    ({"type": "encoder_loss", "at": 0.1, "axis": "W", "counts": 5}, "faults[0].axis", ", got 'W'"),
     ({"type": "collision", "position": [0, 0, 0], "size": [1, 0, 1]}, "faults[0].size", "> 0"),
     ({"type": "torque_drop", "at": 0.1, "axis": "X", "fraction": 1.5}, "faults[0].fraction", "less than 1"),
     ({"type": "dsp_hang", "at": 0.1}, "faults[0].duration", "missing"),

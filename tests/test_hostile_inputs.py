@@ -49,7 +49,7 @@ CASES = {
     "alias bomb": (_bomb(), "description", "expands to more than"),
     "recursive alias": (GOOD + "description: &r [*r]\n", "", ""),
     "deep nesting": (_nested(200), "timing", "nested more than 32 levels deep"),
-    "nesting past the parser": (_nested(20000), "", "nested more than"),
+    "nesting past the parser": (_nested(20000), "", None),  # the parser's words: see WORDED_BY_A_LIBRARY
     "not UTF-8": (b"name: \xff\xfe\n", "", "not UTF-8"),
     "a list at the top": ("- 1\n- 2\n", "", "expected a mapping"),
     # numbers
@@ -67,18 +67,32 @@ CASES = {
     "stall of days": (_with(faults=[{"type": "planner_stall", "at": 0.1, "duration": 1e9}]), "faults[0].duration", ""),
     "fault after the end": (_with(max_time=2.0, faults=[{"type": "planner_kill", "at": 5.0}]), "faults[0].at",
                             "after the run's end"),
-    "nan": (GOOD + "max_time: .nan\n", "max_time", ""),
+    "nan": (GOOD + "max_time: .nan\n", "max_time", ", got nan"),
     # names
     "name climbing out": (_with(name="../../../tmp/x/escaped"), "name", "'/' is not allowed"),
     "hidden name": (_with(name=".x"), "name", "may not start with '.'"),
     "name with escape codes": (_with(name="a\x1b[31mred"), "", ""),
     "name with a bidi override": (_with(name="a\u202eb"), "name", "'\\u202e' is not allowed"),
-    "very long name": (_with(name="x" * 500), "name", "at most 100 characters"),
+    "very long name": (_with(name="x" * 500), "name",
+                       ", got 'xxxxxxxxxxxxxxxxxxxxxxxxxxx...xxxxxxxxxxxxxxxxxxxxxxxxxxxx'"),
     # paths
     "model not MJCF": (_with(machine={"model": "/etc/passwd"}), "machine.model", "MJCF does not compile"),
     "model missing": (_with(machine={"model": "nothing.xml"}), "machine.model", "not found"),
     "parameters not a mapping": (_with(machine={"parameters": "list.yaml"}), "machine.parameters", ""),
 }
+"""case -> (text of the file, the key path the line names, a fragment of our own words in it, or
+None where nothing after ``error: FILE: `` is sure to be ours)"""
+
+WORDED_BY_A_LIBRARY = {
+    "nesting past the parser": "the YAML parser",  # PyYAML 6.0.4 (libyaml) stops it before our check
+    "model not MJCF": "MuJoCo's XML parser",  # the reason after "MJCF does not compile: "
+    "nan": "pydantic",  # "a finite number" after our "expected"
+    "very long name": "pydantic",  # "string should have at most 100 characters"
+}
+"""Cases whose line goes on in a library's own words, which a minor release of it may change:
+the test holds the contract (exit 2, one printable line naming the file, the key and our words
+where the table gives them, nothing written) and docs/hostile_inputs.md quotes our part of the
+line, then "…" and the library named here, with what it printed as an example only."""
 
 
 DOC_ROWS = (Path(__file__).parents[1] / "docs" / "hostile_inputs.md").read_text(encoding="utf-8").splitlines()
@@ -100,12 +114,19 @@ def test_a_hostile_scenario_is_refused_in_one_line(tmp_path, case):
     line = err.strip()
     assert "\n" not in line and "Traceback" not in line and line.startswith(f"error: {path}")
     assert line.isprintable(), line  # no raw control character from the input reaches the terminal
-    assert f": {key}" in line and fragment in line, line
+    assert f": {key}" in line and (fragment is None or fragment in line), line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["hostile.yaml", "list.yaml"]
-    # docs/hostile_inputs.md quotes this very message
+    # docs/hostile_inputs.md quotes this very message, or (a library's words in it) our start of it
     quoted = line.replace(str(path), "FILE").replace(str(tmp_path), "DIR").replace("|", "\\|")
-    row = f"| {case} | {quoted} |"
-    assert row in DOC_ROWS, f"docs/hostile_inputs.md has no row {row!r}"
+    rows = [row for row in DOC_ROWS if row.startswith(f"| {case} | ") and row.endswith(" |")]
+    assert len(rows) == 1, f"docs/hostile_inputs.md has {len(rows)} rows for {case!r}"
+    documented = rows[0][len(f"| {case} | "):-2]
+    if case in WORDED_BY_A_LIBRARY:
+        ours, _, said = documented.partition("…")
+        assert said.startswith(f" ({WORDED_BY_A_LIBRARY[case]}"), documented
+        assert ours.startswith("error: FILE: ") and quoted.startswith(ours), (ours, quoted)
+    else:
+        assert documented == quoted, f"docs/hostile_inputs.md has {documented!r}, printed {quoted!r}"
 
 
 @pytest.mark.parametrize("source", ["/dev/zero", "big"])

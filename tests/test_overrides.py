@@ -44,7 +44,7 @@ def test_force_gains_of_a_polishing_program():
 
 @pytest.mark.parametrize("overrides, key, fragment", [
     ({"servo.X.kpp": 1}, "axes.X.servo.kpp", "unknown key"),
-    ({"servo.X.kp": "fast"}, "axes.X.servo.kp", "valid number"),
+    ({"servo.X.kp": "fast"}, "axes.X.servo.kp", ", got 'fast'"),  # ours; "a valid number" is pydantic's
     ({"program.moves[99].X": 1}, "program.moves[99].X", "no item 99"),
     ({"timing.servo_period.value": 1}, "timing.servo_period.value", "is not a mapping"),
     ({"warp": 9}, "warp", "unknown key"),

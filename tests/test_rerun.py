@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from rrd_read import rrd_contents, rrd_rows
+from rrd_read import entity_columns, rrd_contents, rrd_rows
 from cnc_twin.scenario.load import scenario_from_dict
 from cnc_twin.run.twin import run_scenario
 
@@ -37,11 +37,10 @@ def test_run_directory_holds_a_readable_recording_with_every_entity(short_run):
     assert rows["/controller/events"] >= 2  # IDLE -> RUNNING -> ... -> FINISHED
     assert rows["/whiteboard/exchange_latency_us"] == result.metrics["whiteboard"]["exchanges"]
     assert any(k.startswith("/machine/pad/") for k in static)  # geometry logged
-    contents = rrd_contents(run_dir / "recording.rrd")
-    names = contents[("/axes/ferr", "SeriesLines:names", True)]
-    assert [r[2] for r in names] == [repr(list("XYZABC"))]
-    x = contents[("/axes/X/position", "Scalars:scalars", False)]
-    assert len(x) == periods and all(len(floats_of(r[2])) == 2 for r in x)  # command, actual
+    contents = rrd_contents(run_dir / "recording.rrd")  # looked up by entity: column names are rerun's
+    assert [(None, None, repr(list("XYZABC")))] in entity_columns(contents, "/axes/ferr", static=True)  # series names
+    assert any(len(x) == periods and all(len(floats_of(r[2])) == 2 for r in x)  # command, actual
+               for x in entity_columns(contents, "/axes/X/position", static=False))
 
 
 def floats_of(text: str) -> list:
