@@ -7,6 +7,7 @@ in the benchmark's ``extra_info``). Absolute times vary with the machine's load.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from cnc_twin.studies.bench import bench_scenario, time_bare_steps
@@ -37,7 +38,7 @@ def test_servo_tick(benchmark, scenario):
     """Cost of one DSP servo tick (six axes: QEP, PID+FF, DAC; load-cell ADC)."""
     servo = Twin(scenario).servo
     servo.begin_period([100.0, -50.0, 20.0, 10.0, 5.0, 1.0])
-    positions = [1e-4, -5e-5, 2e-5, 1e-4, 5e-5, 1e-3]
+    positions = np.array([1e-4, -5e-5, 2e-5, 1e-4, 5e-5, 1e-3])
     benchmark(servo.tick, 0, positions, 0.0)
 
 
@@ -50,12 +51,11 @@ def _period(twin: Twin, compiled: bool):
     servo.begin_period([100.0, -50.0, 20.0, 10.0, 5.0, 1.0])
     if compiled:
         twin.kernel.warm_up()
-        twin.kernel.load()
         return lambda: twin.kernel.run_period(recorder, 0)
 
     def reference():
         for j in range(servo.ticks_per_period):
-            plant.apply_volts(servo.tick(j, plant.axis_positions(), plant.pad_force()))
+            plant.apply_volts(servo.tick(j, plant.data.qpos, plant.pad_force()))
             plant.step(substeps)
             recorder.record_tick(j, servo.frame)
     return reference

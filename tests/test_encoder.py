@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from cnc_twin.dsp.encoder import QuadratureEncoder, extend_counter, wrap_int32
+from cnc_twin.dsp.encoder import extend_counter, new_encoder, qep_sample, wrap_int32
 
 CPU = 1e6  # 1 um per count, as X/Y/Z
 
@@ -17,34 +17,40 @@ CPU = 1e6  # 1 um per count, as X/Y/Z
 def test_quantisation_is_floor_of_position_exact_to_one_count(position):
     # One sample from power-on may move at most 2^15 - 1 counts (32 mm here): beyond that a
     # single 16-bit reading is ambiguous, on the real QEP too. Longer travel: see the wrap tests.
-    enc = QuadratureEncoder(CPU)
-    counts = enc.sample(position)
+    enc = new_encoder(CPU)
+    counts = qep_sample(enc, position, 0)
     assert counts == math.floor(position * CPU)
     assert 0 <= position * CPU - counts <= 1.0
 
 
 def test_counts_are_relative_to_power_on_position():
-    enc = QuadratureEncoder(CPU, position_at_power_on=0.0123456)
-    assert enc.sample(0.0123456) == 0
-    assert enc.sample(0.0123456 + 10e-6) == 10
+    enc = new_encoder(CPU, position_at_power_on=0.0123456)
+    assert qep_sample(enc, 0.0123456, 0) == 0
+    assert qep_sample(enc, 0.0123456 + 10e-6, 0) == 10
+
+
+def test_an_injected_offset_changes_the_reading_not_the_count():
+    enc = new_encoder(CPU)
+    assert qep_sample(enc, 10e-6, -3) == 7 and enc["position32"] == 10
+    assert qep_sample(enc, 10e-6, 0) == 10
 
 
 @pytest.mark.parametrize("direction", [+1, -1])
 def test_wrap_at_16_bit_boundary_extends_to_32_bits(direction):
     """Travel 200 mm (200000 counts, three 16-bit wraps) in 50 um steps each way."""
-    enc = QuadratureEncoder(CPU)
+    enc = new_encoder(CPU)
     crossings = 0
     last16 = 0
     for k in range(1, 4001):
         position = direction * k * 50e-6
-        counts = enc.sample(position)
+        counts = qep_sample(enc, position, 0)
         assert counts == math.floor(position * CPU)  # exact, also across every 16-bit wrap
         assert abs(counts - position * CPU) <= 1.0
-        assert 0 <= enc.counter16 <= 0xFFFF
-        crossings += abs(enc.counter16 - last16) > 0x8000
-        last16 = enc.counter16
+        assert 0 <= enc["counter16"] <= 0xFFFF
+        crossings += abs(enc["counter16"] - last16) > 0x8000
+        last16 = enc["counter16"]
     assert crossings == (3 if direction > 0 else 4)  # going down, 0 -> 65535 is the first wrap
-    assert abs(enc.position32 - direction * 200000) <= 1
+    assert abs(enc["position32"] - direction * 200000) <= 1
 
 
 def test_wrap_exactly_across_boundaries():
@@ -70,4 +76,4 @@ def test_32_bit_position_wraps_twos_complement():
 
 def test_rejects_nonpositive_resolution():
     with pytest.raises(ValueError):
-        QuadratureEncoder(0.0)
+        new_encoder(0.0)

@@ -4,15 +4,25 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_twin.dsp.pid import PidFF
+from cnc_twin.dsp.pid import new_pid, pid_update
 
 SPV = 0.05      # m/s per V
 CPU = 1e6       # counts per m
 DT = 0.00025
 
 
-def loop(**gains) -> PidFF:
-    return PidFF(speed_per_volt=SPV, counts_per_unit=CPU, dt=DT, **gains)
+class loop:
+    """A position loop's record with ``update`` calling :func:`pid_update` on it."""
+
+    def __init__(self, **gains):
+        self.record = new_pid(speed_per_volt=SPV, counts_per_unit=CPU, dt=DT, **gains)
+
+    def update(self, command, feedback, velocity, acceleration) -> float:
+        return pid_update(self.record, command, feedback, velocity, acceleration)
+
+    @property
+    def integrator(self) -> float:
+        return float(self.record["integrator"])
 
 
 def test_kp_is_speed_per_unit_error():

@@ -10,6 +10,9 @@ Blocks (one job each, wired in :mod:`cnc_twin.dsp.servo`):
 - :mod:`~cnc_twin.dsp.step_output`   step/direction pulse generators (``command_output: pulse``)
 - :mod:`~cnc_twin.dsp.servo`         the servo task: the ordered wiring of the blocks, once per servo tick
 
+Each servo block is a plain function over a typed record (its interface), compiled with numba;
+the Python path and the compiled kernels call the same functions on the same records.
+
 Once per interpolation period:
 
 - :mod:`~cnc_twin.dsp.task`          the period task: exchange, records from the FIFO, state, feed hold, stops

@@ -6,13 +6,19 @@ Per interpolation period (``begin_period``), from the coarse interpolator's setp
     v = (p_next - p_prev) / T_ipo          # chord velocity [counts/s], feed-forward
     a = (v - v_prev) / T_ipo               # [counts/s^2], feed-forward
 
-Per servo tick ``j`` of ``n`` in the period (``tick``), for each axis::
+Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for each axis::
 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
-    actual   = QEP.sample(position)                          # encoder, counts
-    volts    = PID+FF(command, actual, v, a)
-    volts    = DAC.write(volts)                              # 12-bit, saturation counted
-    force    = ADC.convert(load cell) - tare                 # [N], tare taken on the first tick
+    actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
+    volts    = pid_update(pid, command, actual, v, a)        # PID+FF
+    volts    = dac_write(dac, volts)                         # 12-bit, saturation counted
+    force    = adc_convert(load cell + fault) - tare         # [N], tare taken on the first tick
+
+Each block's state is a record (:data:`AXIS` holds one axis's QEP, PID and DAC records and its
+setpoint latch; :data:`LOAD_CELL` the ADC's); every function here and in the blocks' modules is
+one plain function compiled with numba, called by the methods below once per tick and by the
+compiled kernels (:mod:`cnc_twin.run.servo_kernel`, :mod:`cnc_twin.run.period_kernel`) on the
+same records.
 
 A step interpolator (point-by-point, DDA) hands its own lattice point for every tick instead of
 the linear fine interpolation (``begin_period(setpoint, ticks)``).
@@ -32,14 +38,22 @@ is allocated per tick besides the returned voltages.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
-from cnc_twin.dsp.adc import Adc
-from cnc_twin.dsp.dac import Dac12
-from cnc_twin.dsp.encoder import QuadratureEncoder
-from cnc_twin.dsp.pid import PidFF
-from cnc_twin.dsp.step_output import StepGenerator
+import numpy as np
+from numba import njit
+
 from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
+from cnc_twin.core.kernel_cache import purge_stale
+from cnc_twin.dsp import adc, dac, encoder, pid
+from cnc_twin.dsp.adc import ADC, adc_convert, setup_adc
+from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
+from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
+from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
+from cnc_twin.dsp.step_output import StepGenerator
+
+# the functions below call the blocks' functions: recompile them when those change
+purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__])
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
@@ -48,9 +62,103 @@ PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchang
                  "feed_factor", "mark", "events")
 """per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
+AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
+                 ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64)])
+"""One axis's servo channel, the record the servo functions work on:
+
+=============  ==============  ===========================================  =========================
+field          unit            meaning                                      written by
+=============  ==============  ===========================================  =========================
+qep            :data:`QEP`     the encoder channel                          :func:`qep_sample`
+pid            :data:`PID`     the position loop                            :func:`pid_update`
+dac            :data:`DAC`     the analog output                            :func:`dac_write`
+p_prev         counts          the setpoint at the period's start           :func:`latch_setpoint`
+p_next         counts          the setpoint at the period's end             :func:`latch_setpoint`
+velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
+acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
+encoder_fault  counts          added to the reading by injected faults      the fault injector
+=============  ==============  ===========================================  =========================
+"""
+
+LOAD_CELL = np.dtype([("adc", ADC), ("tare", np.float64), ("tare_set", np.int64), ("fault", np.float64)])
+"""The load cell's channel: its :data:`~cnc_twin.dsp.adc.ADC`, the tare [N] taken on the first
+tick (``tare_set`` 1 once taken; :func:`read_load_cell`) and the force an injected fault adds to
+the cell's reading [N] (``fault``, written by the fault injector; 0 normally)."""
+
+
+@njit(cache=True)
+def latch_setpoint(axes, setpoint, inv_period):
+    """Latch the period's end setpoint [counts] (shape ``(n,)``) into ``axes`` (:data:`AXIS`,
+    shape ``(n,)``) and derive the feed-forward terms; ``inv_period`` is 1 / T_ipo [1/s]."""
+    for i in range(axes.shape[0]):
+        a = axes[i]
+        a.p_prev = a.p_next
+        a.p_next = setpoint[i]
+        velocity = (a.p_next - a.p_prev) * inv_period
+        a.acceleration = (velocity - a.velocity) * inv_period
+        a.velocity = velocity
+
+
+@njit(cache=True)
+def servo_tick(axes, fraction, tick_command, use_tick_command, positions, command_out, actual_out, code_out,
+               volts_out):
+    """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``): the fine
+    interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
+    with ``use_tick_command``), QEP at ``positions`` [m | rad], PID+FF, DAC. Writes the command
+    [counts], the reading [counts], the DAC code and the output voltage [V] per axis into the
+    ``*_out`` arrays (shape ``(n,)`` each)."""
+    for i in range(axes.shape[0]):
+        a = axes[i]
+        if use_tick_command:
+            command = tick_command[i]
+        else:
+            command = a.p_prev + (a.p_next - a.p_prev) * fraction
+        actual = qep_sample(a.qep, positions[i], a.encoder_fault)
+        volts_out[i] = dac_write(a.dac, pid_update(a.pid, command, actual, a.velocity, a.acceleration))
+        command_out[i] = command
+        actual_out[i] = actual
+        code_out[i] = a.dac.code
+
+
+@njit(cache=True)
+def read_encoders(axes, positions, actual_out):
+    """Only the QEP of every axis (drives off, pulse output, a hung task's counters): the
+    readings [counts] into ``actual_out`` (shape ``(n,)``)."""
+    for i in range(axes.shape[0]):
+        a = axes[i]
+        actual_out[i] = qep_sample(a.qep, positions[i], a.encoder_fault)
+
+
+@njit(cache=True)
+def disable_axes(axes):
+    """Drives off: every DAC writes 0 V (code 0) and every position loop forgets its state."""
+    for i in range(axes.shape[0]):
+        a = axes[i]
+        dac_write(a.dac, 0.0)
+        pid_reset(a.pid)
+
+
+@njit(cache=True)
+def read_load_cell(cell, value):
+    """The load cell ``value`` [N] (plus the injected ``cell.fault``) through the ADC, less the
+    tare taken on the first reading [N]."""
+    measured = adc_convert(cell.adc, value + cell.fault)
+    if cell.tare_set == 0:
+        cell.tare = measured
+        cell.tare_set = 1
+    return measured - cell.tare
+
+
+TASK_FUNCTIONS = (latch_setpoint, servo_tick, read_encoders, read_load_cell, disable_axes)
+"""the compiled functions :class:`ServoTask` calls from Python (:meth:`ServoTask.warm_up`)"""
+
 
 class ServoTask:
     """The card's servo interrupt and its per-period setpoint latch.
+
+    The state lives in :attr:`axes` (:data:`AXIS`, one record per axis) and :attr:`load_cell`
+    (:data:`LOAD_CELL`, shape ``(1,)``); the methods call the compiled block functions on them,
+    and the compiled kernels (:mod:`cnc_twin.run.servo_kernel`) work on the same records.
 
     Parameters
     ----------
@@ -71,41 +179,47 @@ class ServoTask:
         force_sensor: ForceSensorConfig,
         output: str = "analog",
     ):
-        self.n_axes = len(axes)
+        n = self.n_axes = len(axes)
         self.ticks_per_period = timing.ticks_per_period
-        self._inv_period = 1.0 / timing.interpolation_period
-        self.encoders = [
-            QuadratureEncoder(cfg.counts_per_unit, position_at_power_on=p0) for cfg, p0 in zip(axes, power_on)
-        ]
-        self.loops = [
-            PidFF(
-                kp=cfg.kp, ki=cfg.ki, kd=cfg.kd, kvff=cfg.kvff, kaff=cfg.kaff,
-                friction_ff=cfg.friction_ff, friction_ff_band=cfg.friction_ff_band,
-                speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
-                dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit,
-            )
-            for cfg in axes
-        ]
-        self.dacs = [Dac12() for _ in axes]
-        self.force_adc = Adc(force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
-        self._force_tare: float | None = None
-        self.force_fault = 0.0
-        """force added to the load cell's reading by an injected fault [N] (0 normally)"""
-        n = self.n_axes
-        self._p_prev = [0.0] * n
-        self._p_next = [0.0] * n
-        self._velocity = [0.0] * n
-        self._acceleration = [0.0] * n
-        self._fractions = [(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)]
+        self.inv_period = 1.0 / timing.interpolation_period
+        """1 / the interpolation period [1/s]"""
+        self.axes = np.zeros(n, AXIS)
+        for i, (cfg, p0) in enumerate(zip(axes, power_on)):
+            channel = self.axes[i]
+            setup_encoder(channel["qep"], cfg.counts_per_unit, p0)
+            setup_pid(channel["pid"], kp=cfg.kp, ki=cfg.ki, kd=cfg.kd, kvff=cfg.kvff, kaff=cfg.kaff,
+                      friction_ff=cfg.friction_ff, friction_ff_band=cfg.friction_ff_band,
+                      speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
+                      dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
+            setup_dac(channel["dac"])
+        self.load_cell = np.zeros(1, LOAD_CELL)
+        setup_adc(self.load_cell[0]["adc"], force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
+        self.fractions = np.array([(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)])
+        """the fine interpolation's fraction of the period at each tick, shape ``(ticks_per_period,)``"""
+        self.tick_commands = np.zeros((self.ticks_per_period, n))
+        """a step interpolator's command per tick [counts], shape ``(ticks_per_period, n)``, used
+        while :attr:`use_tick_commands`"""
+        self.use_tick_commands = False
+        self.fault_hook: Callable[[], None] | None = None
+        """called before every servo tick's encoder reading while an injected fault changes the
+        readings per tick (encoder noise): it writes ``axes["encoder_fault"]``"""
         # command floats, actual and DAC codes ints (as the encoders and DACs produce them)
         self.frame = [0.0] * n + [0] * (2 * n) + [0.0] * (1 + len(PERIOD_FIELDS))
         self.period_slot = len(FRAME_FIELDS) * n + 1
         """index in ``frame`` of the first per-period field"""
-        self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
+        self._command, self._volts = np.zeros(n), np.zeros(n)
+        self._actual, self._code = np.zeros(n, np.int64), np.zeros(n, np.int64)
         self.steppers = [StepGenerator(cfg.pulse_max_rate, timing.servo_period) for cfg in axes] \
             if output == "pulse" else []
-        self._pulse_channels = list(zip(range(n), self.encoders, self.steppers))
-        self._tick_commands: list[list[float]] | None = None
+
+    @property
+    def force_fault(self) -> float:
+        """Force added to the load cell's reading by an injected fault [N] (0 normally)."""
+        return float(self.load_cell[0]["fault"])
+
+    @force_fault.setter
+    def force_fault(self, value: float) -> None:
+        self.load_cell[0]["fault"] = value
 
     def begin_period(self, setpoint: Sequence[float], ticks: list[list[float]] | None = None) -> None:
         """Latch the next period's end setpoint [counts] and derive the feed-forward terms.
@@ -113,98 +227,95 @@ class ServoTask:
         ``ticks`` (optional, one command per tick, each shape ``(6,)`` [counts]) replaces the
         linear fine interpolation for this period: a step interpolator's own lattice points.
         """
-        self._tick_commands = ticks
-        inv_t = self._inv_period
-        self._p_prev = self._p_next
-        self._p_next = list(setpoint)
-        velocity = [(b - a) * inv_t for a, b in zip(self._p_prev, self._p_next)]
-        self._acceleration = [(v - v0) * inv_t for v, v0 in zip(velocity, self._velocity)]
-        self._velocity = velocity
+        if ticks is None:
+            self.use_tick_commands = False
+        else:
+            self.tick_commands[:] = ticks
+            self.use_tick_commands = True
+        latch_setpoint(self.axes, np.asarray(setpoint, dtype=np.float64), self.inv_period)
 
-    def tick(self, j: int, positions: Sequence[float], pad_force: float) -> list[float]:
+    def tick(self, j: int, positions: Sequence[float], pad_force: float) -> np.ndarray:
         """One servo interrupt, tick ``j`` of the period.
 
         Parameters
         ----------
-        positions : true axis positions [m | rad], shape ``(6,)``.
+        positions : true axis positions [m | rad], shape ``(6,)`` (an array: MuJoCo's ``qpos``).
         pad_force : load-cell force [N].
 
         Returns
         -------
-        Drive voltages as output by the DACs [V], shape ``(6,)``.
+        Drive voltages as output by the DACs [V], shape ``(6,)`` (overwritten by the next tick).
         """
-        frac = self._fractions[j]
-        p_prev, p_next, vel, acc = self._p_prev, self._p_next, self._velocity, self._acceleration
-        frame = self.frame
-        n = self.n_axes
-        volts = [0.0] * n
-        ticks = self._tick_commands
-        for i, encoder, loop, dac in self._channels:
-            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac if ticks is None else ticks[j][i]
-            actual = encoder.sample(positions[i])
-            volts[i] = dac.write(loop.update(command, actual, vel[i], acc[i]))
-            frame[i] = command
-            frame[n + i] = actual
-            frame[2 * n + i] = dac.code
-        self._read_force(pad_force)
-        return volts
+        if self.fault_hook is not None:
+            self.fault_hook()
+        servo_tick(self.axes, self.fractions[j], self.tick_commands[j], self.use_tick_commands, positions,
+                   self._command, self._actual, self._code, self._volts)
+        n, frame = self.n_axes, self.frame
+        frame[0:n] = self._command.tolist()
+        frame[n:2 * n] = self._actual.tolist()
+        frame[2 * n:3 * n] = self._code.tolist()
+        frame[3 * n] = read_load_cell(self.load_cell[0], pad_force)
+        return self._volts
 
     def tick_pulses(self, j: int, positions: Sequence[float], pad_force: float) -> list[int]:
         """One servo interrupt in pulse output: the step pulses per axis for tick ``j`` (signed)."""
-        frac = self._fractions[j]
-        p_prev, p_next = self._p_prev, self._p_next
-        frame = self.frame
-        n = self.n_axes
+        axes, frame, n = self.axes, self.frame, self.n_axes
+        frac = self.fractions[j]
+        use_ticks, ticks = self.use_tick_commands, self.tick_commands[j]
+        self.read_encoders(positions)
         pulses = [0] * n
-        ticks = self._tick_commands
-        for i, encoder, stepper in self._pulse_channels:
-            command = p_prev[i] + (p_next[i] - p_prev[i]) * frac if ticks is None else ticks[j][i]
+        for i, stepper in enumerate(self.steppers):
+            command = float(ticks[i]) if use_ticks else \
+                float(axes[i]["p_prev"] + (axes[i]["p_next"] - axes[i]["p_prev"]) * frac)
             pulses[i] = stepper.emit(command)
             frame[i] = command
-            frame[n + i] = encoder.sample(positions[i])
             frame[2 * n + i] = pulses[i]
-        self._read_force(pad_force)
+        frame[3 * n] = read_load_cell(self.load_cell[0], pad_force)
         return pulses
 
     def tick_disabled(self, j: int, positions: Sequence[float], pad_force: float) -> list[float]:
         """One servo interrupt with the drives disabled: follow-up, 0 V out (shape ``(6,)``)."""
-        frame = self.frame
-        n = self.n_axes
-        for i, encoder in enumerate(self.encoders):
-            actual = encoder.sample(positions[i])
-            frame[i] = float(actual)
-            frame[n + i] = actual
-            frame[2 * n + i] = 0
-        self._read_force(pad_force)
+        frame, n = self.frame, self.n_axes
+        actual = self.read_encoders(positions)
+        frame[0:n] = [float(x) for x in actual]
+        frame[2 * n:3 * n] = [0] * n
+        frame[3 * n] = read_load_cell(self.load_cell[0], pad_force)
         return [0.0] * n
+
+    def read_encoders(self, positions: Sequence[float]) -> list[int]:
+        """Sample every encoder at ``positions`` [m | rad] (no loop runs): the readings [counts],
+        also into ``frame``'s actual slots."""
+        if self.fault_hook is not None:
+            self.fault_hook()
+        read_encoders(self.axes, positions, self._actual)
+        actual = self._actual.tolist()
+        n = self.n_axes
+        self.frame[n:2 * n] = actual
+        return actual
 
     def disable(self) -> None:
         """Drives off: the DACs write 0 (code 0) and the position loops forget their state."""
-        for dac in self.dacs:
-            dac.write(0.0)
-        for loop in self.loops:
-            loop.reset()
+        disable_axes(self.axes)
 
-    def replace_encoder(self, axis: int, encoder) -> None:
-        """Put ``encoder`` (anything with ``sample(position) -> counts``) on ``axis``'s channel."""
-        self.encoders[axis] = encoder
-        self._rewire()
+    def warm_up(self) -> None:
+        """Compile the functions the methods call (or load them from numba's cache) now, not in
+        the timed run: each called once on copies of the records, with the run's argument types."""
+        n, axes, cell = self.n_axes, self.axes.copy(), self.load_cell.copy()
+        latch_setpoint(axes, np.zeros(n), self.inv_period)
+        servo_tick(axes, self.fractions[0], self.tick_commands[0], False, np.zeros(n), self._command.copy(),
+                   self._actual.copy(), self._code.copy(), self._volts.copy())
+        read_encoders(axes, np.zeros(n), self._actual.copy())
+        read_load_cell(cell[0], 0.0)
+        disable_axes(axes)
 
-    def replace_dac(self, axis: int, dac) -> None:
-        """Put ``dac`` (``write``, ``code``, ``saturations`` as :class:`Dac12`) on ``axis``'s channel."""
-        self.dacs[axis] = dac
-        self._rewire()
-
-    def _rewire(self) -> None:
-        n = self.n_axes
-        self._channels = list(zip(range(n), self.encoders, self.loops, self.dacs))
-        self._pulse_channels = list(zip(range(n), self.encoders, self.steppers))
-
-    def _read_force(self, pad_force: float) -> None:
-        measured = self.force_adc.convert(pad_force + self.force_fault)
-        if self._force_tare is None:
-            self._force_tare = measured
-        self.frame[3 * self.n_axes] = measured - self._force_tare
+    def frame_from(self, command: np.ndarray, force: float) -> None:
+        """``frame`` as a tick leaves it, after a compiled tick that wrote the records but not the
+        frame: the tick's ``command`` [counts] (shape ``(n,)``) and load-cell ``force`` [N]; the
+        readings and DAC codes from :attr:`axes`."""
+        n, frame, axes = self.n_axes, self.frame, self.axes
+        frame[0:n] = command.tolist()
+        frame[n:3 * n] = axes["qep"]["position32"].tolist() + axes["dac"]["code"].tolist()
+        frame[3 * n] = float(force)
 
     @property
     def pulse_limited_ticks(self) -> list[int]:
@@ -214,4 +325,4 @@ class ServoTask:
     @property
     def dac_saturations(self) -> list[int]:
         """Ticks each DAC channel spent clamped, per axis."""
-        return [dac.saturations for dac in self.dacs]
+        return self.axes["dac"]["saturations"].tolist()

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from cnc_twin.core.config import AxisConfig
-from cnc_twin.dsp.encoder import QuadratureEncoder
+from cnc_twin.dsp.encoder import new_encoder, qep_sample
 
 INPUT_LIMIT = 10.0
 """the speed loop's command range, as for the analog input [V-equivalent]"""
@@ -40,7 +40,8 @@ class PositionModeDrive:
 
     def __init__(self, axis: AxisConfig, *, tick: float, power_on: float):
         cpu, spv = axis.counts_per_unit, axis.speed_per_volt
-        self.encoder = QuadratureEncoder(cpu, position_at_power_on=power_on)
+        self.encoder = new_encoder(cpu, position_at_power_on=power_on)
+        """the drive's own QEP channel (:data:`~cnc_twin.dsp.encoder.QEP`)"""
         self.command = 0
         """pulses counted so far [counts]"""
         self._kp_volts = axis.drive_position_gain / (cpu * spv)
@@ -52,7 +53,7 @@ class PositionModeDrive:
     def update(self, pulses: int, position: float) -> float:
         """Count ``pulses``, run the position loop at ``position`` [m | rad]; the speed command [V]."""
         self.command += pulses
-        error = self.command - self.encoder.sample(position)
+        error = self.command - qep_sample(self.encoder, position, 0)
         self._rate += (pulses * self._inv_tick - self._rate) * self._alpha
         volts = self._kp_volts * error + self._ff_volts * self._rate
         if volts > INPUT_LIMIT:

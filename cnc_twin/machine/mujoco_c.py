@@ -40,3 +40,9 @@ except ImportError as exc:  # pragma: no cover - numba and mujoco are dependenci
 def available() -> bool:
     """Whether compiled kernels can call MuJoCo here (numba, the shared library, ``_address``)."""
     return IMPORT_ERROR is None and hasattr(mujoco.MjModel, "_address")
+
+
+def address(obj) -> int:
+    """The C pointer of a ``mujoco.MjModel`` or ``mujoco.MjData`` for a kernel's ``voidptr``
+    argument (the bindings' ``_address``, the one place the project reads it)."""
+    return obj._address

@@ -138,7 +138,9 @@ class RemovalTracker:
                    self._velocity, self.totals)
         xfrc, depth, ball_idx, ball, ball_state, velocity, totals = (
             tuple(a.copy() for a in written) if copies else written)
-        return (self.model._address, d._address, d.sensordata, d.xmat, d.site_xpos, d.xipos, xfrc, self.ids,
+        from cnc_twin.machine.mujoco_c import address
+
+        return (address(self.model), address(d), d.sensordata, d.xmat, d.site_xpos, d.xipos, xfrc, self.ids,
                 self.params, self.model_removal._packed, self._boxes, depth, ball_idx, ball, ball_state, velocity,
                 totals)
 

@@ -102,8 +102,9 @@ class Clock:
         twin.recorder = self.recorder = Recorder(planned + 2, self.ticks_per_period, scratch=not twin.record)
         # what the Python servo-tick variants call every tick, looked up once
         plant = twin.plant
-        self._plant_calls = (plant.axis_positions, plant.pad_force, plant.apply_volts, plant.step,
+        self._plant_calls = (plant.data.qpos, plant.pad_force, plant.apply_volts, plant.step,
                              self.recorder.record_tick)
+        """MuJoCo's qpos (the axes first: the servo reads positions[0:6]) and the plant's calls"""
         twin.late_periods = twin.missed_ticks = 0
         # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
         # per compiled call, the removal map's updates included (lockstep only: real time paces
@@ -147,8 +148,6 @@ class Clock:
             if injector is not None and k >= injector.next_period:
                 injector.begin_period(k)
             if injector is not None and injector.hang_ticks:  # variant: hung card
-                if kernel is not None:
-                    kernel.store()
                 record_period(k, frame, first_period_field)
                 t = self.hung_period(k, t)
                 k += 1
@@ -178,8 +177,6 @@ class Clock:
                     break
         wall_time = time.perf_counter() - wall_start
         recorder.count = t
-        if kernel is not None:
-            kernel.store()  # the metrics read the DACs' saturation counts
         if self.progress is not None and twin.stop_reason is None:
             self.progress(k, k)  # the bar ends at what was simulated, not at the estimate
         return wall_time, k
@@ -190,19 +187,15 @@ class Clock:
         twin = self.twin
         kernel = twin.kernel
         if kernel is not None and self.dsp.drives_enabled:  # variant: compiled
-            kernel.load()
             kernel.run_period(self.recorder, t)
             return t + self.ticks_per_period
-        if kernel is not None:
-            kernel.store()
         servo, frame = twin.servo, twin.servo.frame
-        axis_positions, pad_force, apply_volts, step, record_tick = self._plant_calls
+        positions, pad_force, apply_volts, step, record_tick = self._plant_calls
         substeps = self.substeps
         if self.dsp.drives_enabled and twin.drives is not None:
             # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
             tick_pulses, drive = servo.tick_pulses, twin.drives.update
             for j in range(self.ticks_per_period):
-                positions = axis_positions()
                 apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
                 step(substeps)
                 record_tick(t, frame)
@@ -214,7 +207,7 @@ class Clock:
             twin.drives_off()  # at the first such period: the stop just disabled them
             tick = servo.tick_disabled
         for j in range(self.ticks_per_period):
-            apply_volts(tick(j, axis_positions(), pad_force()))
+            apply_volts(tick(j, positions, pad_force()))
             step(substeps)
             record_tick(t, frame)
             t += 1
@@ -227,7 +220,6 @@ class Clock:
         twin, dsp = self.twin, self.dsp
         sc, plant, servo, injector = twin.scenario, twin.plant, twin.servo, twin.injector
         timing = sc.timing
-        n = servo.n_axes
         frame = servo.frame
         watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
         for _ in range(timing.ticks_per_period):
@@ -241,9 +233,7 @@ class Clock:
                     dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
                                     k, stop=STOP_DISABLE)
                     injector.hang_ticks = 0
-            positions = plant.axis_positions()
-            for i, encoder in enumerate(servo.encoders):
-                frame[n + i] = encoder.sample(positions[i])
+            servo.read_encoders(plant.data.qpos)
             self.recorder.record_tick(t, frame)
             t += 1
         if not injector.hang_ticks:

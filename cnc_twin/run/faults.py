@@ -33,58 +33,21 @@ from cnc_twin.machine.plant import Plant
 _NOISE_BLOCK = 4096
 
 
-class LossyEncoder:
-    """An encoder channel that missed ``lost`` counts."""
+class EncoderNoise:
+    """Seeded whole-count noise on one axis's encoder readings, +-``amplitude`` (a block of
+    :data:`_NOISE_BLOCK` draws, cycled): the next draw per servo tick."""
 
-    __slots__ = ("inner", "lost")
+    __slots__ = ("axis", "_noise", "_i")
 
-    def __init__(self, inner, lost: int):
-        self.inner, self.lost = inner, lost
-
-    def sample(self, position: float) -> int:
-        return self.inner.sample(position) - self.lost
-
-
-class NoisyEncoder:
-    """An encoder channel whose readings jump by up to +-amplitude counts (a seeded sequence)."""
-
-    __slots__ = ("inner", "_noise", "_i")
-
-    def __init__(self, inner, amplitude: int, rng: np.random.Generator):
-        self.inner = inner
+    def __init__(self, axis: int, amplitude: int, rng: np.random.Generator):
+        self.axis = axis
         self._noise = rng.integers(-amplitude, amplitude + 1, size=_NOISE_BLOCK).tolist()
         self._i = 0
 
-    def sample(self, position: float) -> int:
+    def next(self) -> int:
+        """This tick's offset [counts]."""
         self._i = (self._i + 1) % _NOISE_BLOCK
-        return self.inner.sample(position) + self._noise[self._i]
-
-
-class FrozenDac:
-    """A DAC channel whose output no longer follows the card: stuck at ``code`` (0: dead).
-
-    ``code`` and ``saturations`` report what the card wrote (it cannot see the fault)."""
-
-    __slots__ = ("inner", "_volts")
-
-    def __init__(self, inner, code: int):
-        self.inner = inner
-        self._volts = inner.volts(code)
-
-    def write(self, volts: float) -> float:
-        self.inner.write(volts)
-        return self._volts
-
-    def volts(self, code: int) -> float:
-        return self.inner.volts(code)
-
-    @property
-    def code(self) -> int:
-        return self.inner.code
-
-    @property
-    def saturations(self) -> int:
-        return self.inner.saturations
+        return self._noise[self._i]
 
 
 class FaultInjector:
@@ -112,6 +75,10 @@ class FaultInjector:
         """windowed faults in force: (end period, index, fault, what to restore)"""
         self.hang_ticks = 0
         """servo ticks the card's task is still to miss (dsp_hang)"""
+        self._lost = [0] * servo.n_axes
+        """encoder edges each axis has missed (encoder_loss) [counts]"""
+        self._noise: list[EncoderNoise] = []
+        """the encoder noise in force"""
         self.next_period = self._next()
         """the next period at which anything starts or ends (the twin calls begin_period then)"""
 
@@ -140,18 +107,33 @@ class FaultInjector:
                 self._active.append((end, index, fault, restore))
         self.next_period = self._next()
 
+    def _encoder_offsets(self) -> None:
+        """The counts the faults add to each encoder reading now (lost edges, this tick's noise),
+        into the servo's records: once when a loss starts, before every tick while noise is on."""
+        offsets = [-lost for lost in self._lost]
+        for noise in self._noise:
+            offsets[noise.axis] += noise.next()
+        self.servo.axes["encoder_fault"] = offsets
+
+    def _noise_changed(self) -> None:
+        self.servo.fault_hook = self._encoder_offsets if self._noise else None
+        if not self._noise:
+            self._encoder_offsets()
+
     def _apply(self, index: int, f: FaultInjection):
         servo, plant, axis = self.servo, self.plant, f.axis
         if f.kind == "encoder_loss":
-            servo.replace_encoder(axis, LossyEncoder(servo.encoders[axis], int(f.value)))
+            self._lost[axis] += int(f.value)
+            self._noise_changed()
         elif f.kind == "encoder_noise":
-            inner = servo.encoders[axis]
-            servo.replace_encoder(axis, NoisyEncoder(inner, int(f.value), self.rng))
-            return inner
-        elif f.kind == "dac_stuck":
-            servo.replace_dac(axis, FrozenDac(servo.dacs[axis], servo.dacs[axis].code))
-        elif f.kind == "dac_dead":
-            servo.replace_dac(axis, FrozenDac(servo.dacs[axis], 0))
+            noise = EncoderNoise(axis, int(f.value), self.rng)
+            self._noise.append(noise)
+            self._noise_changed()
+            return noise
+        elif f.kind in ("dac_stuck", "dac_dead"):
+            dac = servo.axes["dac"]
+            dac["stuck_code"][axis] = dac["code"][axis] if f.kind == "dac_stuck" else 0
+            dac["stuck"][axis] = 1
         elif f.kind == "torque_drop":
             plant.scale_force_limit(axis, f.value)
         elif f.kind in ("force_spike", "force_offset"):
@@ -166,6 +148,7 @@ class FaultInjector:
 
     def _finish(self, index: int, f: FaultInjection, restore) -> None:
         if f.kind == "encoder_noise":
-            self.servo.replace_encoder(f.axis, restore)
+            self._noise.remove(restore)
+            self._noise_changed()
         elif f.kind == "force_spike":
             self.servo.force_fault -= f.value

@@ -32,7 +32,6 @@ from cnc_twin.run.period_kernel import (
     QUEUED_PATH, S_DONE, S_NOW, SAT_LIMIT, SAT_RUN, SAT_SEEN, SIN_LEAD, SIN_TILT, SOFT_HI, SOFT_LO, SPIN, SPIN_STEP, SPIN_TARGET, SPINDLE_ON,
     SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, TICKS, V0, V_NOW, run_periods,
 )
-from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, VELOCITY
 from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
@@ -67,7 +66,7 @@ class PeriodBatch:
         interp = self.interp
         self.check[POWER_ON] = interp.power_on
         self.check[CPU] = interp.counts_per_unit
-        self.cs[INV_T] = self.servo._inv_period
+        self.cs[INV_T] = self.servo.inv_period
         self.feed[PERIOD] = interp.period
         sup = dsp.supervisor
         self.check[SOFT_LO], self.check[SOFT_HI] = -np.inf, np.inf
@@ -110,11 +109,9 @@ class PeriodBatch:
                     self.interp_ns, self._timespec)
 
     def _servo_args(self, columns: tuple, row0: int, row_step: int) -> tuple:
-        """``servo_args`` of :func:`run_periods`: the compiled servo's arrays, the recorder's
+        """``servo_args`` of :func:`run_periods`: the compiled servo's arguments, the recorder's
         ``columns`` (command, actual, dac, pad_force) and the first row and rows per period."""
-        kernel = self.kernel
-        return (kernel._model_ptr, kernel._data_ptr, kernel.substeps, kernel.fparams, kernel.fstate, kernel.istate,
-                kernel.scalars, kernel.fractions, kernel.tick_commands, *kernel._args_plant, *columns, row0, row_step)
+        return (*self.kernel.tick_args(), *columns, row0, row_step)
 
     def _mode(self, k: int) -> int | None:
         """What period ``k`` would run, if it can be batched; else None."""
@@ -189,7 +186,6 @@ class PeriodBatch:
         if mode is None:
             return 0
         dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
-        kernel.load()
         segment = interp._current[1]
         feed, check, cs, move, process = self.feed, self.check, self.cs, self.move, self.process
         feed[TAU], feed[LAM] = interp._tau, interp.override
@@ -241,9 +237,8 @@ class PeriodBatch:
         sup = dsp.supervisor
         if sup is not None:
             check[SAT_SEEN], check[SAT_RUN] = sup._sat_seen, sup._sat_run
-        kernel.take_setpoint()
         servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
-                                      0 if rec.scratch else len(kernel.fractions))
+                                      0 if rec.scratch else servo.ticks_per_period)
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
         timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
         done = run_periods(n_max, mode, k, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch,
@@ -284,16 +279,14 @@ class PeriodBatch:
         interp._hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
         interp.tick_commands = None
         interp.events = []
-        fstate = kernel.fstate
-        servo._p_prev, servo._p_next = fstate[P_PREV].tolist(), fstate[P_NEXT].tolist()
-        servo._velocity, servo._acceleration = fstate[VELOCITY].tolist(), fstate[ACCELERATION].tolist()
-        servo._tick_commands = None
+        servo.use_tick_commands = False
         sup = dsp.supervisor
         if sup is not None and sup._sat_limit:
             sup._sat_seen[:] = [int(x) for x in check[SAT_SEEN]]
             sup._sat_run[:] = [int(x) for x in check[SAT_RUN]]
         # the servo frame as the last period left it: the last tick, then the per-period fields
-        kernel.leave_frame(rec, rec.row(t + done * len(kernel.fractions) - 1), saturated=True)
+        last = rec.row(t + done * servo.ticks_per_period - 1)
+        servo.frame_from(rec.command[last], rec.pad_force[last])
         dsp.write_period_fields(0)  # a batched period raises no events
         # the period records: the fields that stay constant, then those that change per period
         periods = rec.periods[0:1] if rec.scratch else rec.periods[k:k + done]

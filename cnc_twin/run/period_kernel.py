@@ -45,16 +45,16 @@ from numba import njit
 
 from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import curve_kernel, feed_slew, force_kernel, span_kernel
+from cnc_twin.dsp import curve_kernel, feed_slew, force_kernel, servo, span_kernel
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock, servo_kernel
-from cnc_twin.run.servo_kernel import ACCELERATION, P_NEXT, P_PREV, POSITION32, SATURATIONS, VELOCITY
 
 # the batch kernel calls the path stepper, the force loop, the servo ticks, the removal update and
 # the clock: recompile when they change
 purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, force_kernel.__file__, servo_kernel.__file__,
-                       removal_kernel.__file__, c_clock.__file__, feed_slew.__file__])
+                       servo.__file__, removal_kernel.__file__, c_clock.__file__, feed_slew.__file__])
+_latch_setpoint = servo.latch_setpoint
 
 _stop_distance = njit(cache=True)(feed_slew.stop_distance)
 """the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
@@ -148,7 +148,7 @@ def _surface_axis(tangents, c1, process, out):
 
 
 @njit(cache=True)
-def _supervise(check, cs, switches, sensordata, istate, seen, run):
+def _supervise(check, cs, switches, sensordata, axes, seen, run):
     """The supervisor's checks on the last tick's signals (``Supervisor.check``): True if one trips.
     The DAC saturation runs go to ``seen`` / ``run``, committed with the period."""
     n = check.shape[1]
@@ -164,7 +164,7 @@ def _supervise(check, cs, switches, sensordata, istate, seen, run):
                 return True
     if cs[SAT_LIMIT] != 0.0:
         for i in range(n):
-            count = istate[SATURATIONS, i]
+            count = axes[i].dac.saturations
             run[i] = check[SAT_RUN, i] + 1 if count - check[SAT_SEEN, i] >= cs[TICKS] else 0.0
             seen[i] = count
             if run[i] >= cs[SAT_LIMIT]:
@@ -180,7 +180,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     (0 .. n_max).
 
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
-    ``servo_kernel.run_ticks`` but the first row; ``feed`` / ``check`` / ``cs`` / ``process``: the
+    ``servo_kernel.run_ticks`` but the first row, then the first row and the rows per period; ``feed`` / ``check`` / ``cs`` / ``process``: the
     blocks above (updated to the last committed period); ``curve_args``: the path's ``ev``
     (:mod:`cnc_twin.dsp.span_kernel`) and the corrector flag; ``sstate`` the stepper's state;
     ``axis_args``: the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: none) and the head
@@ -193,7 +193,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     line; with ``timed``, ``interp_ns`` gets each period's interpolation time [ns] (feed, force,
     path, kinematics, setpoint: what ``DspTask`` times around ``next_period``).
     """
-    (model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions, tick_commands, qpos, ctrl,
+    (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
     ev, correct = curve_args
     d = span_kernel.path_dim(ev)
@@ -208,7 +208,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     a_h = np.empty(3 * (a_d + 1))
     a_c1 = np.empty(a_d)
     a_c2 = np.empty(a_d)
-    n = fstate.shape[1]
+    n = axes.shape[0]
     tpp = fractions.shape[0]
     pose = np.empty(n)
     state = np.empty(3)
@@ -222,7 +222,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     T = feed[PERIOD]
     for k in range(n_max):
         # --- supervisor check on the last tick's signals (a trip: Python runs this period) ---
-        if cs[SUPERVISED] != 0.0 and _supervise(check, cs, switches, sensordata, istate, seen, run):
+        if cs[SUPERVISED] != 0.0 and _supervise(check, cs, switches, sensordata, axes, seen, run):
             return k
         started = c_clock.monotonic_ns(timespec) if timed else 0
         ds = 0.0
@@ -353,21 +353,14 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         process[SPIN] = spin
         for i in range(n):
             check[HELD, i] = held[i]
-        inv_t = cs[INV_T]
-        for i in range(n):  # ServoTask.begin_period: the feed-forward terms
-            fstate[P_PREV, i] = fstate[P_NEXT, i]
-            fstate[P_NEXT, i] = setpoint[i]
-            velocity = (fstate[P_NEXT, i] - fstate[P_PREV, i]) * inv_t
-            fstate[ACCELERATION, i] = (velocity - fstate[VELOCITY, i]) * inv_t
-            fstate[VELOCITY, i] = velocity
+        _latch_setpoint(axes, setpoint, cs[INV_T])  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
-        servo_kernel.run_ticks(model_ptr, data_ptr, substeps, fparams, fstate, istate, scalars, fractions,
-                               tick_commands, False, qpos, ctrl, sensordata, force_adr, rec_command, rec_actual,
-                               rec_dac, rec_force, row)
+        servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, False, qpos,
+                               ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row)
         last = row + tpp - 1
         for i in range(n):
             check[PREV_COMMAND, i] = rec_command[last, i]
-            check[PREV_ACTUAL, i] = istate[POSITION32, i]
+            check[PREV_ACTUAL, i] = axes[i].qep.position32
         cs[PREV_FORCE] = rec_force[last]
         # --- the removal map, after the period's ticks (as the clock calls RemovalTracker.update) ---
         if every > 0 and (k0 + k + 1) % every == 0:
@@ -386,6 +379,7 @@ def kernels_cached() -> bool:
         from pathlib import Path
 
         return all(Path(kernel._cache._cache_file._index_path).exists()
-                   for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update))
+                   for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update,
+                                  *servo.TASK_FUNCTIONS))
     except AttributeError:  # another numba's internals
         return True

@@ -55,8 +55,9 @@ class Twin:
     ----------
     scenario : a validated scenario (see :func:`cnc_twin.scenario.load.load_scenario`).
     compiled : run the servo periods in the compiled kernel where it applies and step NURBS
-        curves with the compiled stepper (the default); ``False`` runs the pure-Python reference
-        servo and stepper throughout. Traces are the same bit for bit.
+        curves with the compiled stepper (the default); ``False`` runs every servo tick as its own
+        call from Python (the same block functions, :mod:`cnc_twin.dsp.servo`) and the
+        pure-Python stepper throughout. Traces are the same bit for bit.
     batch : with ``compiled``, run the steady middle of curve blocks, moves and dwells many
         periods per compiled call (:mod:`cnc_twin.run.period_kernel`; the default). The trace is
         the same either way.
@@ -148,7 +149,8 @@ class Twin:
             # real-time planner may still be planning in its thread when the run ends)
             planner.reusable = sc.timing.mode == "lockstep" and not self.job.faults
             planner.submit(wb.name, self.job)
-            if self.kernel is not None:  # compiles (or loads) while the planner starts and plans
+            self.servo.warm_up()  # compiles (or loads) while the planner starts and plans
+            if self.kernel is not None:
                 self.kernel.warm_up()
             self.kind.warm_up(self)
             if self.removal is not None:

@@ -25,7 +25,7 @@ from cnc_twin.dsp.dac import CODE_MAX
 from cnc_twin.machine.plant import Plant, load_model
 
 VOLTS_PER_CODE = 10.0 / (CODE_MAX + 1)
-"""[V] the card's DAC step at its +/-10 V range (:class:`cnc_twin.dsp.dac.Dac12`)"""
+"""[V] the card's DAC step at its +/-10 V range (:mod:`cnc_twin.dsp.dac`)"""
 
 
 def run_model(scenario: Scenario) -> mujoco.MjModel:

@@ -127,9 +127,10 @@ class _Kinematics:
         tips = np.empty((n, 3))
         axes = np.empty((n, 3))
         if self.compiled:  # the same mj_kinematics calls, without a Python loop
+            from cnc_twin.machine.mujoco_c import address
             from cnc_twin.view.pose_replay import replay
 
-            replay(m._address, d._address, np.ascontiguousarray(q, dtype=np.float64), np.asarray(self.adr),
+            replay(address(m), address(d), np.ascontiguousarray(q, dtype=np.float64), np.asarray(self.adr),
                     d.qpos, d.xpos, d.xquat, d.site_xpos, d.site_xmat, self.tool, pos, quat, tips, axes)
             return pos, quat, tips, axes
         for k in range(n):

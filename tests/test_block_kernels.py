@@ -1,0 +1,142 @@
+"""Each card block is one plain function, compiled with numba: here every compiled function runs
+against its own interpreted source (``py_func``) on seeded random inputs and records, and must
+give the same outputs and leave the same records, bit for bit.
+
+The interpreted runs get the records as ``np.recarray`` views (attribute access, as numba's
+records have it); the compiled runs get plain structured arrays, as the twin passes them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnc_twin.dsp import adc, dac, encoder, pid, servo
+
+SEEDS = range(20)
+
+
+def _twins(array: np.ndarray) -> tuple[np.ndarray, np.recarray]:
+    """Two equal copies of a structured array: one plain (compiled), one a recarray (interpreted)."""
+    return array.copy(), array.copy().view(np.recarray)
+
+
+def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
+    """Servo channels with random set-up and state, some near their limits."""
+    axes = np.zeros(n, servo.AXIS)
+    for i in range(n):
+        channel = axes[i]
+        encoder.setup_encoder(channel["qep"], 10 ** rng.uniform(3, 7), rng.uniform(-0.5, 0.5))
+        pid.setup_pid(channel["pid"], kp=rng.uniform(0, 200), ki=rng.choice([0.0, rng.uniform(0, 5e4)]),
+                      kd=rng.uniform(0, 2), kvff=rng.uniform(0, 1.2), kaff=rng.uniform(0, 0.01),
+                      friction_ff=rng.uniform(0, 1), friction_ff_band=rng.uniform(1e-4, 1e-2),
+                      speed_per_volt=rng.uniform(0.01, 0.1), counts_per_unit=channel["qep"]["counts_per_unit"],
+                      dt=2.5e-4, output_limit=10.0, integrator_limit=rng.uniform(0.1, 10))
+        dac.setup_dac(channel["dac"])
+        channel["qep"]["counter16"] = rng.integers(0, 1 << 16)
+        channel["qep"]["position32"] = rng.integers(-(1 << 31), 1 << 31)
+        channel["pid"]["integrator"] = rng.uniform(-1, 1)
+        channel["pid"]["previous_error"] = rng.uniform(-100, 100)
+        channel["dac"]["stuck"] = rng.random() < 0.2
+        channel["dac"]["stuck_code"] = rng.integers(-2048, 2048)
+        channel["p_prev"], channel["p_next"] = rng.uniform(-1e6, 1e6, size=2)
+        channel["velocity"], channel["acceleration"] = rng.uniform(-1e6, 1e6), rng.uniform(-1e8, 1e8)
+        channel["encoder_fault"] = rng.integers(-20, 21)
+    return axes
+
+
+def _same(a, b) -> None:
+    """Outputs equal to the bit (floats by their bytes, so -0.0 and NaN count too)."""
+    assert np.asarray(a).tobytes() == np.asarray(b).tobytes(), (a, b)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_qep_sample(seed):
+    rng = np.random.default_rng(seed)
+    compiled, interpreted = _twins(_axes(rng)["qep"])
+    for _ in range(50):
+        i = rng.integers(0, len(compiled))
+        position, injected = rng.uniform(-2, 2), int(rng.integers(-50, 51))
+        _same(encoder.qep_sample(compiled[i], position, injected),
+              encoder.qep_sample.py_func(interpreted[i], position, injected))
+    _same(compiled, np.asarray(interpreted))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_pid_update_and_reset(seed):
+    rng = np.random.default_rng(seed)
+    compiled, interpreted = _twins(_axes(rng)["pid"])
+    for k in range(100):
+        i = rng.integers(0, len(compiled))
+        # errors from a count to far past saturation, either sign
+        args = (rng.uniform(-1e6, 1e6), float(rng.integers(-10**6, 10**6)), rng.uniform(-1e6, 1e6),
+                rng.uniform(-1e9, 1e9))
+        _same(pid.pid_update(compiled[i], *args), pid.pid_update.py_func(interpreted[i], *args))
+        if k % 37 == 36:
+            pid.pid_reset(compiled[i])
+            pid.pid_reset.py_func(interpreted[i])
+    _same(compiled, np.asarray(interpreted))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_dac_write(seed):
+    rng = np.random.default_rng(seed)
+    compiled, interpreted = _twins(_axes(rng)["dac"])
+    for _ in range(100):
+        i = rng.integers(0, len(compiled))
+        volts = rng.choice([rng.uniform(-12, 12), rng.uniform(-1e3, 1e3), 0.5 * 10 / 2048 * rng.integers(-4200, 4200)])
+        _same(dac.dac_write(compiled[i], volts), dac.dac_write.py_func(interpreted[i], volts))
+    _same(compiled, np.asarray(interpreted))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_adc_convert_and_the_load_cell(seed):
+    rng = np.random.default_rng(seed)
+    cells = np.zeros(1, servo.LOAD_CELL)
+    adc.setup_adc(cells[0]["adc"], rng.uniform(-100, 0), rng.uniform(1, 300), bits=int(rng.integers(8, 17)))
+    cells[0]["fault"] = rng.choice([0.0, rng.uniform(-50, 50)])
+    compiled, interpreted = _twins(cells)
+    for _ in range(100):
+        value = rng.uniform(-400, 400)
+        if rng.random() < 0.5:
+            _same(adc.adc_convert(compiled[0]["adc"], value), adc.adc_convert.py_func(interpreted[0].adc, value))
+        else:
+            _same(servo.read_load_cell(compiled[0], value), servo.read_load_cell.py_func(interpreted[0], value))
+    _same(compiled, np.asarray(interpreted))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_latch_setpoint_servo_tick_and_read_encoders(seed):
+    rng = np.random.default_rng(seed)
+    compiled, interpreted = _twins(_axes(rng))
+    n = len(compiled)
+    ticks = 4
+    for _ in range(20):
+        setpoint = rng.uniform(-1e6, 1e6, size=n)
+        servo.latch_setpoint(compiled, setpoint, 1000.0)
+        servo.latch_setpoint.py_func(interpreted, setpoint, 1000.0)
+        use_ticks = bool(rng.random() < 0.3)
+        tick_commands = rng.uniform(-1e6, 1e6, size=(ticks, n))
+        for j in range(ticks):
+            positions = rng.uniform(-1, 1, size=n + 3)  # MuJoCo's qpos: the axes first
+            outs_c = (np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n))
+            outs_i = tuple(np.zeros_like(a) for a in outs_c)
+            if rng.random() < 0.2:
+                servo.read_encoders(compiled, positions, outs_c[1])
+                servo.read_encoders.py_func(interpreted, positions, outs_i[1])
+            else:
+                servo.servo_tick(compiled, (j + 1) / ticks, tick_commands[j], use_ticks, positions, *outs_c)
+                servo.servo_tick.py_func(interpreted, (j + 1) / ticks, tick_commands[j], use_ticks, positions,
+                                         *outs_i)
+            for a, b in zip(outs_c, outs_i):
+                _same(a, b)
+    _same(compiled, np.asarray(interpreted))
+
+
+def test_the_differential_test_sees_a_difference():
+    """The comparison is not vacuous: a record changed by one count differs."""
+    axes = _axes(np.random.default_rng(0))
+    other = axes.copy()
+    other[3]["qep"]["position32"] += 1
+    with pytest.raises(AssertionError):
+        _same(axes, other)
