@@ -140,3 +140,36 @@ def test_the_differential_test_sees_a_difference():
     other[3]["qep"]["position32"] += 1
     with pytest.raises(AssertionError):
         _same(axes, other)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_force_update_through_every_state(seed):
+    """The force loop's period from random records in each state (frozen too), with and without a
+    profile: compiled and interpreted leave the same record and give the same depth."""
+    from cnc_twin.dsp.force import FORCE, ForceState, force_update
+
+    rng = np.random.default_rng(seed)
+    loops = np.zeros(8, FORCE)
+    for i in range(len(loops)):
+        r = loops[i]
+        for name, value in (("kp", rng.uniform(0, 1e-4)), ("ki", rng.uniform(0, 1e-2)), ("lo", -rng.uniform(1e-4, 3e-3)),
+                            ("hi", rng.uniform(1e-4, 2e-3)), ("adapt_threshold", rng.choice([0.0, 0.3])),
+                            ("adapt_feed", 0.5), ("adapt_hold", rng.uniform(0, 0.05)), ("setpoint", rng.uniform(5, 50)),
+                            ("period", 1e-3), ("seek_speed", rng.uniform(1e-3, 1e-2)), ("retract_speed", 5e-3),
+                            ("ramp_time", rng.choice([0.0, rng.uniform(0.01, 0.2)])), ("contact_threshold", 1.0),
+                            ("integral", rng.uniform(-1e-3, 1e-3)), ("depth", rng.uniform(-2e-3, 1e-3)),
+                            ("target", rng.uniform(0, 40)), ("feed_factor", rng.choice([0.5, 1.0])),
+                            ("calm", rng.uniform(0, 0.05)), ("t", rng.uniform(0, 0.3)), ("ramp_from", rng.uniform(0, 30)),
+                            ("contact_time", np.nan)):
+            r[name] = value
+        r["state"] = i % 6
+        r["frozen"] = int(i == 7)
+    profile = (np.array([0.0, 0.05, 0.2]), np.array([10.0, 30.0, 20.0])) if seed % 2 else (np.zeros(0), np.zeros(0))
+    compiled, interpreted = _twins(loops)
+    for _ in range(200):
+        i = rng.integers(0, len(loops))
+        measured, path_s = rng.uniform(-5, 60), rng.uniform(-0.1, 0.3)
+        _same(force_update(compiled[i], *profile, measured, path_s),
+              force_update.py_func(interpreted[i], *profile, measured, path_s))
+    _same(compiled, np.asarray(interpreted))
+    assert set(compiled["state"]) != {ForceState.OFF}  # the walk did not just end everything

@@ -198,7 +198,7 @@ def test_force_profile_and_feed_adaptation():
     fc.start(force_params(profile=((0.0, 10.0), (0.1, 30.0))))
     assert fc.setpoint_at(0.05) == pytest.approx(20.0)
     assert fc.setpoint_at(1.0) == 30.0 and fc.setpoint_at(-1.0) == 10.0
-    fc.state, fc.target = ForceState.TRACK, 20.0
+    fc.record["state"], fc.record["target"] = ForceState.TRACK, 20.0  # the loop's record, written as a test bench
     fc.update(10.0, 0.05)  # 50 % error: feed cut
     assert fc.feed_factor == 0.5
     for _ in range(10):
@@ -212,7 +212,7 @@ def test_force_profile_and_feed_adaptation():
 def test_force_loop_anti_windup_holds_the_clamp():
     fc = ForceController(1e-3)
     fc.start(force_params(max_depth=1e-3))
-    fc.state = ForceState.TRACK
+    fc.record["state"] = ForceState.TRACK
     for _ in range(2000):  # no contact ever: the loop pushes to the clamp and no further
         fc.update(0.0, 0.0)
     assert fc.depth == pytest.approx(1e-3)

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from cnc_twin.dsp import curve_kernel, force_kernel
+from cnc_twin.dsp import curve_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, ForceWait, SurfaceRun
@@ -105,8 +105,14 @@ class PeriodBatch:
         # no periods: nothing is read or written, only the argument types count
         run_periods(0, CURVE, 0, servo_args, self.feed, *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
                     self._no_axis, self.move, self.check, self.cs, self.switches, self.process,
-                    force_kernel.arrays_of(self.interp.force), self._no_lines, self._removal_args, self.out, False,
+                    self._force_args(), self._no_lines, self._removal_args, self.out, False,
                     self.interp_ns, self._timespec)
+
+    def _force_args(self) -> tuple:
+        """``force_args`` of :func:`run_periods`: the force loop's profile and its record (the
+        kernel commits each period into the record itself)."""
+        force = self.interp.force
+        return force.profile_s, force.profile_f, force.record
 
     def _servo_args(self, columns: tuple, row0: int, row_step: int) -> tuple:
         """``servo_args`` of :func:`run_periods`: the compiled servo's arguments, the recorder's
@@ -228,7 +234,7 @@ class PeriodBatch:
         process[SPIN_STEP] = interp._spindle_accel * interp.period
         # the axis the force loop pushes along: a force wait's own (as its periods set it), else the last
         process[AXIS_X:AXIS_Z + 1] = segment.axis if mode == FORCE_WAIT else interp._axis
-        force_args = force_kernel.arrays_of(force)
+        force_args = self._force_args()
         n = servo.n_axes
         frame = servo.frame
         check[PREV_COMMAND] = frame[0:n]
@@ -245,13 +251,13 @@ class PeriodBatch:
                            axis_args, move, check, cs, self.switches, process, force_args, lines, self._removal_args,
                            self.out, timed, self.interp_ns, self._timespec)
         if done:
-            self._commit(mode, segment, k, t, done, force_args[3])
+            self._commit(mode, segment, k, t, done)
             if timed:
                 dsp.interpolator_ns.extend(self.interp_ns[:done].tolist())
             self.periods += done
         return done
 
-    def _commit(self, mode: int, segment, k: int, t: int, done: int, force_state: np.ndarray) -> None:
+    def _commit(self, mode: int, segment, k: int, t: int, done: int) -> None:
         """Leave every object as the Python task would after period ``k + done - 1``."""
         dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
         feed, check, process, out = self.feed, self.check, self.process, self.out
@@ -269,8 +275,6 @@ class PeriodBatch:
             interp._tau = float(feed[TAU])
         elif mode == DWELL:
             interp._dwell_left = int(feed[DWELL_LEFT])
-        if interp.force.state != ForceState.OFF:
-            force_kernel.store(interp.force, force_state)
         interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
         interp.mark = int(process[MARK])
         interp._axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())

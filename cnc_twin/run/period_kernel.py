@@ -8,7 +8,7 @@ limits, the state stays RUNNING, no record is exchanged (the planner has sent ev
 ``solo``). :class:`~cnc_twin.run.period_batch.PeriodBatch` then runs up to :data:`MAX_BATCH`
 periods in one call of :func:`run_periods`, which does per period exactly what
 :meth:`DspTask.begin_period` (with :meth:`SegmentInterpolator.next_period`,
-:meth:`ForceController.update`, :meth:`Supervisor.check` / :meth:`~Supervisor.clamp` and
+:func:`~cnc_twin.dsp.force.force_update`, :meth:`Supervisor.check` / :meth:`~Supervisor.clamp` and
 :meth:`ServoTask.begin_period`), the clock's period record, :class:`~cnc_twin.run.servo_kernel.CompiledServo`
 and the removal map's update do, in the same order with the same IEEE operations::
 
@@ -45,16 +45,17 @@ from numba import njit
 
 from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import curve_kernel, feed_slew, force_kernel, servo, span_kernel
+from cnc_twin.dsp import curve_kernel, feed_slew, force, servo, span_kernel
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock, servo_kernel
 
 # the batch kernel calls the path stepper, the force loop, the servo ticks, the removal update and
 # the clock: recompile when they change
-purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, force_kernel.__file__, servo_kernel.__file__,
+purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, force.__file__, servo_kernel.__file__,
                        servo.__file__, removal_kernel.__file__, c_clock.__file__, feed_slew.__file__])
 _latch_setpoint = servo.latch_setpoint
+_force_update = force.force_update
 
 _stop_distance = njit(cache=True)(feed_slew.stop_distance)
 """the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
@@ -173,6 +174,17 @@ def _supervise(check, cs, switches, sensordata, axes, seen, run):
 
 
 @njit(cache=True)
+def _force_keeps(xs, fs, measured, path_s, trial):
+    """One period of the force loop on ``trial`` (a copy of its record, shape ``(1,)``), as the
+    card runs it; whether the period kept the loop's state and feed factor (if not, the Python
+    task runs this period: the batch ends before it)."""
+    loop = trial[0]
+    state, feed = loop.state, loop.feed_factor
+    _force_update(loop, xs, fs, measured, path_s)
+    return loop.state == state and loop.feed_factor == feed
+
+
+@njit(cache=True)
 def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args, move,
                 check, cs, switches, process, force_args, lines, removal_args, out, timed, interp_ns,
                 timespec):  # pragma: no cover - compiled
@@ -186,8 +198,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     ``axis_args``: the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: none) and the head
     geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
     displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit, sensordata
-    address, sign) rows; ``force_args``: the force loop's ``(params, xs, fs, state)``
-    (:mod:`cnc_twin.dsp.force_kernel`); ``lines``: a G-code path's line starts [u] and line
+    address, sign) rows; ``force_args``: the force loop's profile and record ``(xs, fs, record)``
+    (:mod:`cnc_twin.dsp.force`); ``lines``: a G-code path's line starts [u] and line
     numbers (empty: none); ``removal_args``: those of ``removal_kernel.tracker_update``;
     ``out``: per committed period, the path's u and ds, the force setpoint and depth, the program
     line; with ``timed``, ``interp_ns`` gets each period's interpolation time [ns] (feed, force,
@@ -198,7 +210,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     ev, correct = curve_args
     d = span_kernel.path_dim(ev)
     a_starts, a_blocks, a_lo, a_hi, a_d, head = axis_args
-    fp, fxs, ffs, force = force_args
+    fxs, ffs, loop = force_args
     line_us, line_numbers = lines
     tilting = a_starts.shape[0] > 0
     surface = process[SURFACE] != 0.0
@@ -213,7 +225,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     pose = np.empty(n)
     state = np.empty(3)
     trial = np.empty(sstate.shape[0])
-    force_trial = np.empty(force.shape[0])
+    force_trial = loop.copy()
     held = np.empty(n)
     setpoint = np.empty(n)
     seen = np.empty(n)
@@ -231,8 +243,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         if mode == CURVE:
             # --- the force loop first, on the load cell and the path so far (ForceController.update) ---
             if force_on:
-                force_trial[:] = force
-                if not force_kernel.advance(fp, fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
+                force_trial[:] = loop
+                if not _force_keeps(fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
                     return k  # the feed adapts from this period on: the Python task slews it
             # --- the feed along the block (SegmentInterpolator._advance_block) ---
             if feed[HAS_STATE] != 0.0:
@@ -292,8 +304,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             for i in range(n):
                 held[i] = check[HELD, i]
         else:  # the force loop at a path's end: the pose there (move row 0) and the loop's push
-            force_trial[:] = force
-            if not force_kernel.advance(fp, fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
+            force_trial[:] = loop
+            if not _force_keeps(fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
                 return k  # contact, or a ramp's or the retract's end: the Python task takes it on
             for i in range(n):
                 held[i] = move[0, i]
@@ -301,7 +313,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         for i in range(n):
             setpoint[i] = held[i]
         if force_on:
-            depth = force_trial[force_kernel.DEPTH]
+            depth = force_trial[0].depth
             if depth != 0.0:
                 for i in range(3):
                     setpoint[i] = held[i] - depth * tool[i] * check[CPU, i]
@@ -343,10 +355,10 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
                 feed[DWELL_LEFT] -= 1.0
             out[OUT_PATH_U, k] = -1.0
         if force_on:
-            force[:] = force_trial
+            loop[:] = force_trial
         out[OUT_PATH_DS, k] = ds
-        out[OUT_TARGET, k] = force[force_kernel.TARGET]
-        out[OUT_DEPTH, k] = force[force_kernel.DEPTH]
+        out[OUT_TARGET, k] = loop[0].target
+        out[OUT_DEPTH, k] = loop[0].depth
         out[OUT_MARK, k] = mark
         process[MARK] = mark
         process[C_OFFSET] = c_offset
@@ -380,6 +392,6 @@ def kernels_cached() -> bool:
 
         return all(Path(kernel._cache._cache_file._index_path).exists()
                    for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update,
-                                  *servo.TASK_FUNCTIONS))
+                                  *servo.TASK_FUNCTIONS, force.force_update))
     except AttributeError:  # another numba's internals
         return True

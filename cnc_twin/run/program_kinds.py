@@ -143,6 +143,7 @@ class SurfaceKind(_PathKind):
 
     def warm_up(self, twin: Twin) -> None:
         _warm_curve_stepper(twin)
+        twin.interpolator.force.warm_up()
 
     def build_plant(self, twin: Twin, obstacles: list) -> Plant:
         prog = twin.scenario.program
@@ -213,6 +214,7 @@ class GcodeKind(ProgramKind):
 
     def warm_up(self, twin: Twin) -> None:
         _warm_curve_stepper(twin)
+        twin.interpolator.force.warm_up()  # M100 runs the force loop
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.gcode_metrics import gcode_metrics
