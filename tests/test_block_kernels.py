@@ -173,3 +173,38 @@ def test_force_update_through_every_state(seed):
               force_update.py_func(interpreted[i], *profile, measured, path_s))
     _same(compiled, np.asarray(interpreted))
     assert set(compiled["state"]) != {ForceState.OFF}  # the walk did not just end everything
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_supervise_and_the_switch_inputs(seed):
+    """The supervisor's checks on random signals near each limit, and the plant's switch inputs
+    from random sensor readings: compiled and interpreted agree, records included."""
+    from cnc_twin.dsp.supervisor import LIMITS, SUPERVISOR, supervise
+    from cnc_twin.machine.plant import switch_bits
+
+    rng = np.random.default_rng(seed)
+    n = 6
+    limits = np.zeros(n, LIMITS)
+    limits["ferr_limit"] = np.where(rng.random(n) < 0.7, rng.uniform(10, 1000, n), 0.0)
+    limits["sat_seen"] = rng.integers(0, 50, n)
+    limits["sat_run"] = rng.integers(0, 5, n)
+    settings = np.zeros(1, SUPERVISOR)
+    settings[0]["sat_limit"], settings[0]["ticks"] = rng.choice([0, 3, 6]), 4
+    settings[0]["max_force"], settings[0]["check_switches"] = rng.choice([0.0, 60.0]), rng.integers(0, 2)
+    compiled, interpreted = _twins(limits)
+    saturations = limits["sat_seen"].copy()
+    switches = np.array([(0, 1, 0, 1), (0, 2, 1, -1), (1, 4, 2, 1), (2, 2, 3, -1)], dtype=np.int64)
+    for _ in range(100):
+        command = rng.uniform(-1e4, 1e4, n)
+        actual = command - rng.normal(0, 600, n).round()
+        saturations += rng.choice([0, 4], n, p=[0.3, 0.7])
+        sensordata = rng.uniform(-1, 1, 4)
+        inputs_c, inputs_i = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        switch_bits(switches, sensordata, inputs_c)
+        switch_bits.py_func(switches, sensordata, inputs_i)
+        _same(inputs_c, inputs_i)
+        force = rng.uniform(0, 80)
+        _same(supervise(settings[0], compiled, command, actual, saturations, inputs_c, force),
+              supervise.py_func(settings.view(np.recarray)[0], interpreted, command, actual, saturations, inputs_i,
+                                force))
+    _same(compiled, np.asarray(interpreted))

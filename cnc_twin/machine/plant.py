@@ -19,6 +19,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from numba import njit
 
 from cnc_twin.core.axes import (
     AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name,
@@ -155,6 +156,17 @@ def model_info(model: mujoco.MjModel) -> ModelInfo:
     return ModelInfo(travel=tuple(travel), home=tuple(home), speed_per_volt=tuple(spv))
 
 
+
+@njit(cache=True)
+def switch_bits(switches, sensordata, out):
+    """The switch inputs per axis into ``out`` (shape ``(6,)``, bits ``SWITCH_*``): a switch is on
+    when its dog is past it (the coordinate along the axis >= 0, <= 0 for a - switch).
+    ``switches``: :attr:`Plant.switches`."""
+    out[:] = 0
+    for r in range(switches.shape[0]):
+        if switches[r, 3] * sensordata[switches[r, 2]] >= 0.0:
+            out[switches[r, 0]] |= switches[r, 1]
+
 class Plant:
     """A MuJoCo machine with named accessors resolved once and a lean per-tick path.
 
@@ -189,12 +201,16 @@ class Plant:
         """False once :meth:`disable_drives` was called"""
         # Switches (optional in a model): framepos of the axis's dog in the switch's frame; the
         # switch is on when the dog is past it: coordinate along the axis >= 0 (<= 0 for -limit).
-        self._switches = []
+        rows = []
         for i, axis in enumerate(AXES[:3]):
             for suffix, bit, sign in _SWITCH_SENSORS:
                 sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"{axis.lower()}_{suffix}")
                 if sid >= 0:
-                    self._switches.append((i, bit, int(model.sensor_adr[sid]) + i, sign))
+                    rows.append((i, bit, int(model.sensor_adr[sid]) + i, sign))
+        self.switches = np.array(rows, dtype=np.int64).reshape(-1, 4)
+        """the model's switches, one row each: axis, its ``SWITCH_*`` bit, the address in
+        ``data.sensordata`` of the dog's coordinate, the side (+1, -1) (:func:`switch_bits`)"""
+        self._inputs = np.zeros(self._n_drives, np.int64)
         self.reset()
 
     def reset(self) -> None:
@@ -233,12 +249,8 @@ class Plant:
 
     def switch_inputs(self) -> list[int]:
         """Home and limit switch states per axis, shape ``(6,)``: bits ``SWITCH_*`` (0 without switches)."""
-        out = [0] * self._n_drives
-        data = self._sensordata
-        for i, bit, adr, sign in self._switches:
-            if sign * data[adr] >= 0.0:
-                out[i] |= bit
-        return out
+        switch_bits(self.switches, self._sensordata, self._inputs)
+        return self._inputs.tolist()
 
     # --- faults and stops ----------------------------------------------------------------
     def disable_drives(self) -> None:

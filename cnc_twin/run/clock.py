@@ -113,13 +113,14 @@ class Clock:
         if twin.kernel is not None and twin.batch and not self.realtime:
             from cnc_twin.run.period_batch import PeriodBatch
 
-            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder, twin.removal)
+            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder, twin.removal,
+                                                         switches=twin.plant.switches)
             self.batch.warm_up()
 
     def run(self) -> tuple[float, int]:
         """Run to the end; returns (wall time of the loop [s], periods run)."""
         twin, dsp, recorder, batch = self.twin, self.dsp, self.recorder, self.batch
-        kernel, injector, removal = twin.kernel, twin.injector, twin.removal
+        injector, removal = twin.injector, twin.removal
         frame, first_period_field = twin.servo.frame, twin.servo.period_slot
         record_period = recorder.record_period
         tpp, period_s, report_every = self.ticks_per_period, self.period_s, self.report_every

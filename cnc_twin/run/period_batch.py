@@ -19,21 +19,24 @@ from cnc_twin.dsp import curve_kernel
 from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, ForceWait, SurfaceRun
+from cnc_twin.dsp.supervisor import LIMITS, SUPERVISOR
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
 from cnc_twin.motion.scurve import SCurve
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock
 from cnc_twin.run.period_kernel import (
-    A_NOW, A_STOP, ACCEL, AXIS_X, AXIS_Z, C_HOLD, C_OFFSET, CHECK_SWITCHES, COS_LEAD, COS_TILT, CPU, CURVE, DURATION,
-    DWELL, DWELL_LEFT, FORCE_WAIT, EVERY, FERR_LIMIT, FORCE_ON, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK,
-    MAX_BATCH, MAX_FORCE, MOVE, N_CHECK, N_CHECK_SCALARS, N_FEED, N_OUT, N_PROCESS, OPEN_END, OUT_DEPTH, OUT_MARK,
-    OUT_PATH_DS, OUT_PATH_U, OUT_TARGET, PATH_S, PERIOD, POWER_ON, PREV_ACTUAL, PREV_COMMAND, PREV_FORCE,
-    QUEUED_PATH, S_DONE, S_NOW, SAT_LIMIT, SAT_RUN, SAT_SEEN, SIN_LEAD, SIN_TILT, SOFT_HI, SOFT_LO, SPIN, SPIN_STEP, SPIN_TARGET, SPINDLE_ON,
-    SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, TICKS, V0, V_NOW, run_periods,
+    A_NOW, A_STOP, ACCEL, AXIS_X, AXIS_Z, C_HOLD, C_OFFSET, COS_LEAD, COS_TILT, CPU, CURVE, DURATION, DWELL, DWELL_LEFT,
+    EVERY, FORCE_ON, FORCE_WAIT, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK, MAX_BATCH, MOVE,
+    N_CHECK, N_CHECK_SCALARS, N_FEED, N_OUT, N_PROCESS, OPEN_END, OUT_DEPTH, OUT_MARK, OUT_PATH_DS, OUT_PATH_U,
+    OUT_TARGET, PATH_S, PERIOD, POWER_ON, PREV_ACTUAL, PREV_COMMAND, PREV_FORCE, QUEUED_PATH, S_DONE, S_NOW, SIN_LEAD,
+    SIN_TILT, SPIN, SPIN_STEP, SPIN_TARGET, SPINDLE_ON, SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, V0, V_NOW, run_periods,
 )
 from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
+
+
+_NO_SWITCHES = np.zeros((0, 4), dtype=np.int64)
 
 
 class PeriodBatch:
@@ -48,9 +51,10 @@ class PeriodBatch:
     recorder : the run's recorder.
     removal : the run's removal map (:class:`~cnc_twin.polishing.polish.RemovalTracker`, compiled),
         updated inside the batch every ``removal.every`` periods; None without one.
+    switches : the plant's switches (:attr:`~cnc_twin.machine.plant.Plant.switches`); None: none.
     """
 
-    def __init__(self, dsp, kernel, recorder, removal=None):
+    def __init__(self, dsp, kernel, recorder, removal=None, *, switches: np.ndarray = None):
         self.dsp, self.kernel, self.recorder, self.removal = dsp, kernel, recorder, removal
         self.interp = dsp.interpolator
         self.servo = dsp.servo
@@ -69,20 +73,13 @@ class PeriodBatch:
         self.cs[INV_T] = self.servo.inv_period
         self.feed[PERIOD] = interp.period
         sup = dsp.supervisor
-        self.check[SOFT_LO], self.check[SOFT_HI] = -np.inf, np.inf
         if sup is not None:
             self.cs[SUPERVISED] = 1.0
-            for i, limit in sup._ferr_limit:
-                self.check[FERR_LIMIT, i] = limit
-            for i, lo, hi in sup._soft:
-                self.check[SOFT_LO, i], self.check[SOFT_HI, i] = lo, hi
-            self.cs[SAT_LIMIT] = sup._sat_limit
-            self.cs[TICKS] = sup.ticks_per_period
-            self.cs[MAX_FORCE] = sup.config.max_force
-            self.cs[CHECK_SWITCHES] = 1.0 if sup.check_switches and dsp.read_inputs is not None else 0.0
-        plant_switches = getattr(getattr(dsp.read_inputs, "__self__", None), "_switches", [])
-        self.switches = np.array([(i, bit, adr, sign) for i, bit, adr, sign in plant_switches],
-                                 dtype=np.float64).reshape(-1, 4)
+            # the plant's switches, read by the card when it has the inputs (DspTask.read_inputs)
+            with_inputs = switches is not None and dsp.read_inputs is not None
+            self.supervision = (sup.settings, sup.limits, switches if with_inputs else _NO_SWITCHES)
+        else:  # nothing is checked (SUPERVISED 0): records of the right types
+            self.supervision = (np.zeros(1, SUPERVISOR), np.zeros(n, LIMITS), _NO_SWITCHES)
         if removal is not None:
             self.process[EVERY] = removal.every
             self._removal_args = removal.kernel_args()
@@ -104,7 +101,7 @@ class PeriodBatch:
         servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0]), 0, 0)
         # no periods: nothing is read or written, only the argument types count
         run_periods(0, CURVE, 0, servo_args, self.feed, *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
-                    self._no_axis, self.move, self.check, self.cs, self.switches, self.process,
+                    self._no_axis, self.move, self.check, self.cs, self.supervision, self.process,
                     self._force_args(), self._no_lines, self._removal_args, self.out, False,
                     self.interp_ns, self._timespec)
 
@@ -191,7 +188,7 @@ class PeriodBatch:
         mode = self._mode(k) if n_max > 0 else None
         if mode is None:
             return 0
-        dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
+        dsp, interp, servo, rec = self.dsp, self.interp, self.servo, self.recorder
         segment = interp._current[1]
         feed, check, cs, move, process = self.feed, self.check, self.cs, self.move, self.process
         feed[TAU], feed[LAM] = interp._tau, interp.override
@@ -240,15 +237,12 @@ class PeriodBatch:
         check[PREV_COMMAND] = frame[0:n]
         check[PREV_ACTUAL] = frame[n:2 * n]
         cs[PREV_FORCE] = frame[3 * n]
-        sup = dsp.supervisor
-        if sup is not None:
-            check[SAT_SEEN], check[SAT_RUN] = sup._sat_seen, sup._sat_run
         servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
                                       0 if rec.scratch else servo.ticks_per_period)
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
         timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
         done = run_periods(n_max, mode, k, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch,
-                           axis_args, move, check, cs, self.switches, process, force_args, lines, self._removal_args,
+                           axis_args, move, check, cs, self.supervision, process, force_args, lines, self._removal_args,
                            self.out, timed, self.interp_ns, self._timespec)
         if done:
             self._commit(mode, segment, k, t, done)
@@ -259,7 +253,7 @@ class PeriodBatch:
 
     def _commit(self, mode: int, segment, k: int, t: int, done: int) -> None:
         """Leave every object as the Python task would after period ``k + done - 1``."""
-        dsp, interp, servo, kernel, rec = self.dsp, self.interp, self.servo, self.kernel, self.recorder
+        dsp, interp, servo, rec = self.dsp, self.interp, self.servo, self.recorder
         feed, check, process, out = self.feed, self.check, self.process, self.out
         if mode == CURVE:
             curve = segment.curve
@@ -284,10 +278,6 @@ class PeriodBatch:
         interp.tick_commands = None
         interp.events = []
         servo.use_tick_commands = False
-        sup = dsp.supervisor
-        if sup is not None and sup._sat_limit:
-            sup._sat_seen[:] = [int(x) for x in check[SAT_SEEN]]
-            sup._sat_run[:] = [int(x) for x in check[SAT_RUN]]
         # the servo frame as the last period left it: the last tick, then the per-period fields
         last = rec.row(t + done * servo.ticks_per_period - 1)
         servo.frame_from(rec.command[last], rec.pad_force[last])

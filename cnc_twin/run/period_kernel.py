@@ -43,9 +43,9 @@ import math
 import numpy as np
 from numba import njit
 
-from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import curve_kernel, feed_slew, force, servo, span_kernel
+from cnc_twin.dsp import curve_kernel, feed_slew, force, servo, span_kernel, supervisor
+from cnc_twin.machine import plant
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock, servo_kernel
@@ -53,9 +53,12 @@ from cnc_twin.run import c_clock, servo_kernel
 # the batch kernel calls the path stepper, the force loop, the servo ticks, the removal update and
 # the clock: recompile when they change
 purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, force.__file__, servo_kernel.__file__,
-                       servo.__file__, removal_kernel.__file__, c_clock.__file__, feed_slew.__file__])
+                       servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
+                       c_clock.__file__, feed_slew.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
+_supervise_checks = supervisor.supervise
+_switch_bits = plant.switch_bits
 
 _stop_distance = njit(cache=True)(feed_slew.stop_distance)
 """the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
@@ -71,13 +74,13 @@ CURVE, MOVE, DWELL, FORCE_WAIT = 0, 1, 2, 3
 """what runs: a curve block (or a surface path's), a point-to-point move (its trapezoid), a dwell,
 the force loop making or releasing contact at a path's end (its seek, ramp, ramp down, retract)"""
 # the check block (float64, shape (N_CHECK, 6)): per axis
-FERR_LIMIT, SOFT_LO, SOFT_HI, PREV_COMMAND, PREV_ACTUAL, SAT_SEEN, SAT_RUN, POWER_ON, CPU, HOLD, HELD = range(11)
-N_CHECK = 11
+PREV_COMMAND, PREV_ACTUAL, POWER_ON, CPU, HOLD, HELD = range(6)
+N_CHECK = 6
 """``HOLD``: a curve's held A, B, C [rad] (first three); ``HELD``: the path setpoint without the
 force loop's and the spindle's offsets [counts] (the interpolator's ``_hold_counts``)"""
 # check scalars (float64)
-CHECK_SWITCHES, SAT_LIMIT, TICKS, MAX_FORCE, PREV_FORCE, INV_T, SUPERVISED = range(7)
-N_CHECK_SCALARS = 7
+PREV_FORCE, INV_T, SUPERVISED = range(3)
+N_CHECK_SCALARS = 3
 # the process block (float64): path length, spindle, force loop, the surface's tool axis, removal
 PATH_S, C_OFFSET, SPIN, SPINDLE_ON, SPIN_TARGET, SPIN_STEP, FORCE_ON, SURFACE, LEANED, COS_LEAD, SIN_LEAD, COS_TILT, \
     SIN_TILT, C_HOLD, AXIS_X, AXIS_Y, AXIS_Z, EVERY, MARK = range(19)
@@ -149,28 +152,18 @@ def _surface_axis(tangents, c1, process, out):
 
 
 @njit(cache=True)
-def _supervise(check, cs, switches, sensordata, axes, seen, run):
-    """The supervisor's checks on the last tick's signals (``Supervisor.check``): True if one trips.
-    The DAC saturation runs go to ``seen`` / ``run``, committed with the period."""
-    n = check.shape[1]
-    for i in range(n):
-        error = check[PREV_COMMAND, i] - check[PREV_ACTUAL, i]
-        limit = check[FERR_LIMIT, i]
-        if limit > 0.0 and (error > limit or -error > limit):
-            return True
-    if cs[CHECK_SWITCHES] != 0.0:
-        for r in range(switches.shape[0]):
-            if (switches[r, 3] * sensordata[int(switches[r, 2])] >= 0.0
-                    and int(switches[r, 1]) & (SWITCH_LIMIT_POS | SWITCH_LIMIT_NEG)):
-                return True
-    if cs[SAT_LIMIT] != 0.0:
-        for i in range(n):
-            count = axes[i].dac.saturations
-            run[i] = check[SAT_RUN, i] + 1 if count - check[SAT_SEEN, i] >= cs[TICKS] else 0.0
-            seen[i] = count
-            if run[i] >= cs[SAT_LIMIT]:
-                return True
-    return cs[MAX_FORCE] > 0.0 and cs[PREV_FORCE] > cs[MAX_FORCE]
+def _supervise(check, cs, supervision, sensordata, axes, inputs, saturations, trial):
+    """The supervisor's checks on the last tick's signals (:func:`~cnc_twin.dsp.supervisor.supervise`,
+    as ``Supervisor.check`` calls it) on ``trial``, a copy of its per-axis records (committed with
+    the period): True if one trips. ``supervision``: ``(settings, limits, switches)``."""
+    settings, limits, switches = supervision
+    trial[:] = limits
+    _switch_bits(switches, sensordata, inputs)
+    for i in range(axes.shape[0]):
+        saturations[i] = axes[i].dac.saturations
+    code, _ = _supervise_checks(settings[0], trial, check[PREV_COMMAND], check[PREV_ACTUAL], saturations, inputs,
+                                cs[PREV_FORCE])
+    return code != 0
 
 
 @njit(cache=True)
@@ -186,7 +179,7 @@ def _force_keeps(xs, fs, measured, path_s, trial):
 
 @njit(cache=True)
 def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args, move,
-                check, cs, switches, process, force_args, lines, removal_args, out, timed, interp_ns,
+                check, cs, supervision, process, force_args, lines, removal_args, out, timed, interp_ns,
                 timespec):  # pragma: no cover - compiled
     """Run up to ``n_max`` periods from the run's period ``k0``; returns how many were committed
     (0 .. n_max).
@@ -197,8 +190,9 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     (:mod:`cnc_twin.dsp.span_kernel`) and the corrector flag; ``sstate`` the stepper's state;
     ``axis_args``: the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: none) and the head
     geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
-    displacement [counts] (a dwell's held setpoint in row 0); ``switches``: (axis, bit, sensordata
-    address, sign) rows; ``force_args``: the force loop's profile and record ``(xs, fs, record)``
+    displacement [counts] (a dwell's held setpoint in row 0); ``supervision``: the supervisor's
+    settings and per-axis records (:mod:`cnc_twin.dsp.supervisor`) and the plant's switches
+    (:attr:`~cnc_twin.machine.plant.Plant.switches`); ``force_args``: the force loop's profile and record ``(xs, fs, record)``
     (:mod:`cnc_twin.dsp.force`); ``lines``: a G-code path's line starts [u] and line
     numbers (empty: none); ``removal_args``: those of ``removal_kernel.tracker_update``;
     ``out``: per committed period, the path's u and ds, the force setpoint and depth, the program
@@ -228,13 +222,16 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     force_trial = loop.copy()
     held = np.empty(n)
     setpoint = np.empty(n)
-    seen = np.empty(n)
-    run = np.empty(n)
+    limits = supervision[1]
+    limits_trial = limits.copy()
+    inputs = np.zeros(n, np.int64)
+    saturations = np.zeros(n, np.int64)
     tool = np.empty(3)
     T = feed[PERIOD]
     for k in range(n_max):
         # --- supervisor check on the last tick's signals (a trip: Python runs this period) ---
-        if cs[SUPERVISED] != 0.0 and _supervise(check, cs, switches, sensordata, axes, seen, run):
+        if cs[SUPERVISED] != 0.0 and _supervise(check, cs, supervision, sensordata, axes, inputs, saturations,
+                                                limits_trial):
             return k
         started = c_clock.monotonic_ns(timespec) if timed else 0
         ds = 0.0
@@ -331,13 +328,11 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         # --- soft limits (a clamp: Python runs this period) ---
         if cs[SUPERVISED] != 0.0:
             for i in range(n):
-                if setpoint[i] < check[SOFT_LO, i] or setpoint[i] > check[SOFT_HI, i]:
+                if setpoint[i] < limits[i].soft_lo or setpoint[i] > limits[i].soft_hi:
                     return k
         # --- commit the period ---
-        if cs[SUPERVISED] != 0.0 and cs[SAT_LIMIT] != 0.0:
-            for i in range(n):
-                check[SAT_SEEN, i] = seen[i]
-                check[SAT_RUN, i] = run[i]
+        if cs[SUPERVISED] != 0.0:
+            limits[:] = limits_trial  # the DAC saturation runs this period's check counted
         if mode == CURVE:
             feed[TAU] = tau
             feed[S_DONE] = state[0]
@@ -392,6 +387,6 @@ def kernels_cached() -> bool:
 
         return all(Path(kernel._cache._cache_file._index_path).exists()
                    for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update,
-                                  *servo.TASK_FUNCTIONS, force.force_update))
+                                  *servo.TASK_FUNCTIONS, force.force_update, supervisor.supervise, plant.switch_bits))
     except AttributeError:  # another numba's internals
         return True

@@ -150,6 +150,8 @@ class Twin:
             planner.reusable = sc.timing.mode == "lockstep" and not self.job.faults
             planner.submit(wb.name, self.job)
             self.servo.warm_up()  # compiles (or loads) while the planner starts and plans
+            self.supervisor.warm_up()
+            self.plant.switch_inputs()
             if self.kernel is not None:
                 self.kernel.warm_up()
             self.kind.warm_up(self)

@@ -278,6 +278,8 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
         stop.pass_on()
         raise
     finally:
+        if failed:  # the pool broke: its other workers end now, not when the pool gets round to it
+            stop.end_workers()
         pool.shutdown(wait=True, cancel_futures=True)
         stop.forget_workers()
 

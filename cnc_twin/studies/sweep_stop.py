@@ -73,6 +73,18 @@ class SweepStop:
             except ProcessLookupError:  # it left already (a broken pool)
                 pass
 
+    def end_workers(self) -> None:
+        """Send SIGTERM to every worker that registered (each ends its case cleanly and leaves):
+        after a pool broke, so that its shutdown does not wait on a worker the pool itself left
+        waiting for work (Python 3.13.0 did, seen here: the sweep then never returned)."""
+        while self._pids_in.poll():
+            self._workers.add(int(self._pids_in.recv_bytes()))
+        for pid in self._workers:
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except ProcessLookupError:  # it left already
+                pass
+
     def forget_workers(self) -> None:
         """After a pool has shut down (its workers joined): their pids may be reused, so none
         of them is signalled again."""
