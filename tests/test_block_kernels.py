@@ -50,43 +50,39 @@ def _same(a, b) -> None:
     assert np.asarray(a).tobytes() == np.asarray(b).tobytes(), (a, b)
 
 
+def _walk(function, records: np.ndarray, rng: np.random.Generator, draw, steps: int) -> None:
+    """``steps`` calls of ``function`` (compiled) and of its ``py_func`` on a random record of
+    ``records`` each, with the arguments ``draw(rng)`` gives: the same results, the same records."""
+    compiled, interpreted = _twins(records)
+    for _ in range(steps):
+        i = rng.integers(0, len(compiled))
+        args = draw(rng)
+        _same(function(compiled[i], *args), function.py_func(interpreted[i], *args))
+    _same(compiled, np.asarray(interpreted))
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_qep_sample(seed):
     rng = np.random.default_rng(seed)
-    compiled, interpreted = _twins(_axes(rng)["qep"])
-    for _ in range(50):
-        i = rng.integers(0, len(compiled))
-        position, injected = rng.uniform(-2, 2), int(rng.integers(-50, 51))
-        _same(encoder.qep_sample(compiled[i], position, injected),
-              encoder.qep_sample.py_func(interpreted[i], position, injected))
-    _same(compiled, np.asarray(interpreted))
+    _walk(encoder.qep_sample, _axes(rng)["qep"], rng, lambda r: (r.uniform(-2, 2), int(r.integers(-50, 51))), 50)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_pid_update_and_reset(seed):
     rng = np.random.default_rng(seed)
-    compiled, interpreted = _twins(_axes(rng)["pid"])
-    for k in range(100):
-        i = rng.integers(0, len(compiled))
-        # errors from a count to far past saturation, either sign
-        args = (rng.uniform(-1e6, 1e6), float(rng.integers(-10**6, 10**6)), rng.uniform(-1e6, 1e6),
-                rng.uniform(-1e9, 1e9))
-        _same(pid.pid_update(compiled[i], *args), pid.pid_update.py_func(interpreted[i], *args))
-        if k % 37 == 36:
-            pid.pid_reset(compiled[i])
-            pid.pid_reset.py_func(interpreted[i])
-    _same(compiled, np.asarray(interpreted))
+    loops = _axes(rng)["pid"]
+    # errors from a count to far past saturation, either sign
+    _walk(pid.pid_update, loops, rng, lambda r: (r.uniform(-1e6, 1e6), float(r.integers(-10**6, 10**6)),
+                                                r.uniform(-1e6, 1e6), r.uniform(-1e9, 1e9)), 50)
+    _walk(pid.pid_reset, loops, rng, lambda r: (), 3)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_dac_write(seed):
     rng = np.random.default_rng(seed)
-    compiled, interpreted = _twins(_axes(rng)["dac"])
-    for _ in range(100):
-        i = rng.integers(0, len(compiled))
-        volts = rng.choice([rng.uniform(-12, 12), rng.uniform(-1e3, 1e3), 0.5 * 10 / 2048 * rng.integers(-4200, 4200)])
-        _same(dac.dac_write(compiled[i], volts), dac.dac_write.py_func(interpreted[i], volts))
-    _same(compiled, np.asarray(interpreted))
+    _walk(dac.dac_write, _axes(rng)["dac"], rng,
+          lambda r: (r.choice([r.uniform(-12, 12), r.uniform(-1e3, 1e3), 0.5 * 10 / 2048 * r.integers(-4200, 4200)]),),
+          100)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
