@@ -4,7 +4,8 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 - :mod:`~cnc_twin.gcode.expressions`   ``[...]`` expressions, functions and parameters
 - :mod:`~cnc_twin.gcode.blocks`        one line read into a block: words, comments, N, ``/``, O-words,
   parameter settings applied after the line
-- :mod:`~cnc_twin.gcode.modal`         G and M codes into modal groups, refused as LinuxCNC refuses them
+- :mod:`~cnc_twin.gcode.modal`         G and M codes into modal groups, refused as LinuxCNC refuses them; the
+  groups and codes by name (``GGroup``, ``MGroup``, ``G``, ``M``)
 - :mod:`~cnc_twin.gcode.checks`        a block's words checked before it runs; what the machine lacks refused
 - :mod:`~cnc_twin.gcode.source`        a file's lines, ``%`` markers, O-word lines for jumps
 - :mod:`~cnc_twin.gcode.flow`          O-word control flow: subroutines, branches, loops

@@ -55,12 +55,13 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from cnc_twin.gcode.blocks import BlockError
+from cnc_twin.gcode.modal import G
 
-PLANE_AXES: dict[int, tuple[int, int, int]] = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+PLANE_AXES: dict[int, tuple[int, int, int]] = {G.G17: (0, 1, 2), G.G18: (2, 0, 1), G.G19: (1, 2, 0)}
 """plane (G code in tenths) -> indices into (x, y, z) of its first, second and normal axis"""
-CENTER_LETTERS: dict[int, tuple[str, str]] = {170: ("i", "j"), 180: ("k", "i"), 190: ("j", "k")}
+CENTER_LETTERS: dict[int, tuple[str, str]] = {G.G17: ("i", "j"), G.G18: ("k", "i"), G.G19: ("j", "k")}
 """plane -> the offset words of its first and second axis"""
-UV_PLANES = frozenset((171, 181, 191))
+UV_PLANES = frozenset((G.G17_1, G.G18_1, G.G19_1))
 """G17.1 G18.1 G19.1: LinuxCNC makes no arcs there"""
 
 MM_PER_INCH = 25.4
@@ -80,13 +81,13 @@ TINY = 1e-12
 P_INTEGER_TOLERANCE = 0.001
 """P must be this close to a whole number"""
 
-_PLANE_NAMES = {170: "xy", 180: "xz", 190: "yz"}
+_PLANE_NAMES = {G.G17: "xy", G.G18: "xz", G.G19: "yz"}
 _AXIS_NAMES = "XYZ"
 # the offset letter that does not belong to the plane, and the order LinuxCNC looks for the two
 # that do when the centre is absolute (I before K in G18, whatever the axes' order)
-_STRAY_LETTER = {170: "k", 180: "j", 190: "i"}
-_ABSOLUTE_ORDER = {170: ("i", "j"), 180: ("i", "k"), 190: ("j", "k")}
-_END_LETTERS = {170: ("x", "y"), 180: ("x", "z"), 190: ("y", "z")}
+_STRAY_LETTER = {G.G17: "k", G.G18: "j", G.G19: "i"}
+_ABSOLUTE_ORDER = {G.G17: ("i", "j"), G.G18: ("i", "k"), G.G19: ("j", "k")}
+_END_LETTERS = {G.G17: ("x", "y"), G.G18: ("x", "z"), G.G19: ("y", "z")}
 
 
 @dataclass(frozen=True)

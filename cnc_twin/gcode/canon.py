@@ -12,10 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cnc_twin.gcode.arcs import arc_feed_text
+from cnc_twin.gcode.modal import G
 
-PLANES = {170: "CANON_PLANE_XY", 180: "CANON_PLANE_XZ", 190: "CANON_PLANE_YZ"}
+PLANES = {G.G17: "CANON_PLANE_XY", G.G18: "CANON_PLANE_XZ", G.G19: "CANON_PLANE_YZ"}
 """G17 / G18 / G19 (tenths) -> rs274's plane name"""
-UNITS = {200: "CANON_UNITS_INCHES", 210: "CANON_UNITS_MM"}
+UNITS = {G.G20: "CANON_UNITS_INCHES", G.G21: "CANON_UNITS_MM"}
 """G20 / G21 (tenths) -> rs274's unit name"""
 
 

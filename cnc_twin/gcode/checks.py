@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from cnc_twin.gcode.arcs import turns_of
 from cnc_twin.gcode.blocks import Block, BlockError
+from cnc_twin.gcode.modal import G, GGroup, M, MGroup
 
 if TYPE_CHECKING:  # the interpreter's state, read here for its modes only
     from cnc_twin.gcode.state import State
@@ -35,13 +36,13 @@ UNSUPPORTED_M = {19: "M19 (spindle orientation)", 48: "M48 (override switches)",
                  70: "M70 (modal state save)", 71: "M71 (modal state save)", 72: "M72 (modal state restore)",
                  73: "M73 (modal state save)", 61: "M61 (tool number without a change)"}
 """M codes the twin's machine cannot run"""
-FORCE_ON, FORCE_OFF = 100, 101
+FORCE_ON, FORCE_OFF = M.M100, M.M101
 """the machine's own M codes: M100 P<newtons> switches the grinding-force loop on with that
 setpoint, M101 switches it off (LinuxCNC's user M-code range)"""
 AXIS_LETTERS = "xyzabc"
 MOVE_WORDS = AXIS_LETTERS + "@^"
 """words that make a block move (``@`` / ``^`` polar radius and angle)"""
-AXIS_CODES = (100, 280, 300, 920)
+AXIS_CODES = (G.G10, G.G28, G.G30, G.G92)
 """group 0 codes whose axis words are their own (G10, G28, G30, G92)"""
 
 
@@ -53,9 +54,9 @@ def refuse_unsupported(block: Block, g: dict[int, int], m: dict[int, int]) -> No
     for code in m.values():
         if code in UNSUPPORTED_M:
             raise BlockError(f"{UNSUPPORTED_M[code]} is {UNSUPPORTED_MARK}'s machine")
-        if 100 <= code <= 199 and code not in (FORCE_ON, FORCE_OFF):
+        if M.M100 <= code <= M.M199 and code not in (FORCE_ON, FORCE_OFF):
             raise BlockError(f"Unknown m code used: M{code}")
-    if g.get(0) == 100 and round(block.words.get("l", -1)) in (0, 1, 10, 11):
+    if g.get(GGroup.NON_MODAL) == G.G10 and round(block.words.get("l", -1)) in (0, 1, 10, 11):
         raise BlockError("G10 L0 / L1 / L10 / L11 (tool table edits) are not supported by cnc-twin: give "
                          "tool data in the tool table")
     for letter in "uvw":
@@ -76,27 +77,28 @@ def check_words(block: Block, g: dict[int, int], m: dict[int, int], motion: int 
 
 def _check_axis_words(block: Block, g: dict[int, int], state: State) -> None:
     words = block.words
-    g0 = g.get(0)
-    if g0 == 920 and 1 not in g and not any(letter in words for letter in AXIS_LETTERS):
+    g0 = g.get(GGroup.NON_MODAL)
+    if g0 == G.G92 and GGroup.MOTION not in g and not any(letter in words for letter in AXIS_LETTERS):
         raise BlockError("All axes missing with g52 or g92")
     moving = any(a in words for a in MOVE_WORDS)
-    if g.get(1) == 800 and moving and g0 not in AXIS_CODES:
+    if g.get(GGroup.MOTION) == G.G80 and moving and g0 not in AXIS_CODES:
         raise BlockError("Cannot use axis values with g80")
-    owned = g0 in AXIS_CODES or g.get(8) == 431 or 1 in g
-    if not owned and state.motion == 800 and moving:
+    owned = g0 in AXIS_CODES or g.get(GGroup.TOOL_LENGTH_OFFSET) == G.G43_1 or GGroup.MOTION in g
+    if not owned and state.motion == G.G80 and moving:
         raise BlockError("Cannot use axis values without a g code that uses them")
 
 
 def _check_g_codes(block: Block, g: dict[int, int], motion: int | None, state: State) -> None:
     words = block.words
-    g0 = g.get(0)
-    if g0 == 40 and words.get("p", -1.0) == -1.0:  # LinuxCNC's "no P" is P -1
+    g0 = g.get(GGroup.NON_MODAL)
+    if g0 == G.G4 and words.get("p", -1.0) == -1.0:  # LinuxCNC's "no P" is P -1
         raise BlockError("Dwell time missing with g4")
-    if g0 == 100:
+    if g0 == G.G10:
         _check_g10(words.get("p", -1.0), round(words.get("l", -1)))
-    if g0 == 530 and motion not in (0, 10):
+    if g0 == G.G53 and motion not in (G.G0, G.G1):
         raise BlockError("Must use g0 or g1 with g53")
-    if g0 == 530 and (g.get(3) == 910 or (3 not in g and state.distance == 910)):
+    if g0 == G.G53 and (g.get(GGroup.DISTANCE_MODE) == G.G91
+                        or (GGroup.DISTANCE_MODE not in g and state.distance == G.G91)):
         raise BlockError("Cannot use g53 incremental")
 
 
@@ -115,31 +117,34 @@ def _check_g10(p: float, l_word: int) -> None:
 
 def _check_other_words(block: Block, g: dict[int, int], m: dict[int, int], motion: int | None) -> None:
     words = block.words
-    arc = motion in (20, 30)
-    g0 = g.get(0)
-    user_m = 10 in m
+    arc = motion in (G.G2, G.G3)
+    g0 = g.get(GGroup.NON_MODAL)
+    user_m = MGroup.USER_DEFINED in m
     if ("i" in words or "j" in words) and not arc:
         letter = "I" if "i" in words else "J"
         raise BlockError(f"{letter} word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it")
-    if "k" in words and not (arc or motion == 62):
+    if "k" in words and not (arc or motion == G.G6_2):
         raise BlockError("K word with no G2, G3, G33, G33.1, G76, or G87 to use it")
-    if "r" in words and not (arc or g0 == 100 or motion == 62):
+    if "r" in words and not (arc or g0 == G.G10 or motion == G.G6_2):
         raise BlockError("R word with no g code that uses it")
-    if "p" in words and not (arc or g0 in (40, 100) or g.get(13) == 640 or user_m or motion in (52, 62)):
+    if "p" in words and not (arc or g0 in (G.G4, G.G10) or g.get(GGroup.CONTROL_MODE) == G.G64 or user_m
+                              or motion in (G.G5_2, G.G6_2)):
         raise BlockError("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 "
                          "M62 M63 M64 M65 M66 M98 or user M code to use it")
     if "p" in words and arc:
         turns_of(words["p"])  # refused here, before the block's F and S take effect
-    if "q" in words and not (g.get(13) == 640 or g0 == 100 or user_m or m.get(6) == 61 or motion == 62):
+    if "q" in words and not (g.get(GGroup.CONTROL_MODE) == G.G64 or g0 == G.G10 or user_m
+                              or m.get(MGroup.TOOL_CHANGE) == M.M61 or motion == G.G6_2):
         raise BlockError("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code "
                          "that uses it")
-    if "h" in words and g.get(8) != 430:
+    if "h" in words and g.get(GGroup.TOOL_LENGTH_OFFSET) != G.G43:
         raise BlockError("H word with no G43 or G76 to use it")
-    if "l" in words and not (g0 == 100 or motion in (52, 62)):
+    if "l" in words and not (g0 == G.G10 or motion in (G.G5_2, G.G6_2)):
         raise BlockError("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 "
                          "or NURBS code")
     if "$" in words:
-        _check_spindle_number(words["$"], "s" in words or m.get(7) in (3, 4, 5) or 14 in g)
+        _check_spindle_number(words["$"], "s" in words or m.get(MGroup.SPINDLE) in (M.M3, M.M4, M.M5)
+                              or GGroup.SPINDLE_MODE in g)
     if "d" in words:
         raise BlockError("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it")
 

@@ -30,7 +30,7 @@ from cnc_twin.gcode.checks import (AXIS_CODES, AXIS_LETTERS, FORCE_ON, MOVE_WORD
 from cnc_twin.gcode.comments import CALLS, read_comment
 from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
-from cnc_twin.gcode.modal import modal_codes
+from cnc_twin.gcode.modal import G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
 from cnc_twin.gcode.source import Source
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
@@ -38,6 +38,8 @@ from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, S
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
 PLAIN_WORDS = frozenset(AXIS_LETTERS + "f")
 """a block with no codes, no comment and no words but these only moves in the current mode"""
+NON_MODAL_STEPS = (G.G10, G.G28, G.G28_1, G.G30, G.G30_1, G.G92, G.G92_1, G.G92_2, G.G92_3)
+"""the group 0 codes run in the G10 / G28 / G30 / G92 step (G4 and G53 have steps of their own)"""
 
 
 class ProgramError(ValueError):
@@ -128,7 +130,7 @@ class Interpreter:
     def _preamble(self, opening: bool = False) -> None:
         """The calls before the first line; ``opening``: only those made before the file is opened."""
         s = self.state
-        self.emit("USE_LENGTH_UNITS", s.units)
+        self.emit("USE_LENGTH_UNITS", int(s.units))
         self.emit("SET_G5X_OFFSET", s.system, *s.g5x)
         self.emit("SET_G92_OFFSET", *s.g92)
         self.emit("SET_XY_ROTATION", 0.0)
@@ -151,77 +153,79 @@ class Interpreter:
         g, m = modal_codes(block)
         refuse_unsupported(block, g, m)
         # axis words move in the current motion mode unless a code of the block owns them
-        owned = g.get(0) in AXIS_CODES or g.get(8) == 431
-        motion = g.get(1, self.state.motion if any(a in block.words for a in MOVE_WORDS) and not owned else None)
+        owned = g.get(GGroup.NON_MODAL) in AXIS_CODES or g.get(GGroup.TOOL_LENGTH_OFFSET) == G.G43_1
+        motion = g.get(GGroup.MOTION,
+                       self.state.motion if any(a in block.words for a in MOVE_WORDS) and not owned else None)
         check_words(block, g, m, motion, self.state)
         s = self.state
         if block.comments:
             self._comment(block.comments[-1])
-        if 5 in g:
-            self._feed_mode(g[5])
+        if GGroup.FEED_MODE in g:
+            self._feed_mode(g[GGroup.FEED_MODE])
         if "f" in block.words:
             s.feed = block.words["f"]
-            if s.feed_mode != 930:  # in inverse time each move sets its own rate
+            if s.feed_mode != G.G93:  # in inverse time each move sets its own rate
                 self.emit("SET_FEED_RATE", s.feed)
         if "s" in block.words:
             s.speed = block.words["s"]
             self.emit("SET_SPINDLE_SPEED", s.speed)
         if "t" in block.words:
             self._select_tool(block.words["t"])
-        if m.get(6) == 6:
+        if m.get(MGroup.TOOL_CHANGE) == M.M6:
             self.emit("START_CHANGE")
             self.emit("STOP_SPINDLE_TURNING", 0)
             s.spindle = "stop"
             self.emit("CHANGE_TOOL", s.selected_tool)
             if s.selected_tool != 0:  # T0 M6 leaves the last tool's data in rs274's spindle slot
                 s.tool_in_spindle = s.tool_data = s.selected_tool
-        elif m.get(6) == 61:
+        elif m.get(MGroup.TOOL_CHANGE) == M.M61:
             self._set_tool_number(block)
-        if 7 in m:
-            self._spindle(m[7])
-        if 8 in m:
-            self._coolant(m[8])
-        if 10 in m:
-            self._force_control(m[10], block)
-        if g.get(0) == 40:
+        if MGroup.SPINDLE in m:
+            self._spindle(m[MGroup.SPINDLE])
+        if MGroup.COOLANT in m:
+            self._coolant(m[MGroup.COOLANT])
+        if MGroup.USER_DEFINED in m:
+            self._force_control(m[MGroup.USER_DEFINED], block)
+        if g.get(GGroup.NON_MODAL) == G.G4:
             self.motion.dwell(block)
-        if 2 in g:
-            s.plane = g[2]
-            self.emit("SELECT_PLANE", g[2])
-        if 6 in g:
-            s.change_units(g[6])
-            self.emit("USE_LENGTH_UNITS", g[6])
-        if g.get(7) == 400:
+        if GGroup.SET_PLANE in g:
+            s.plane = g[GGroup.SET_PLANE]
+            self.emit("SELECT_PLANE", g[GGroup.SET_PLANE])
+        if GGroup.LENGTH_UNITS in g:
+            s.change_units(g[GGroup.LENGTH_UNITS])
+            self.emit("USE_LENGTH_UNITS", g[GGroup.LENGTH_UNITS])
+        if g.get(GGroup.CUTTER_COMP) == G.G40:
             self.emit("COMMENT", "interpreter: cutter radius compensation off")
-        if 8 in g:
-            self._tool_length(g[8], block)
-        if 12 in g:
-            self._work_system(SYSTEM_CODES[g[12]])
-        if 13 in g:
-            self._path_control(g[13], block)
-        if 3 in g and g[3] != s.distance:
-            s.distance = g[3]
+        if GGroup.TOOL_LENGTH_OFFSET in g:
+            self._tool_length(g[GGroup.TOOL_LENGTH_OFFSET], block)
+        if GGroup.COORD_SYSTEM in g:
+            self._work_system(SYSTEM_CODES[g[GGroup.COORD_SYSTEM]])
+        if GGroup.CONTROL_MODE in g:
+            self._path_control(g[GGroup.CONTROL_MODE], block)
+        if GGroup.DISTANCE_MODE in g and g[GGroup.DISTANCE_MODE] != s.distance:
+            s.distance = g[GGroup.DISTANCE_MODE]
             self.emit("COMMENT", "interpreter: distance mode changed to " +
-                      ("absolute" if g[3] == 900 else "incremental"))
-        if 4 in g and g[4] != s.ijk_distance:
-            s.ijk_distance = g[4]
+                      ("absolute" if g[GGroup.DISTANCE_MODE] == G.G90 else "incremental"))
+        if GGroup.IJK_DISTANCE_MODE in g and g[GGroup.IJK_DISTANCE_MODE] != s.ijk_distance:
+            s.ijk_distance = g[GGroup.IJK_DISTANCE_MODE]
             self.emit("COMMENT", "interpreter: IJK distance mode changed to " +
-                      ("absolute" if g[4] == 901 else "incremental"))
+                      ("absolute" if g[GGroup.IJK_DISTANCE_MODE] == G.G90_1 else "incremental"))
         # G8 (group 15), radius mode, is what a mill always is: nothing to do (G7 is refused)
-        if 10 in g:
-            s.retract = g[10]
-            self.emit("COMMENT", "interpreter: retract mode set to " + ("old_z" if g[10] == 980 else "r_plane"))
-        if g.get(0) in (100, 280, 281, 300, 301, 920, 921, 922, 923):
-            self._non_modal(g[0], block)
-        if g.get(1) == 800:
-            s.motion = 800
+        if GGroup.RETRACT_MODE in g:
+            s.retract = g[GGroup.RETRACT_MODE]
+            self.emit("COMMENT", "interpreter: retract mode set to " +
+                      ("old_z" if g[GGroup.RETRACT_MODE] == G.G98 else "r_plane"))
+        if g.get(GGroup.NON_MODAL) in NON_MODAL_STEPS:
+            self._non_modal(g[GGroup.NON_MODAL], block)
+        if g.get(GGroup.MOTION) == G.G80:
+            s.motion = G.G80
             self.emit("COMMENT", "interpreter: motion mode set to none")
-        if motion is not None and motion != 800:
+        if motion is not None and motion != G.G80:
             s.motion = motion
-            self.motion.move(motion, block, g.get(0) == 530)
-        if m.get(6) == 6:
+            self.motion.move(motion, block, g.get(GGroup.NON_MODAL) == G.G53)
+        if m.get(MGroup.TOOL_CHANGE) == M.M6:
             s.resynchronise()
-        return self._stop(m.get(4))
+        return self._stop(m.get(MGroup.STOPPING))
 
     def _plain_move(self, block: Block) -> bool:
         """A block of axis words and F only (most of a CAM program): what :meth:`_execute` does
@@ -229,11 +233,11 @@ class Interpreter:
         s = self.state
         words = block.words
         moving = len(words) > ("f" in words)
-        if moving and s.motion == 800:
+        if moving and s.motion == G.G80:
             raise BlockError("Cannot use axis values without a g code that uses them")
         if "f" in words:
             s.feed = words["f"]
-            if s.feed_mode != 930:  # in inverse time each move sets its own rate
+            if s.feed_mode != G.G93:  # in inverse time each move sets its own rate
                 self.emit("SET_FEED_RATE", s.feed)
         if moving:
             self.motion.move(s.motion, block, False)
@@ -253,7 +257,7 @@ class Interpreter:
 
     def _feed_mode(self, code: int) -> None:
         s = self.state
-        if code == 930:
+        if code == G.G93:
             self.emit("COMMENT", "interpreter: feed mode set to inverse time")
             self.emit("SET_FEED_MODE", 0)
         else:
@@ -286,10 +290,10 @@ class Interpreter:
 
     def _spindle(self, code: int) -> None:
         s = self.state
-        if code == 3:
+        if code == M.M3:
             s.spindle = "cw"
             self.emit("START_SPINDLE_CLOCKWISE", 0)
-        elif code == 4:
+        elif code == M.M4:
             s.spindle = "ccw"
             self.emit("START_SPINDLE_COUNTERCLOCKWISE", 0)
         else:
@@ -298,10 +302,10 @@ class Interpreter:
 
     def _coolant(self, code: int) -> None:
         s = self.state
-        if code == 7:
+        if code == M.M7:
             s.mist = True
             self.emit("MIST_ON")
-        elif code == 8:
+        elif code == M.M8:
             s.flood = True
             self.emit("FLOOD_ON")
         else:
@@ -322,11 +326,11 @@ class Interpreter:
         and G49; the tool table's lengths are in machine units."""
         s = self.state
         offsets = [0.0] * 9
-        if code == 430:
+        if code == G.G43:
             number = self._tool_number(block.words["h"]) if "h" in block.words else 0
             for axis, value in enumerate(s.tool_lengths(number or s.tool_data)):
                 offsets[axis] = s.user_to_program(axis, value)
-        elif code == 431:
+        elif code == G.G43_1:
             offsets = list(s.tool_offset)
             for axis, letter in enumerate(AXIS_LETTERS):
                 offsets[axis] = block.words.get(letter, offsets[axis])
@@ -345,34 +349,34 @@ class Interpreter:
 
     def _path_control(self, code: int, block: Block) -> None:
         s = self.state
-        if code == 610:
+        if code == G.G61:
             s.control = ("CANON_EXACT_PATH",)
-        elif code == 611:
+        elif code == G.G61_1:
             s.control = ("CANON_EXACT_STOP",)
         else:
             tolerance = max(block.words.get("p", 0.0), 0.0)
             s.control = ("CANON_CONTINUOUS", tolerance)
         self.emit("SET_MOTION_CONTROL_MODE", *s.control)
-        if code == 640:
+        if code == G.G64:
             self.emit("SET_NAIVECAM_TOLERANCE", block.words.get("q", s.control[1]))
 
     def _non_modal(self, code: int, block: Block) -> None:
         s = self.state
         words = block.words
         given = {k: words[letter] for k, letter in enumerate(AXIS_LETTERS) if letter in words}
-        if code == 100:
+        if code == G.G10:
             self._g10(block, given)
-        elif code in (280, 300):
+        elif code in (G.G28, G.G30):
             self.motion.home(code, block, list(given))
-        elif code in (281, 301):
-            s.save_home(HOME_PARAMETERS[code - 1])
-        elif code == 920:
+        elif code in (G.G28_1, G.G30_1):
+            s.save_home(HOME_PARAMETERS[code - 1])  # G28.1 -> G28's, G30.1 -> G30's
+        elif code == G.G92:
             s.set_g92(given)
             self.emit("SET_G92_OFFSET", *s.g92)
-        elif code in (921, 922):
-            s.clear_g92(save=code == 921)
+        elif code in (G.G92_1, G.G92_2):
+            s.clear_g92(save=code == G.G92_1)
             self.emit("SET_G92_OFFSET", *s.g92)
-        elif code == 923:
+        elif code == G.G92_3:
             s.restore_g92()
             self.emit("SET_G92_OFFSET", *s.g92)
 
@@ -392,14 +396,14 @@ class Interpreter:
             self.emit("COMMENT", "interpreter: setting coordinate system origin")
 
     def _stop(self, code: int | None) -> bool:
-        if code == 0:
+        if code == M.M0:
             self.emit("PROGRAM_STOP")
-        elif code == 1:
+        elif code == M.M1:
             self.emit("OPTIONAL_PROGRAM_STOP")
-        elif code == 60:
+        elif code == M.M60:
             self.emit("PALLET_SHUTTLE")
             self.emit("PROGRAM_STOP")
-        elif code in (2, 30):
+        elif code in (M.M2, M.M30):
             self._program_end(code)
             return True
         return False
@@ -412,24 +416,24 @@ class Interpreter:
         s.set_active_origin(s.system_offsets(1))
         self.emit("SET_G5X_OFFSET", 1, *s.g5x)
         self.emit("SET_XY_ROTATION", 0.0)
-        if s.plane != 170:
-            s.plane = 170
-            self.emit("SELECT_PLANE", 170)
-        s.distance = 900
-        s.feed_mode, s.feed = 940, 0.0
+        if s.plane != G.G17:
+            s.plane = G.G17
+            self.emit("SELECT_PLANE", int(G.G17))
+        s.distance = G.G90
+        s.feed_mode, s.feed = G.G94, 0.0
         self.emit("SET_FEED_MODE", 0)
         self.emit("SET_FEED_RATE", 0.0)
         self.emit("STOP_SPINDLE_TURNING", 0)
         s.spindle = "stop"
         self.emit("SET_SPINDLE_MODE", 0.0)
-        s.motion = 10
+        s.motion = G.G1
         if s.mist:
             s.mist = False
             self.emit("MIST_OFF")
         if s.flood:
             s.flood = False
             self.emit("FLOOD_OFF")
-        if code == 30:
+        if code == M.M30:
             self.emit("PALLET_SHUTTLE")
         self.emit("PROGRAM_END")
         if self.source.percent_missing_after(self._line - 1):

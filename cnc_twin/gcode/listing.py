@@ -11,6 +11,7 @@ from collections import Counter
 from pathlib import Path
 
 from cnc_twin.gcode.interpreter import ProgramError, read_program
+from cnc_twin.gcode.modal import G
 from cnc_twin.gcode.source import Source, SourceError
 from cnc_twin.gcode.state import ToolTable
 
@@ -20,7 +21,7 @@ MOVES = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED", "DWELL"
 
 def read_tool_table(path: Path | None, units: str) -> ToolTable:
     """The tool table at ``path`` (LinuxCNC's format) in ``units`` (``mm`` / ``inch``); none: empty."""
-    code = 210 if units == "mm" else 200
+    code = G.G21 if units == "mm" else G.G20
     if path is None:
         return ToolTable(units=code)
     try:

@@ -4,57 +4,175 @@ A code is kept in tenths (``G5.2`` is 52, ``G61.1`` is 611). A block may hold at
 of each group (``G80`` may share group 1 with another motion code, which then applies) and at
 most four M codes. The messages are LinuxCNC's, checked against its interpreter
 (``tests/test_gcode_modal.py``).
+
+The groups and the codes the reader tests by number are named: :class:`GGroup` and
+:class:`MGroup` (rs274ngc's ``GM_...`` modal groups and its M groups), :class:`G` (G codes in
+tenths: ``G.G80`` is 800, ``G.G61_1`` is 611) and :class:`M`. All four are ``IntEnum``
+classes: a member equals, and hashes as, its plain number, so :func:`modal_codes`'s dicts (keyed
+by group members, holding plain ints) are looked up with either.
 """
 
 from __future__ import annotations
 
+import enum
+
 from cnc_twin.gcode.blocks import Block, BlockError
 
+
+class GGroup(enum.IntEnum):
+    """LinuxCNC's G modal groups (rs274ngc's ``GM_...``; 9 and 11 are unused)."""
+
+    NON_MODAL = 0  # GM_MODAL_0: G4, G10, G28, G30, G52, G53, G92...
+    MOTION = 1  # G0, G1, G2, G3, G5.2, G33, G38.n, G73, G80..G89...
+    SET_PLANE = 2  # G17 .. G19.1
+    DISTANCE_MODE = 3  # G90 / G91
+    IJK_DISTANCE_MODE = 4  # G90.1 / G91.1 (arc centres)
+    FEED_MODE = 5  # G93 / G94 / G95
+    LENGTH_UNITS = 6  # G20 / G21
+    CUTTER_COMP = 7  # G40 / G41 / G42 (.1)
+    TOOL_LENGTH_OFFSET = 8  # G43 / G43.1 / G43.2 / G49
+    RETRACT_MODE = 10  # G98 / G99 (canned-cycle return)
+    COORD_SYSTEM = 12  # G54 .. G59.3
+    CONTROL_MODE = 13  # G61 / G61.1 / G64 (path control)
+    SPINDLE_MODE = 14  # G96 / G97
+    LATHE_DIAMETER_MODE = 15  # G7 / G8
+
+
+class MGroup(enum.IntEnum):
+    """LinuxCNC's M modal groups (the indices of rs274ngc's ``m_modes``)."""
+
+    STOPPING = 4  # M0, M1, M2, M30, M60
+    IO = 5  # M62 .. M68 (digital / analog I/O)
+    TOOL_CHANGE = 6  # M6, M61
+    SPINDLE = 7  # M3, M4, M5, M19, M70 .. M73
+    COOLANT = 8  # M7, M8, M9
+    OVERRIDES = 9  # M48 .. M53
+    USER_DEFINED = 10  # M100 .. M199
+
+
+class G(enum.IntEnum):
+    """The G codes (in tenths) the reader tests by number."""
+
+    G0 = 0
+    G1 = 10
+    G2 = 20
+    G3 = 30
+    G4 = 40
+    G5_2 = 52
+    G5_3 = 53
+    G6_2 = 62
+    G10 = 100
+    G17 = 170
+    G17_1 = 171
+    G18 = 180
+    G18_1 = 181
+    G19 = 190
+    G19_1 = 191
+    G20 = 200
+    G21 = 210
+    G28 = 280
+    G28_1 = 281
+    G30 = 300
+    G30_1 = 301
+    G40 = 400
+    G43 = 430
+    G43_1 = 431
+    G49 = 490
+    G52 = 520
+    G53 = 530
+    G54 = 540
+    G55 = 550
+    G56 = 560
+    G57 = 570
+    G58 = 580
+    G59 = 590
+    G59_1 = 591
+    G59_2 = 592
+    G59_3 = 593
+    G61 = 610
+    G61_1 = 611
+    G64 = 640
+    G80 = 800
+    G90 = 900
+    G90_1 = 901
+    G91 = 910
+    G91_1 = 911
+    G92 = 920
+    G92_1 = 921
+    G92_2 = 922
+    G92_3 = 923
+    G93 = 930
+    G94 = 940
+    G98 = 980
+    G99 = 990
+
+
+class M(enum.IntEnum):
+    """The M codes the reader tests by number."""
+
+    M0 = 0
+    M1 = 1
+    M2 = 2
+    M3 = 3
+    M4 = 4
+    M5 = 5
+    M6 = 6
+    M7 = 7
+    M8 = 8
+    M9 = 9
+    M30 = 30
+    M60 = 60
+    M61 = 61
+    M100 = 100
+    M101 = 101
+    M199 = 199
+
+
 G_GROUPS: dict[int, int] = {}
-"""G code in tenths -> its modal group (0: the non-modal codes)"""
+"""G code in tenths -> its modal group (:class:`GGroup`; NON_MODAL: the non-modal codes)"""
 for _group, _codes in {
-    0: (40, 100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923),
-    1: (0, 10, 20, 30, 50, 51, 52, 53, 330, 331, 382, 383, 384, 385, 730, 740, 760, 800, 810, 820, 830, 840, 850,
-        860, 870, 880, 890, 700, 710, 711, 712, 720, 721, 722),
-    2: (170, 171, 180, 181, 190, 191),
-    3: (900, 910),
-    4: (901, 911),
-    5: (930, 940, 950),
-    6: (200, 210),
-    7: (400, 410, 411, 420, 421),
-    8: (430, 431, 432, 490),
-    10: (980, 990),
-    12: (540, 550, 560, 570, 580, 590, 591, 592, 593),
-    13: (610, 611, 640),
-    14: (960, 970),
-    15: (70, 80),
+    GGroup.NON_MODAL: (40, 100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923),
+    GGroup.MOTION: (0, 10, 20, 30, 50, 51, 52, 53, 330, 331, 382, 383, 384, 385, 730, 740, 760, 800, 810, 820, 830,
+                    840, 850, 860, 870, 880, 890, 700, 710, 711, 712, 720, 721, 722),
+    GGroup.SET_PLANE: (170, 171, 180, 181, 190, 191),
+    GGroup.DISTANCE_MODE: (900, 910),
+    GGroup.IJK_DISTANCE_MODE: (901, 911),
+    GGroup.FEED_MODE: (930, 940, 950),
+    GGroup.LENGTH_UNITS: (200, 210),
+    GGroup.CUTTER_COMP: (400, 410, 411, 420, 421),
+    GGroup.TOOL_LENGTH_OFFSET: (430, 431, 432, 490),
+    GGroup.RETRACT_MODE: (980, 990),
+    GGroup.COORD_SYSTEM: (540, 550, 560, 570, 580, 590, 591, 592, 593),
+    GGroup.CONTROL_MODE: (610, 611, 640),
+    GGroup.SPINDLE_MODE: (960, 970),
+    GGroup.LATHE_DIAMETER_MODE: (70, 80),
 }.items():
     for _code in _codes:
         G_GROUPS[_code] = _group
 
-EXTENSIONS = {62: 1}
+EXTENSIONS = {G.G6_2: GGroup.MOTION}
 """codes the twin reads that LinuxCNC 2.9 does not know -> group: G6.2, the Fanuc-style NURBS
 block (explicit knots and weights) of the published benchmark curves"""
 G_GROUPS.update(EXTENSIONS)
 
 M_GROUPS: dict[int, int] = {}
-"""M code -> its modal group"""
+"""M code -> its modal group (:class:`MGroup`)"""
 for _group, _codes in {
-    4: (0, 1, 2, 30, 60),
-    5: (62, 63, 64, 65, 66, 67, 68),
-    6: (6, 61),
-    7: (3, 4, 5, 19, 70, 71, 72, 73),
-    8: (7, 8, 9),
-    9: (48, 49, 50, 51, 52, 53),
-    10: tuple(range(100, 200)),
+    MGroup.STOPPING: (0, 1, 2, 30, 60),
+    MGroup.IO: (62, 63, 64, 65, 66, 67, 68),
+    MGroup.TOOL_CHANGE: (6, 61),
+    MGroup.SPINDLE: (3, 4, 5, 19, 70, 71, 72, 73),
+    MGroup.COOLANT: (7, 8, 9),
+    MGroup.OVERRIDES: (48, 49, 50, 51, 52, 53),
+    MGroup.USER_DEFINED: tuple(range(100, 200)),
 }.items():
     for _code in _codes:
         M_GROUPS[_code] = _group
 MAX_M_CODES = 4
 """most M codes one block may hold"""
-CANCEL_CYCLE = 800
+CANCEL_CYCLE = G.G80
 """G80, which may share group 1 with another motion code"""
-AXIS_USERS = frozenset((100, 280, 300, 520, 920))
+AXIS_USERS = frozenset((G.G10, G.G28, G.G30, G.G52, G.G92))
 """non-modal codes whose axis words are their own (G10, G28, G30, G52, G92): not with a motion code"""
 
 
@@ -77,7 +195,7 @@ def m_code(value: float) -> int:
     code = round(value)
     if abs(value - code) >= 1e-4:
         raise BlockError("Non integer value for integer")
-    if code > 199:
+    if code > M.M199:
         raise BlockError(f"M-code greater than 199: M{code}")
     if code not in M_GROUPS:
         raise BlockError("Unknown m code used")
@@ -93,12 +211,12 @@ def modal_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
         code = g_code(value)
         group = G_GROUPS[code]
         if group in g:
-            if group == 1 and CANCEL_CYCLE in (code, g[group]):
+            if group == GGroup.MOTION and CANCEL_CYCLE in (code, g[group]):
                 g[group] = code if g[group] == CANCEL_CYCLE else g[group]
                 continue
             raise BlockError("Two g codes used from same modal group")
         g[group] = code
-    if g.get(0) in AXIS_USERS and g.get(1, CANCEL_CYCLE) != CANCEL_CYCLE:
+    if g.get(GGroup.NON_MODAL) in AXIS_USERS and g.get(GGroup.MOTION, CANCEL_CYCLE) != CANCEL_CYCLE:
         raise BlockError("Cannot use two g codes that both use axis values")
     m: dict[int, int] = {}
     for value in block.m:

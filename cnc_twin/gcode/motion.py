@@ -16,6 +16,7 @@ import numpy as np
 from cnc_twin.gcode.arcs import arc_move, glibc_hypot
 from cnc_twin.gcode.blocks import Block, BlockError
 from cnc_twin.gcode.expressions import PI_LONG
+from cnc_twin.gcode.modal import G
 from cnc_twin.gcode.nurbs import G52Collector, G62Collector, NurbsBlock, g53
 from cnc_twin.gcode.state import HOME_PARAMETERS
 
@@ -24,9 +25,9 @@ if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed h
 
 AXIS_LETTERS = "xyzabc"
 AXIS_INDEX = {letter: axis for axis, letter in enumerate(AXIS_LETTERS)}
-NURBS_STARTS = {52: G52Collector, 62: G62Collector}
+NURBS_STARTS = {G.G5_2: G52Collector, G.G6_2: G62Collector}
 """G5.2 / G6.2 (tenths) -> what gathers their blocks into one curve"""
-NURBS_END = 53
+NURBS_END = G.G5_3
 """G5.3 ends a G5.2 curve"""
 
 
@@ -49,7 +50,7 @@ class MotionRunner:
             if axis is not None:
                 if machine:  # G53: machine coordinates of the tool tip
                     end[axis] = s.from_machine(axis, value)
-                elif s.distance == 910:
+                elif s.distance == G.G91:
                     end[axis] = s.position[axis] + value
                 else:
                     end[axis] = value
@@ -66,7 +67,7 @@ class MotionRunner:
         if "x" in words or "y" in words:
             raise BlockError("Cannot specify X or Y words with polar coordinate")
         x, y = s.position[0], s.position[1]
-        if s.distance == 900:
+        if s.distance == G.G90:
             if "@" in words and "^" in words:
                 radius, theta = words["@"], _radians(words["^"])
             elif "@" in words:
@@ -95,7 +96,7 @@ class MotionRunner:
         """LinuxCNC's refusal of the block's feed, or None: ``missing`` in inverse time without
         an F, ``zero`` in units per minute at feed 0."""
         s = self.state
-        if s.feed_mode == 930:
+        if s.feed_mode == G.G93:
             return missing if "f" not in block.words else None
         return zero if s.feed <= 0.0 else None
 
@@ -104,29 +105,29 @@ class MotionRunner:
         s = self.state
         emit = self.interpreter.emit
         if self.nurbs is not None and motion not in (self.nurbs_kind, NURBS_END):
-            if self.nurbs_kind != 52:  # the twin's own G6.2 must be complete
+            if self.nurbs_kind != G.G5_2:  # the twin's own G6.2 must be complete
                 raise BlockError(f"G{self.nurbs_kind / 10:g} curve not ended before another motion")
             self.nurbs = self.nurbs_kind = None  # LinuxCNC drops an unfinished G5.2 curve silently
         if motion in NURBS_STARTS or motion == NURBS_END:
             self._nurbs(motion, block)
             return
         end = self.ends(block, machine)
-        if motion == 0:
+        if motion == G.G0:
             emit("STRAIGHT_TRAVERSE", *end)
-        elif motion == 10:
+        elif motion == G.G1:
             error = self._feed_error(block, "F word missing with inverse time g1 move", "Cannot do g1 with zero feed rate")
             if error:
                 raise BlockError(error)
-            if s.feed_mode == 930:
+            if s.feed_mode == G.G93:
                 self._inverse_time(block, straight_length(s.position, end))
             emit("STRAIGHT_FEED", *end)
         else:
             # LinuxCNC checks the feed in the middle of the arc's own checks
             feed_error = self._feed_error(block, "F word missing with inverse time arc move",
                                           "Cannot make arc with zero feed rate")
-            arc = arc_move(s.plane, motion == 20, tuple(s.position[:3]), tuple(end[:3]), block.words,
-                           s.ijk_distance == 901, s.units == 210, feed_error=feed_error)
-            if s.feed_mode == 930:
+            arc = arc_move(s.plane, motion == G.G2, tuple(s.position[:3]), tuple(end[:3]), block.words,
+                           s.ijk_distance == G.G90_1, s.units == G.G21, feed_error=feed_error)
+            if s.feed_mode == G.G93:
                 self._inverse_time(block, arc_length(s.plane, s.position, arc))
             emit("ARC_FEED", *end[3:], payload=arc)
         s.position = end
@@ -141,17 +142,17 @@ class MotionRunner:
         (LinuxCNC moves its current point only at G5.3); G6.2 points follow one another."""
         s = self.state
         line = block.line
-        feed = s.feed if s.feed_mode == 940 else None
+        feed = s.feed if s.feed_mode == G.G94 else None
         if motion == NURBS_END:
             self._finish(g53(self.nurbs, line))
             return
         point = tuple(self.ends(block)[:3])
-        if self.nurbs is None or (motion == 52 and any(round(g * 10) == 52 for g in block.g)):
+        if self.nurbs is None or (motion == G.G5_2 and any(round(g * 10) == G.G5_2 for g in block.g)):
             self.nurbs = NURBS_STARTS[motion](tuple(s.position[:3]), s.plane, block.words, point, line, feed)
             self.nurbs_kind = motion
         else:
             self.nurbs.add(block.words, point, line, feed)
-        if motion == 62:
+        if motion == G.G6_2:
             s.position[:3] = list(point)
             if self.nurbs.complete:
                 self._finish(self.nurbs.finish(line))
@@ -185,7 +186,7 @@ def _radians(degrees: float) -> float:
     return degrees * math.pi / 180.0
 
 
-PLANE_AXES = {170: (0, 1, 2), 180: (2, 0, 1), 190: (1, 2, 0)}
+PLANE_AXES = {G.G17: (0, 1, 2), G.G18: (2, 0, 1), G.G19: (1, 2, 0)}
 """plane (G17 / G18 / G19 in tenths) -> indices of its first, second and normal axes"""
 
 

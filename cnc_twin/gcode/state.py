@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from cnc_twin.gcode.comments import DEBUG_SWITCH
 from cnc_twin.gcode.expressions import Parameters
+from cnc_twin.gcode.modal import G
 
 MM_PER_INCH = 25.4
 AXES = "xyzabc"
@@ -31,12 +32,12 @@ ACTIVE_SYSTEM = 5220
 G92_PARAMETER = 5211
 """#5211 .. #5216: the saved G92 offsets"""
 G92_ENABLED = 5210
-HOME_PARAMETERS = {280: 5161, 300: 5181}
+HOME_PARAMETERS = {G.G28: 5161, G.G30: 5181}
 """G28 / G30 -> first of their saved positions (machine coordinates)"""
-EXTERNAL_LENGTH_UNITS = {200: 0.03937007874016, 210: 1.0}
+EXTERNAL_LENGTH_UNITS = {G.G20: 0.03937007874016, G.G21: 1.0}
 """the machine's units (the tool table's: 200 inch, 210 mm) -> LinuxCNC's external length units
 (machine units per mm)"""
-SYSTEM_CODES = {540: 1, 550: 2, 560: 3, 570: 4, 580: 5, 590: 6, 591: 7, 592: 8, 593: 9}
+SYSTEM_CODES = {G.G54: 1, G.G55: 2, G.G56: 3, G.G57: 4, G.G58: 5, G.G59: 6, G.G59_1: 7, G.G59_2: 8, G.G59_3: 9}
 """G54 .. G59.3 (tenths) -> work system number"""
 
 
@@ -47,10 +48,10 @@ class ToolTable:
 
     lengths: dict[int, tuple[float, float, float]] = field(default_factory=dict)
     diameters: dict[int, float] = field(default_factory=dict)
-    units: int = 210
+    units: int = G.G21
 
     @classmethod
-    def parse(cls, text: str, units: int = 210) -> "ToolTable":
+    def parse(cls, text: str, units: int = G.G21) -> "ToolTable":
         """A LinuxCNC tool table's text (``T1 P1 Z0.511 D0.125`` lines; ``;`` starts a remark)."""
         table = cls(units=units)
         for raw in text.splitlines():
@@ -71,14 +72,14 @@ class State:
     params: Parameters
     tools: ToolTable
     position: list[float] = field(default_factory=lambda: [0.0] * 6)
-    units: int = 210
-    plane: int = 170
-    distance: int = 900
-    ijk_distance: int = 911
-    feed_mode: int = 940
+    units: int = G.G21
+    plane: int = G.G17
+    distance: int = G.G90
+    ijk_distance: int = G.G91_1
+    feed_mode: int = G.G94
     feed: float = 0.0
     speed: float = 0.0
-    motion: int = 800
+    motion: int = G.G80
     control: tuple = ("CANON_CONTINUOUS", 0.0)
     system: int = 1
     g5x: list[float] = field(default_factory=lambda: [0.0] * 6)
@@ -92,7 +93,7 @@ class State:
     spindle: str = "stop"
     mist: bool = False
     flood: bool = False
-    retract: int = 990
+    retract: int = G.G99
     tool_shift: list[float] = field(default_factory=lambda: [0.0] * 6)
     """how far tool length offset changes moved the current point since the last motion call:
     LinuxCNC forgets them after a tool change block (it re-reads the point from its canon)"""
@@ -105,7 +106,7 @@ class State:
     @property
     def unit_factor(self) -> float:
         """mm per program unit (LinuxCNC's FROM_PROG_LEN factor)."""
-        return MM_PER_INCH if self.units == 200 else 1.0
+        return MM_PER_INCH if self.units == G.G20 else 1.0
 
     @property
     def external_units(self) -> float:
@@ -133,7 +134,7 @@ class State:
         ``tool_shift`` measures against, is converted."""
         if units == self.units:
             return
-        k = MM_PER_INCH if units == 210 else 1.0 / MM_PER_INCH
+        k = MM_PER_INCH if units == G.G21 else 1.0 / MM_PER_INCH
         self.units = units
         for vector in (self.position, self.g5x, self.g92, self.tool_shift):
             for axis in range(LINEAR):
@@ -265,16 +266,17 @@ class State:
         flags = {
             "_vmajor": lambda: 2.9, "_vminor": lambda: 0.0, "_line": lambda: float(line()),
             "_motion_mode": lambda: float(self.motion), "_plane": lambda: float(self.plane),
-            "_ccomp": lambda: 400.0, "_metric": lambda: float(self.units == 210),
-            "_imperial": lambda: float(self.units == 200), "_absolute": lambda: float(self.distance == 900),
-            "_incremental": lambda: float(self.distance == 910),
-            "_inverse_time": lambda: float(self.feed_mode == 930),
-            "_units_per_minute": lambda: float(self.feed_mode == 940), "_units_per_rev": lambda: 0.0,
+            "_ccomp": lambda: float(G.G40), "_metric": lambda: float(self.units == G.G21),
+            "_imperial": lambda: float(self.units == G.G20), "_absolute": lambda: float(self.distance == G.G90),
+            "_incremental": lambda: float(self.distance == G.G91),
+            "_inverse_time": lambda: float(self.feed_mode == G.G93),
+            "_units_per_minute": lambda: float(self.feed_mode == G.G94), "_units_per_rev": lambda: 0.0,
             "_coord_system": lambda: float(next(c for c, n in SYSTEM_CODES.items() if n == self.system)),
             "_tool_offset": lambda: float(any(self.tool_offset)),
-            "_retract_r_plane": lambda: float(self.retract == 990), "_retract_old_z": lambda: float(self.retract == 980),
+            "_retract_r_plane": lambda: float(self.retract == G.G99),
+            "_retract_old_z": lambda: float(self.retract == G.G98),
             "_spindle_rpm_mode": lambda: 1.0, "_spindle_css_mode": lambda: 0.0,
-            "_ijk_absolute_mode": lambda: float(self.ijk_distance == 901), "_lathe_diameter_mode": lambda: 0.0,
+            "_ijk_absolute_mode": lambda: float(self.ijk_distance == G.G90_1), "_lathe_diameter_mode": lambda: 0.0,
             "_lathe_radius_mode": lambda: 1.0, "_spindle_on": lambda: float(self.spindle != "stop"),
             "_spindle_cw": lambda: float(self.spindle == "cw"), "_mist": lambda: float(self.mist),
             "_flood": lambda: float(self.flood), "_speed_override": lambda: 1.0, "_feed_override": lambda: 1.0,

@@ -22,6 +22,7 @@ import numpy as np
 
 from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines, tool_axis_paths
+from cnc_twin.gcode.modal import G
 from cnc_twin.gcode.path_ops import (
     Element, FeedPath, ForceChange, Operation, Pause, SpindleChange, ToolAxisPath, ToolpathError, Traverse,
     line_element, programmed_geometry,
@@ -78,7 +79,7 @@ def arc_element(start: np.ndarray, arc, offset: np.ndarray, scale: float, tolera
     from ``start`` (mm); a helix within ``tolerance`` [mm] in its normal coordinate."""
     from cnc_twin.gcode.arcs import PLANE_AXES
 
-    first, second, normal = {2: PLANE_AXES[170], 1: PLANE_AXES[180], 0: PLANE_AXES[190]}[arc.normal]
+    first, second, normal = {2: PLANE_AXES[G.G17], 1: PLANE_AXES[G.G18], 0: PLANE_AXES[G.G19]}[arc.normal]
     e1, e2, en = np.eye(3)[first], np.eye(3)[second], np.eye(3)[normal]
     center = np.asarray(arc.center, dtype=float) * scale + offset
     center = center - center[normal] * en  # in the plane through the origin; the normal part goes in z
@@ -177,7 +178,7 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
     for call in calls:
         name, v = call.name, call.values
         if name == "USE_LENGTH_UNITS":
-            canon.scale = INCH if v[0] == 200 else 1.0
+            canon.scale = INCH if v[0] == G.G20 else 1.0
         elif name == "SET_G5X_OFFSET":
             canon.g5x = canon.to_mm(v[1:7])
         elif name == "SET_G92_OFFSET":
