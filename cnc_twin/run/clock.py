@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from cnc_twin.core import units
 from cnc_twin.core.errors import ScenarioError
@@ -80,11 +80,23 @@ def check_run_size(sc, planned: int, max_periods: int) -> None:
                             f"({planned * timing.interpolation_period:g} s); the limit is {MAX_TRACE_TICKS:.3g}")
 
 
+class ClockResult(NamedTuple):
+    """What :meth:`Clock.run` returns."""
+
+    wall_time: float
+    """[s] the loop's wall-clock time"""
+    periods: int
+    """interpolation periods run"""
+    late_periods: int
+    """real-time mode: periods that started more than a period late"""
+    missed_ticks: int
+    """servo ticks the card's task missed at the end (a hung task, ``dsp_hang``)"""
+
+
 class Clock:
     """Runs ``twin``'s periods with the card's task ``dsp``; ``planned`` is the program's length
-    as the planner announced it [periods]. Sets ``twin.recorder`` (read by observers during the
-    run), ``twin.period_batch``, ``twin.expected_periods``, ``twin.late_periods`` and
-    ``twin.missed_ticks``."""
+    as the planner announced it [periods]. Builds the run's :attr:`recorder` (observers read it
+    during the run: the twin hands it on before :meth:`run`) and :attr:`batch`."""
 
     def __init__(self, twin: Twin, dsp: DspTask, planned: int, progress: ProgressCallback | None):
         self.twin, self.dsp, self.progress = twin, dsp, progress
@@ -97,28 +109,30 @@ class Clock:
         self.substeps = timing.substeps_per_tick
         check_run_size(sc, planned, self.max_periods)
         self.realtime = timing.mode == "realtime"
-        twin.expected_periods = planned + 1
-        self.report_every = max(1, twin.expected_periods // REPORTS_PER_RUN)
-        twin.recorder = self.recorder = Recorder(planned + 2, self.ticks_per_period, scratch=not twin.record)
+        self.expected_periods = planned + 1
+        """the program's length as planned, plus the last period [periods] (the progress bar's end)"""
+        self.report_every = max(1, self.expected_periods // REPORTS_PER_RUN)
+        self.recorder = Recorder(planned + 2, self.ticks_per_period, scratch=not twin.record)
+        """the run's recorder"""
         # what the Python servo-tick variants call every tick, looked up once
         plant = twin.plant
         self._plant_calls = (plant.data.qpos, plant.pad_force, plant.apply_volts, plant.step,
                              self.recorder.record_tick)
         """MuJoCo's qpos (the axes first: the servo reads positions[0:6]) and the plant's calls"""
-        twin.late_periods = twin.missed_ticks = 0
+        self.late_periods = self.missed_ticks = 0
         # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
         # per compiled call, the removal map's updates included (lockstep only: real time paces
         # every period)
-        twin.period_batch = self.batch = None
+        self.batch = None
+        """the :class:`~cnc_twin.run.period_batch.PeriodBatch`, if periods run in batches"""
         if twin.kernel is not None and twin.batch and not self.realtime:
             from cnc_twin.run.period_batch import PeriodBatch
 
-            twin.period_batch = self.batch = PeriodBatch(dsp, twin.kernel, self.recorder, twin.removal,
-                                                         switches=twin.plant.switches)
+            self.batch = PeriodBatch(dsp, twin.kernel, self.recorder, twin.removal, switches=twin.plant.switches)
             self.batch.warm_up()
 
-    def run(self) -> tuple[float, int]:
-        """Run to the end; returns (wall time of the loop [s], periods run)."""
+    def run(self) -> ClockResult:
+        """Run to the end."""
         twin, dsp, recorder, batch = self.twin, self.dsp, self.recorder, self.batch
         injector, removal = twin.injector, twin.removal
         frame, first_period_field = twin.servo.frame, twin.servo.period_slot
@@ -180,7 +194,7 @@ class Clock:
         recorder.count = t
         if self.progress is not None and twin.stop_reason is None:
             self.progress(k, k)  # the bar ends at what was simulated, not at the estimate
-        return wall_time, k
+        return ClockResult(wall_time, k, self.late_periods, self.missed_ticks)
 
     def servo_ticks(self, t: int) -> int:
         """The period's servo ticks from tick ``t``, each with its physics steps and recorded row,
@@ -227,8 +241,8 @@ class Clock:
             plant.step(timing.substeps_per_tick)
             if injector.hang_ticks:  # once it is over, the task runs again from the next period
                 injector.hang_ticks -= 1
-                twin.missed_ticks += 1
-                if watchdog_ticks and twin.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
+                self.missed_ticks += 1
+                if watchdog_ticks and self.missed_ticks >= watchdog_ticks and dsp.drives_enabled:
                     # the watchdog resets the card; the amplifiers lose their enable at once
                     twin.drives_off()
                     dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
@@ -238,14 +252,14 @@ class Clock:
             self.recorder.record_tick(t, frame)
             t += 1
         if not injector.hang_ticks:
-            twin.missed_ticks = 0
+            self.missed_ticks = 0
         return t
 
     def report(self, k: int, t: int) -> None:
         """Progress and the observer, a few hundred times per run (``k`` periods, ``t`` ticks done)."""
         twin = self.twin
         if self.progress is not None:
-            self.progress(min(k, twin.expected_periods), twin.expected_periods)
+            self.progress(min(k, self.expected_periods), self.expected_periods)
         if twin.observer is not None:
             self.recorder.count = t
             twin.observer(twin)
@@ -254,7 +268,7 @@ class Clock:
         """Real-time mode: wait for the wall-clock start of the period (sleep, then spin)."""
         now = time.perf_counter()
         if now > deadline + self.period_s:
-            self.twin.late_periods += 1
+            self.late_periods += 1
             return
         if deadline - now > 0.0005:
             time.sleep(deadline - now - 0.0003)

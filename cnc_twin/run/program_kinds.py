@@ -9,7 +9,7 @@ program's type itself. A new kind of program (say, G-code) plugs in here on the 
 Hooks, each with a default that serves a point-to-point program:
 
 - :meth:`ProgramKind.build_plant`: the MuJoCo plant (and, for a surface, the workpiece's collision
-  tiles and the removal map);
+  tiles and the removal map), returned as :class:`PlantParts`;
 - ``referenced``: whether the axes count as referenced at power-on (the motion chip homes them);
 - :meth:`ProgramKind.stop_time`: the time to stop from the programmed feed, which the planner's
   look-ahead must always cover on a path program;
@@ -23,7 +23,7 @@ Hooks, each with a default that serves a point-to-point program:
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -38,17 +38,27 @@ if TYPE_CHECKING:  # the twin hands itself to the hooks; typing only, no import 
     from cnc_twin.trace.trace import Trace
 
 
+class PlantParts(NamedTuple):
+    """What :meth:`ProgramKind.build_plant` builds: the plant, and for a workpiece its removal map
+    (:class:`~cnc_twin.polishing.polish.RemovalTracker`) and collision tiles (None otherwise)."""
+
+    plant: Plant
+    removal: Any = None
+    tiling: Any = None
+
+
 class ProgramKind:
     """The run-side set-up of one kind of program (the defaults serve point-to-point moves)."""
 
     referenced = True
     """the axes count as referenced at power-on (soft limits apply from the start)"""
 
-    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+    def build_plant(self, twin: Twin, obstacles: list) -> PlantParts:
         """The plant for ``twin.scenario`` with the injected collision ``obstacles`` (centre, half
-        sizes [m]) added; may set ``twin.removal`` and ``twin.tiling``."""
+        sizes [m]) added, and what comes with it."""
         sc = twin.scenario
-        return Plant(load_model_with_obstacles(sc.model_file, obstacles), timestep=sc.timing.physics_timestep)
+        return PlantParts(Plant(load_model_with_obstacles(sc.model_file, obstacles),
+                                timestep=sc.timing.physics_timestep))
 
     def stop_time(self, program) -> float | None:
         """Time to stop from the programmed feed, jerk-limited [s]; None for programs without a
@@ -122,20 +132,19 @@ class ContourKind(_PathKind):
                 f"{', '.join(program.methods)}")
 
 
-def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction, tile_size: float) -> Plant:
-    """The scene with ``surface_def`` (:class:`~cnc_twin.core.config.SurfaceDef`) as its workpiece
-    and the removal map on it (sets ``twin.removal`` and ``twin.tiling``); the workpiece as the
-    process built it for an earlier run, if it did (:mod:`cnc_twin.run.workpiece_cache`)."""
+def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction, tile_size: float) -> PlantParts:
+    """The scene with ``surface_def`` (:class:`~cnc_twin.core.config.SurfaceDef`) as its workpiece,
+    its collision tiles and the removal map on it; the workpiece as the process built it for an
+    earlier run, if it did (:mod:`cnc_twin.run.workpiece_cache`)."""
     from cnc_twin.polishing.polish import RemovalTracker
     from cnc_twin.run.workpiece_cache import workpiece
 
     sc = twin.scenario
-    surface, model, twin.tiling, grid = workpiece(sc.model_file, surface_def, tile_size, obstacles,
-                                                  preston.grid_spacing)
+    surface, model, tiling, grid = workpiece(sc.model_file, surface_def, tile_size, obstacles, preston.grid_spacing)
     plant = Plant(model, timestep=sc.timing.physics_timestep)
-    twin.removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period,
-                                  compiled=twin.compiled, grid=grid)
-    return plant
+    removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period,
+                             compiled=twin.compiled, grid=grid)
+    return PlantParts(plant, removal, tiling)
 
 
 class SurfaceKind(_PathKind):
@@ -145,7 +154,7 @@ class SurfaceKind(_PathKind):
         _warm_curve_stepper(twin)
         twin.interpolator.force.warm_up()
 
-    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+    def build_plant(self, twin: Twin, obstacles: list) -> PlantParts:
         prog = twin.scenario.program
         return _workpiece_plant(twin, obstacles, prog.surface, prog.preston, prog.friction, prog.surface_tile_size)
 
@@ -202,7 +211,7 @@ class GcodeKind(ProgramKind):
     """An NC program: its feed paths are curves (the compiled stepper), measured path by path; with
     a workpiece (M100), the plant and the removal map of a surface, and the force metrics."""
 
-    def build_plant(self, twin: Twin, obstacles: list) -> Plant:
+    def build_plant(self, twin: Twin, obstacles: list) -> PlantParts:
         w = twin.scenario.program.workpiece
         if w is None:
             return super().build_plant(twin, obstacles)

@@ -72,10 +72,9 @@ class Twin:
         self.compiled = compiled
         self.scenario = scenario
         timing = scenario.timing
-        self.tiling = self.removal = None
         self.kind = kind_of(scenario.program)
         obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
-        self.plant = self.kind.build_plant(self, obstacles)
+        self.plant, self.removal, self.tiling = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor,
             output=scenario.command_output,
@@ -170,7 +169,10 @@ class Twin:
             except PlannerLost as exc:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
-            wall_time, periods = Clock(self, dsp, planned, progress).run()
+            clock = Clock(self, dsp, planned, progress)
+            # observers read the recorder during the run
+            self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
+            wall_time, periods, self.late_periods, self.missed_ticks = clock.run()
             if dsp.planner_lost or dsp.fault == FaultCode.PLANNER_START:
                 reason = planner.failure()
                 if reason is not None:
