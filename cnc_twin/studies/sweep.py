@@ -245,6 +245,7 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
     # stop has few to call back and a broken pool leaves the rest of the queue untouched.
     in_flight: dict[Future, int] = {}
     failed: list[int] = []
+    broken = False  # a worker died: the pool takes no more cases
     try:
         while True:
             while queue and stop.reason is None and not failed and len(in_flight) < 2 * workers:
@@ -254,6 +255,7 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
                         in_flight[pool.submit(case_fn, scenario_file, todo[i])] = i
                 except BrokenProcessPool:
                     queue.appendleft(i)
+                    broken = True
                     break
             if not in_flight:
                 return failed
@@ -265,6 +267,7 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
                     rows[i] = future.result()
                 except BrokenProcessPool:
                     failed.append(i)
+                    broken = True
                     continue
                 except (KeyboardInterrupt, SystemExit):  # a signal ended it in its worker
                     continue
@@ -278,7 +281,7 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
         stop.pass_on()
         raise
     finally:
-        if failed:  # the pool broke: its other workers end now, not when the pool gets round to it
+        if broken:  # its other workers end now, not when the pool gets round to it
             stop.end_workers()
         pool.shutdown(wait=True, cancel_futures=True)
         stop.forget_workers()
