@@ -262,7 +262,12 @@ def test_fuzzed_scenarios_that_validate_also_run_cleanly(tmp_path, key, value):
         out, err = proc.communicate(timeout=RUN_BUDGET_S)
     except subprocess.TimeoutExpired:
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
+        try:
+            out, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:  # no orphan writing into the folder of Hypothesis's next try
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            pytest.fail("the run did not stop within 60 s of SIGINT")
     assert "Traceback" not in err, err
     assert proc.returncode in (0, 2, 3, 130), (proc.returncode, err)
     if proc.returncode == 2:
