@@ -117,7 +117,10 @@ def test_latch_setpoint_servo_tick_and_read_encoders(seed):
             positions = rng.uniform(-1, 1, size=n + 3)  # MuJoCo's qpos: the axes first
             outs_c = (np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n))
             outs_i = tuple(np.zeros_like(a) for a in outs_c)
-            if rng.random() < 0.2:
+            if rng.random() < 0.1:
+                servo.fine_commands(compiled, (j + 1) / ticks, tick_commands[j], use_ticks, outs_c[0])
+                servo.fine_commands.py_func(interpreted, (j + 1) / ticks, tick_commands[j], use_ticks, outs_i[0])
+            elif rng.random() < 0.2:
                 servo.read_encoders(compiled, positions, outs_c[1])
                 servo.read_encoders.py_func(interpreted, positions, outs_i[1])
             else:

@@ -100,6 +100,22 @@ def latch_setpoint(axes, setpoint, inv_period):
 
 
 @njit(cache=True)
+def fine_command(a, fraction, tick_command, use_tick_command):
+    """One axis's command this tick [counts]: the linear fine interpolation of ``a`` (an
+    :data:`AXIS` record) at ``fraction`` of the period, or ``tick_command`` with ``use_tick_command``."""
+    if use_tick_command:
+        return tick_command
+    return a.p_prev + (a.p_next - a.p_prev) * fraction
+
+
+@njit(cache=True)
+def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
+    """:func:`fine_command` of every axis into ``command_out`` (shape ``(n,)``; pulse output)."""
+    for i in range(axes.shape[0]):
+        command_out[i] = fine_command(axes[i], fraction, tick_command[i], use_tick_command)
+
+
+@njit(cache=True)
 def servo_tick(axes, fraction, tick_command, use_tick_command, positions, command_out, actual_out, code_out,
                volts_out):
     """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``): the fine
@@ -109,10 +125,7 @@ def servo_tick(axes, fraction, tick_command, use_tick_command, positions, comman
     ``*_out`` arrays (shape ``(n,)`` each)."""
     for i in range(axes.shape[0]):
         a = axes[i]
-        if use_tick_command:
-            command = tick_command[i]
-        else:
-            command = a.p_prev + (a.p_next - a.p_prev) * fraction
+        command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
         volts_out[i] = dac_write(a.dac, pid_update(a.pid, command, actual, a.velocity, a.acceleration))
         command_out[i] = command
@@ -149,7 +162,7 @@ def read_load_cell(cell, value):
     return measured - cell.tare
 
 
-TASK_FUNCTIONS = (latch_setpoint, servo_tick, read_encoders, read_load_cell, disable_axes)
+TASK_FUNCTIONS = (latch_setpoint, servo_tick, fine_commands, read_encoders, read_load_cell, disable_axes)
 """the compiled functions :class:`ServoTask` calls from Python (:meth:`ServoTask.warm_up`)"""
 
 
@@ -259,14 +272,11 @@ class ServoTask:
 
     def tick_pulses(self, j: int, positions: Sequence[float], pad_force: float) -> list[int]:
         """One servo interrupt in pulse output: the step pulses per axis for tick ``j`` (signed)."""
-        axes, frame, n = self.axes, self.frame, self.n_axes
-        frac = self.fractions[j]
-        use_ticks, ticks = self.use_tick_commands, self.tick_commands[j]
+        frame, n = self.frame, self.n_axes
         self.read_encoders(positions)
+        fine_commands(self.axes, self.fractions[j], self.tick_commands[j], self.use_tick_commands, self._command)
         pulses = [0] * n
-        for i, stepper in enumerate(self.steppers):
-            command = float(ticks[i]) if use_ticks else \
-                float(axes[i]["p_prev"] + (axes[i]["p_next"] - axes[i]["p_prev"]) * frac)
+        for i, (stepper, command) in enumerate(zip(self.steppers, self._command.tolist())):
             pulses[i] = stepper.emit(command)
             frame[i] = command
             frame[2 * n + i] = pulses[i]
@@ -305,6 +315,8 @@ class ServoTask:
         servo_tick(axes, self.fractions[0], self.tick_commands[0], False, np.zeros(n), self._command.copy(),
                    self._actual.copy(), self._code.copy(), self._volts.copy())
         read_encoders(axes, np.zeros(n), self._actual.copy())
+        if self.steppers:
+            fine_commands(axes, self.fractions[0], self.tick_commands[0], False, self._command.copy())
         read_load_cell(cell[0], 0.0)
         disable_axes(axes)
 

@@ -92,7 +92,8 @@ class CompiledServo:
         inside the timed run: a call of zero ticks with arguments of the types the run passes.
         ``Twin.run`` calls it while the planner process starts."""
         n = self.servo.n_axes
-        run_ticks(*self.tick_args()[:5], self.servo.fractions[:0], *self.tick_args()[6:],
+        args = self.tick_args()
+        run_ticks(*args[:5], self.servo.fractions[:0], *args[6:],
                   np.zeros((1, n)), np.zeros((1, n), dtype=np.int32), np.zeros((1, n), dtype=np.int16),
                   np.zeros(1), 0)
 
