@@ -26,6 +26,7 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import PLANNER_FAULTS, Scenario
+from cnc_twin.core.signal_mask import signals_held
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import Supervisor
@@ -139,10 +140,12 @@ class Twin:
         """
         self.observer = observer
         sc = self.scenario
-        wb = Whiteboard.create(Layout(sc.whiteboard.words))
+        wb: Whiteboard | None = None
         planner: PlannerProcess | None = None
         port = None
         try:
+            with signals_held():  # a signal's exception cannot come between creating and owning
+                wb = Whiteboard.create(Layout(sc.whiteboard.words))
             planner = planners.acquire() if planners is not None else PlannerProcess()
             # kept for a later run only after a clean lockstep run without planner faults (a
             # real-time planner may still be planning in its thread when the run ends)
@@ -182,13 +185,15 @@ class Twin:
         finally:
             # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
             try:
-                signal_shutdown(wb, planner.bells.ring_pc if planner is not None else None)
+                if wb is not None:
+                    signal_shutdown(wb, planner.bells.ring_pc if planner is not None else None)
             finally:
                 try:
                     _release(planner, planners)
                 finally:
                     port = None
-                    wb.close()
+                    if wb is not None:
+                        wb.close()
         return self._result(dsp, wall_time, periods, retransmits)
 
     def drives_off(self) -> None:

@@ -9,7 +9,9 @@ SIGINT, from the main process or from the terminal (Ctrl-C reaches the whole pro
 and a case it is handed afterwards returns at once; both come back with status ``interrupted``.
 The planner ignores SIGINT and ends with its run; the workers then leave as the pool shuts down,
 closing their planners on the way out. SIGTERM in a worker (the pool ending it, or a SIGTERM to
-the whole group) leaves the case through the run's clean-up, and no further case runs there.
+the whole group) stops the case running at its next period, and the worker leaves once the run
+has cleaned up; an idle worker leaves at once. Only the first SIGTERM raises: later ones (the
+main process repeats it, :meth:`SweepStop.end_workers`) would cut the clean-up short.
 
 Why a signal and not a flag that a thread in the worker watches: a run gives up the GIL only for
 the microseconds of each compiled servo call and takes it straight back, so such a thread waits
@@ -28,12 +30,16 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
+from cnc_twin.core.signal_mask import signals_held
+
 _stopped = False
 """in a worker: SIGINT or SIGTERM came; cases from now on are not run"""
 _running: Any = None
 """in a worker: the twin of the case running now (a SIGINT asks it to stop)"""
 _terminated = False
 """in a worker: SIGTERM came; the worker leaves once the case running has cleaned up"""
+_exiting = False
+"""in a worker: SIGTERM raised SystemExit already (later ones leave the clean-up alone)"""
 
 
 class SweepStop:
@@ -124,11 +130,8 @@ def sigint_held() -> Iterator[None]:
     block ends. Without this, a Ctrl-C during a child's start-up (imports, about a second) kills
     it with a KeyboardInterrupt traceback. A worker unblocks SIGINT in :func:`init_worker`, once
     it stops the worker's cases; a planner keeps it blocked (it ignores SIGINT anyway)."""
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
+    with signals_held({signal.SIGINT}):
         yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def init_worker(pids) -> None:
@@ -150,13 +153,18 @@ def exit_on_sigterm() -> None:
 
 
 def _on_sigterm(signum, _frame) -> None:
-    global _stopped, _terminated
+    global _stopped, _terminated, _exiting
     _stopped = _terminated = True
-    # The SystemExit below is lost when the signal lands inside a C callback (numba loading a
-    # kernel from its cache calls back into Python): the running twin then stops at its next
-    # period anyway, and the worker leaves as the case ends (stoppable).
     if _running is not None:
+        # A case runs: it stops at its next period and cleans up (planner reaped, segment
+        # unlinked); :func:`stoppable` then leaves the worker. Raising here instead would cut
+        # that clean-up short when the next SIGTERM (the pool's, then :meth:`SweepStop.end_workers`
+        # every 0.2 s) lands inside it, and leave the segment behind (seen in CI).
         _running.request_stop("SIGTERM")
+        return
+    if _exiting:  # already leaving: a second SystemExit would cut the atexit clean-up short
+        return
+    _exiting = True
     raise SystemExit(128 + signum)
 
 
@@ -176,7 +184,7 @@ def stop_requested() -> bool:
 def stoppable(twin) -> Iterator[None]:
     """In a worker, around ``twin.run()``: a SIGINT, before or during the run, asks the twin to
     stop at its next period (its result is then ``interrupted``)."""
-    global _running
+    global _running, _exiting
     _running = twin
     try:
         if _stopped:  # came between the check before the case and now
@@ -184,5 +192,6 @@ def stoppable(twin) -> Iterator[None]:
         yield
     finally:
         _running = None
-    if _terminated:  # a SIGTERM whose SystemExit was lost: the run has cleaned up, now leave
+    if _terminated:  # SIGTERM came during the case: the run has cleaned up, now leave
+        _exiting = True
         raise SystemExit(128 + signal.SIGTERM)

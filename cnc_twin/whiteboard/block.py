@@ -15,6 +15,7 @@ from multiprocessing import resource_tracker, shared_memory
 
 import numpy as np
 
+from cnc_twin.core.signal_mask import signals_held
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.status import STATUS_DTYPE
 
@@ -77,8 +78,13 @@ class Whiteboard:
         layout = layout or L.Layout()
         name = f"{NAME_PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
         shm = shared_memory.SharedMemory(name=name, create=True, size=layout.nbytes)
-        shm.buf[: layout.nbytes] = bytes(layout.nbytes)
-        return cls(shm, layout, owner=True)
+        try:
+            shm.buf[: layout.nbytes] = bytes(layout.nbytes)
+            return cls(shm, layout, owner=True)
+        except BaseException:
+            shm.close()
+            shm.unlink()
+            raise
 
     @classmethod
     def attach(cls, name: str, layout: L.Layout | None = None) -> "Whiteboard":
@@ -87,7 +93,13 @@ class Whiteboard:
         return cls(shm, layout or L.Layout(), owner=False)
 
     def close(self) -> None:
-        """Drop the views, close the mapping, and unlink the segment if this side created it."""
+        """Drop the views, close the mapping, and unlink the segment if this side created it
+        (SIGINT and SIGTERM held back meanwhile, so that a handler raising cannot leave the
+        segment mapped-out but not unlinked)."""
+        with signals_held():
+            self._close()
+
+    def _close(self) -> None:
         for attr in ("words", "fifo_ring", "status", "pc_magic", "pc_heartbeat", "fifo_write",
                      "program_periods", "records_sent", "retransmits", "plan_us", "plan_blocks", "fifo_read",
                      "dsp_heartbeat"):
