@@ -233,3 +233,30 @@ def test_the_fifo_interrupt_leaves_the_trace_as_an_exchange_every_period_does():
         assert np.array_equal(cols_on[key], cols_off[key]), key
     assert on.metrics["whiteboard"]["exchanges"] < 20 < 1000 < off.metrics["whiteboard"]["exchanges"]
     assert on.metrics["whiteboard"]["records_accepted"] == off.metrics["whiteboard"]["records_accepted"]
+
+
+def test_a_signal_while_the_segment_is_being_created_leaves_no_segment():
+    """A SIGTERM whose handler raises, arriving between shm_open and ftruncate (seen in CI: a
+    0-byte segment left in /dev/shm by a sweep worker ended by its pool): the run ends by the
+    handler's exception, and the segment is unlinked all the same."""
+    code = f"""
+import os, signal, sys
+from cnc_twin import load_scenario
+from cnc_twin.run.twin import Twin
+
+signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+twin = Twin(load_scenario({str(default_scenario())!r}))
+truncate = os.ftruncate
+
+def signalled_truncate(fd, size):
+    os.kill(os.getpid(), signal.SIGTERM)  # its handler runs at the next bytecode
+    truncate(fd, size)
+
+os.ftruncate = signalled_truncate
+print(os.getpid(), flush=True)
+twin.run()
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    pid = proc.stdout.split()[0]
+    assert proc.returncode == 143, proc.stderr
+    assert [name for name in leftover_segments() if name.startswith(f"cnc_twin_{pid}_")] == []

@@ -26,7 +26,7 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import PLANNER_FAULTS, Scenario
-from cnc_twin.core.signal_mask import signals_held
+from cnc_twin.core.deferred_signals import signals_deferred
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import Supervisor
@@ -144,7 +144,7 @@ class Twin:
         planner: PlannerProcess | None = None
         port = None
         try:
-            with signals_held():  # a signal's exception cannot come between creating and owning
+            with signals_deferred():  # a signal's exception cannot come between creating and owning
                 wb = Whiteboard.create(Layout(sc.whiteboard.words))
             planner = planners.acquire() if planners is not None else PlannerProcess()
             # kept for a later run only after a clean lockstep run without planner faults (a

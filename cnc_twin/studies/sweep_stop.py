@@ -30,8 +30,6 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-from cnc_twin.core.signal_mask import signals_held
-
 _stopped = False
 """in a worker: SIGINT or SIGTERM came; cases from now on are not run"""
 _running: Any = None
@@ -130,8 +128,11 @@ def sigint_held() -> Iterator[None]:
     block ends. Without this, a Ctrl-C during a child's start-up (imports, about a second) kills
     it with a KeyboardInterrupt traceback. A worker unblocks SIGINT in :func:`init_worker`, once
     it stops the worker's cases; a planner keeps it blocked (it ignores SIGINT anyway)."""
-    with signals_held({signal.SIGINT}):
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
         yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def init_worker(pids) -> None:

@@ -15,7 +15,7 @@ from multiprocessing import resource_tracker, shared_memory
 
 import numpy as np
 
-from cnc_twin.core.signal_mask import signals_held
+from cnc_twin.core.deferred_signals import signals_deferred
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.status import STATUS_DTYPE
 
@@ -96,7 +96,7 @@ class Whiteboard:
         """Drop the views, close the mapping, and unlink the segment if this side created it
         (SIGINT and SIGTERM held back meanwhile, so that a handler raising cannot leave the
         segment mapped-out but not unlinked)."""
-        with signals_held():
+        with signals_deferred():
             self._close()
 
     def _close(self) -> None:
