@@ -4,7 +4,7 @@ Target (issue #4): <= 15 us per period in Python on the 2-core development machi
 implementations report 3-4 us). ``test_stepper_taylor_only`` is the predictor without the
 corrector, for comparison; ``test_coarse_period_on_circle`` is the DSP's whole coarse
 interpolation period on a curve (S-curve feed, stepper, axis setpoints). Each runs with the
-Python stepper and the compiled one (:mod:`cnc_twin.dsp.curve_kernel`), which the twin uses.
+stepper's Python source and compiled (:mod:`cnc_twin.dsp.curve_stepper`), which the twin uses.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.geometry.nurbs import NurbsCurve
@@ -25,16 +24,17 @@ FREEFORM = NurbsCurve(np.array([[0, 0, 0], [20, 40, 0], [60, -20, 5], [100, 50, 
                       [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1], 3)
 
 
-STEPPERS = {"python": CurveStepper, "compiled": CompiledCurveStepper}
+STEPPERS = {"python": False, "compiled": True}
+"""the stepper's Python source (numba's py_func) or compiled"""
 
 
 def _stepper(correct: bool, kind: str):
-    cls = STEPPERS[kind]
-    stepper = cls(FREEFORM.span_evaluator(), 0.0, correct=correct)
+    compiled = STEPPERS[kind]
+    stepper = CurveStepper(FREEFORM.span_evaluator(), 0.0, correct=correct, compiled=compiled)
 
     def step():
         if stepper.u > 0.99:
-            stepper.__init__(FREEFORM.span_evaluator(), 0.0, correct=correct)
+            stepper.__init__(FREEFORM.span_evaluator(), 0.0, correct=correct, compiled=compiled)
         stepper.step(1e-4)  # 6 m/min for 1 ms
 
     return step

@@ -19,7 +19,7 @@ Once per interpolation period:
 - :mod:`~cnc_twin.dsp.supervisor`    fault checks (following error, limits, DAC saturation, force) and stops
 - :mod:`~cnc_twin.dsp.interpolator`  per-period setpoints from the records, fine interpolation per tick
 - :mod:`~cnc_twin.dsp.path_blocks`   what the interpolator runs on curve and surface paths, one class per record kind
-- :mod:`~cnc_twin.dsp.curve_stepper`, :mod:`~cnc_twin.dsp.curve_kernel`  NURBS direct interpolation (Python, compiled)
+- :mod:`~cnc_twin.dsp.curve_stepper`  NURBS direct interpolation (one compiled function)
 - :mod:`~cnc_twin.dsp.force`         the grinding-force loop: seek, ramp, track, retract; feed adaptation
 - :mod:`~cnc_twin.dsp.step_interpolator`, :mod:`~cnc_twin.dsp.chip`  the older cards: step interpolation, motion-chip commands
 

@@ -66,11 +66,11 @@ from numba import njit
 
 from cnc_twin.core.config import ForceControl
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import span_kernel
-from cnc_twin.dsp.span_kernel import bisect_right
+from cnc_twin.geometry import span_eval
+from cnc_twin.geometry.span_eval import bisect_right
 
-# force_update calls span_kernel.bisect_right: recompile it when that changes
-purge_stale(__file__, [span_kernel.__file__])
+# force_update calls span_eval.bisect_right: recompile it when that changes
+purge_stale(__file__, [span_eval.__file__])
 
 
 class ForceState:

@@ -57,6 +57,7 @@ from cnc_twin.dsp import feed_slew
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
+from cnc_twin.dsp.spindle import spindle_turn
 from cnc_twin.whiteboard.records import (
     ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
     Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
@@ -71,8 +72,8 @@ class SegmentInterpolator:
     power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
     period : interpolation period [s].
     ticks_per_period : servo ticks per period (a step interpolator gives a point for each).
-    compiled : step curves with the compiled stepper (:mod:`cnc_twin.dsp.curve_kernel`, the
-        default) or the Python one; the setpoints are the same bit for bit.
+    compiled : step curves with the compiled stepper (:mod:`cnc_twin.dsp.curve_stepper`, the
+        default) or its Python source; the setpoints are the same bit for bit.
     """
 
     def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float,
@@ -324,10 +325,8 @@ class SegmentInterpolator:
     def _turn_spindle(self) -> None:
         """Spindle (C) in speed mode: ramp towards the commanded speed within C's acceleration."""
         target = self.spindle_speed if self.spindle_on else 0.0
-        step = self._spindle_accel * self.period
-        spin = min(target, self._spin + step) if target > self._spin else max(target, self._spin - step)
-        self._c_offset += 0.5 * (self._spin + spin) * self.period
-        self._spin = spin
+        self._spin, turned = spindle_turn(self._spin, target, self._spindle_accel * self.period, self.period)
+        self._c_offset += turned
 
     def _start_next(self) -> None:
         while self._queue and self._current is None and not self.finished:

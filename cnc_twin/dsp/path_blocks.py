@@ -4,8 +4,7 @@ record is accepted (the card decodes ahead) and run when it reaches the head of 
 time scale follows.
 
 - :class:`Curve` (from a CurveGeometry record): ``stepper``, the curve's arc-length stepper
-  (:class:`~cnc_twin.dsp.curve_kernel.CompiledCurveStepper` or
-  :class:`~cnc_twin.dsp.curve_stepper.CurveStepper`; its ``point`` [m], shape ``(3,)``, and
+  (:class:`~cnc_twin.dsp.curve_stepper.CurveStepper`; its ``point`` [m], shape ``(3,)``, and
   parameter ``u``); ``hold``, the held A, B, C [rad], shape ``(3,)``; ``axis``, the tool-axis
   curve's span evaluator (None when A and B are held), with ``pivot`` and ``offset``, the head
   geometry [m], shape ``(3,)`` each; ``start`` and ``end``, the machine positions at the
@@ -54,7 +53,6 @@ from __future__ import annotations
 import bisect
 import math
 
-from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
 from cnc_twin.dsp.curve_stepper import CurveStepper
 from cnc_twin.dsp.feed_slew import stop_distance
 from cnc_twin.geometry.kinematics import pose_to_axes, tool_axis
@@ -73,8 +71,7 @@ class Curve:
 
     def __init__(self, record: CurveGeometry, compiled: bool = True):
         curve = NurbsCurve(record.control_points, record.weights, record.knots, record.degree)
-        stepper = CompiledCurveStepper if compiled else CurveStepper
-        self.stepper = stepper(curve.span_evaluator(), curve.domain[0])
+        self.stepper = CurveStepper(curve.span_evaluator(), curve.domain[0], compiled=compiled)
         self.hold = tuple(record.hold)
         self.line_us = [u for u, _ in record.lines]
         """where the curve's program lines start [u], increasing; empty: no line marks"""
@@ -134,14 +131,13 @@ class SurfaceRun:
         self.end = self._pose(ev.evaluate(t1)[0], ev.last_su, ev.last_sv, ev.last_c1)
         self.end_axis = self.axis
         # the stepper keeps the tangents of the point it last evaluated: the tool axis of its pose
-        self.stepper = (CompiledCurveStepper if compiled else CurveStepper)(ev, t0)
-        self._tangents = self.stepper.tangents if compiled else lambda: (ev.last_su, ev.last_sv, ev.last_c1)
+        self.stepper = CurveStepper(ev, t0, compiled=compiled)
         self.start = self.pose(self.stepper.point, t0)
         self.start_axis = self.axis
 
     def pose(self, point: list[float], u: float) -> tuple[float, ...]:
         """Machine position for the tip at ``point``, with the tool axis at the stepper's point."""
-        return self._pose(point, *self._tangents())
+        return self._pose(point, *self.stepper.tangents())
 
     def _pose(self, point, su, sv, c1) -> tuple[float, ...]:
         sf = self.surface

@@ -52,12 +52,13 @@ def pose_to_axes(tip, n, pivot, offset) -> tuple[float, float, float, float, flo
     """Scalar inverse kinematics for the card's per-period work: X, Y, Z [m], A, B [rad] that put
     the tool tip at ``tip`` with the tool along ``n`` (any length > 0); ``pivot`` is the A/B
     pivot at X = Y = Z = 0 and ``offset`` the tip - pivot at A = B = 0 (3-sequences, m)."""
-    nx, ny, nz = n
+    # indexed, not unpacked: the batch kernel compiles this function for arrays too
+    nx, ny, nz = n[0], n[1], n[2]
     inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
     b = math.asin(max(-1.0, min(1.0, nx * inv)))
     a = math.atan2(-ny * inv, nz * inv)
     ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
-    ox, oy, oz = offset
+    ox, oy, oz = offset[0], offset[1], offset[2]
     x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
     rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
     return (tip[0] - pivot[0] - rx, tip[1] - pivot[1] - ry, tip[2] - pivot[2] - rz, a, b)

@@ -12,14 +12,13 @@ with scipy's B-spline machinery; the rational derivatives follow from the quotie
 
 For the DSP's per-period work, :class:`SpanEvaluator` holds each knot span's power-basis
 coefficients of ``A``, ``A'`` and ``A''`` in one block, so a point with its first two
-derivatives costs one small matrix product.
+derivatives costs one small matrix product (:mod:`cnc_twin.geometry.span_eval`, compiled).
 
 Units are whatever the control points are in (the twin uses metres).
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 
 import numpy as np
@@ -170,14 +169,14 @@ class NurbsCurve:
 
 
 class SpanEvaluator:
-    """Fast scalar evaluation of ``C, C', C''`` for the DSP's per-period interpolation.
+    """A curve's spans as the card evaluates them, one point per call (:mod:`cnc_twin.geometry.span_eval`).
 
     Each knot span ``[u_i, u_i+1)`` stores the power-basis coefficients of ``A``, ``A'``, ``A''``
     in the local variable ``x = u - u_i`` as one ``(p + 1, 3 (d + 1))`` block, taken exactly from
     the B-spline's right-hand Taylor coefficients at ``u_i``. One evaluation = one powers vector,
-    the block's rows summed in order (``((b0 + x b1) + x^2 b2) + ...``, the order the compiled
-    stepper, :mod:`cnc_twin.dsp.curve_kernel`, uses too, so the two agree bit for bit), the
-    quotient rule on plain floats.
+    the block's rows summed in order, the quotient rule: done by the compiled functions of
+    :mod:`~cnc_twin.geometry.span_eval` (imported at the first evaluation, so that a process
+    that only plans never loads numba), which the card's stepper calls on :attr:`path`.
     """
 
     def __init__(self, curve: NurbsCurve):
@@ -185,7 +184,6 @@ class SpanEvaluator:
         self.degree, self.dim = p, d
         self.domain = curve.domain
         starts = [float(k) for k in np.unique(curve.knots)[:-1]]
-        self._starts = starts
         hom = curve._spline
         blocks = []
         for s in starts:
@@ -199,52 +197,34 @@ class SpanEvaluator:
             for j in range(p - 1):  # A'' coefficients
                 block[j, 2 * (d + 1):] = (j + 1) * (j + 2) * taylor[j + 2]
             blocks.append(block)
-        self.blocks = np.array(blocks)
+        self.blocks = np.ascontiguousarray(np.array(blocks))
         """the spans' coefficient blocks, shape ``(spans, p + 1, 3 (d + 1))``"""
         self.starts = np.array(starts)
         """the spans' first parameters (distinct knots but the last), shape ``(spans,)``"""
-        self._rows = [b.tolist() for b in blocks]
-        self._rows1 = [[row[: 2 * (d + 1)] for row in b] for b in self._rows]  # A, A' only
+
+    @property
+    def path(self) -> tuple:
+        """The curve as :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple."""
+        from cnc_twin.geometry.span_eval import NO_SURFACE
+
+        return (self.starts, self.blocks, float(self.domain[0]), float(self.domain[1]), self.dim, *NO_SURFACE)
 
     def next_break(self, u: float) -> float:
         """The first span boundary (distinct knot) after ``u``; the domain's end if none."""
-        i = bisect.bisect_right(self._starts, u)
-        return self._starts[i] if i < len(self._starts) else self.domain[1]
+        from cnc_twin.geometry.span_eval import next_break
 
-    def _homogeneous(self, u: float, blocks: list[list[list[float]]]) -> list[float]:
-        """The block product at ``u`` (clamped to the domain): A (and derivatives) as floats."""
-        lo, hi = self.domain
-        u = lo if u < lo else hi if u > hi else u
-        i = bisect.bisect_right(self._starts, u) - 1
-        x = u - self._starts[i]
-        rows = blocks[i]
-        h = rows[0]
-        power = 1.0
-        for row in rows[1:]:
-            power = power * x
-            h = [a + power * b for a, b in zip(h, row)]
-        return list(h)
+        return float(next_break(self.path, u))
 
     def speed(self, u: float) -> float:
         """``|C'(u)|`` (first derivative only: half the work of :meth:`evaluate`)."""
-        h = self._homogeneous(u, self._rows1)
-        d = self.dim
-        w, w1 = h[d], h[2 * d + 1]
-        inv = 1.0 / w
-        total = 0.0
-        for k in range(d):
-            v = (h[d + 1 + k] - w1 * h[k] * inv) * inv
-            total += v * v
-        return math.sqrt(total)
+        from cnc_twin.geometry.span_eval import WORK, path_speed
+
+        return float(path_speed(self.path, u, np.zeros(WORK)))
 
     def evaluate(self, u: float) -> tuple[list[float], list[float], list[float]]:
-        """``(C, C', C'')`` at scalar ``u`` as plain float lists of length d."""
-        h = self._homogeneous(u, self._rows)
-        d = self.dim
-        n = d + 1
-        w, w1, w2 = h[d], h[n + d], h[2 * n + d]
-        inv = 1.0 / w
-        c = [h[k] * inv for k in range(d)]
-        c1 = [(h[n + k] - w1 * c[k]) * inv for k in range(d)]
-        c2 = [(h[2 * n + k] - 2.0 * w1 * c1[k] - w2 * c[k]) * inv for k in range(d)]
-        return c, c1, c2
+        """``(C, C', C'')`` at scalar ``u`` (clamped to the domain) as plain float lists of length d."""
+        from cnc_twin.geometry.span_eval import WORK, path_evaluate
+
+        c, c1, c2 = np.zeros(self.dim), np.zeros(self.dim), np.zeros(self.dim)
+        path_evaluate(self.path, float(u), np.zeros(WORK), c, c1, c2, np.zeros(6))
+        return c.tolist(), c1.tolist(), c2.tolist()

@@ -23,15 +23,13 @@ normal is undefined and returned as nan.
 
 For the DSP's per-period work, :class:`SurfaceSpanEvaluator` holds each patch's power-basis
 coefficients of ``A`` and its five partials in one block, so a point with its first and second
-partials costs one pass over the block's rows (the compiled twin of it:
-:mod:`cnc_twin.dsp.span_kernel`).
+partials costs one pass over the block's rows (compiled: :mod:`cnc_twin.geometry.span_eval`).
 
 Units are whatever the control net is in (the twin uses metres).
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 
 import numpy as np
@@ -242,20 +240,19 @@ class SurfaceSpanEvaluator:
         p, q = surface.degree_u, surface.degree_v
         self.degree_u, self.degree_v = p, q
         self.domain_u, self.domain_v = surface.domain_u, surface.domain_v
-        self._starts_u = [float(k) for k in np.unique(surface.knots_u)[:-1]]
-        self._starts_v = [float(k) for k in np.unique(surface.knots_v)[:-1]]
+        starts_u = [float(k) for k in np.unique(surface.knots_u)[:-1]]
+        starts_v = [float(k) for k in np.unique(surface.knots_v)[:-1]]
 
         def taylor(spline, s, degree):  # (degree + 1, n): row a = N^(a)(s) / a!, right-hand at a knot
             return np.array([spline(s, nu=a) / math.factorial(a) for a in range(degree + 1)])
 
-        Tu = [taylor(surface._basis_u, s, p) for s in self._starts_u]
-        Tv = [taylor(surface._basis_v, s, q) for s in self._starts_v]
+        Tu = [taylor(surface._basis_u, s, p) for s in starts_u]
+        Tv = [taylor(surface._basis_v, s, q) for s in starts_v]
         net = surface._homogeneous_net
         self.coefficients = [[np.einsum("ai,bj,ijc->abc", tu, tv, net) for tv in Tv] for tu in Tu]
-        self._blocks = [[self._block(H) for H in row] for row in self.coefficients]
-        self.patches = np.array(self._blocks)
+        self.patches = np.ascontiguousarray(np.array([[self._block(H) for H in row] for row in self.coefficients]))
         """the patches' evaluation blocks, shape ``(spans_u, spans_v, (p + 1)(q + 1), 24)``"""
-        self.starts_u, self.starts_v = np.array(self._starts_u), np.array(self._starts_v)
+        self.starts_u, self.starts_v = np.array(starts_u), np.array(starts_v)
         """the patches' first parameters, shapes ``(spans_u,)`` and ``(spans_v,)``"""
 
     @staticmethod
@@ -270,45 +267,26 @@ class SurfaceSpanEvaluator:
             parts.append(C)
         return np.ascontiguousarray(np.concatenate(parts, axis=2).reshape(p1 * q1, 24))
 
-    def _homogeneous(self, u: float, v: float) -> list[float]:
-        lo, hi = self.domain_u
-        u = lo if u < lo else hi if u > hi else u
-        lo, hi = self.domain_v
-        v = lo if v < lo else hi if v > hi else v
-        i = bisect.bisect_right(self._starts_u, u) - 1
-        j = bisect.bisect_right(self._starts_v, v) - 1
-        x, y = u - self._starts_u[i], v - self._starts_v[j]
-        px, py = [1.0], [1.0]
-        for _ in range(self.degree_u):
-            px.append(px[-1] * x)
-        for _ in range(self.degree_v):
-            py.append(py[-1] * y)
-        # the monomials' rows summed in row order, term by term (a BLAS product sums in an order
-        # of its own): the compiled evaluation (cnc_twin.dsp.span_kernel) gives the same bits
-        terms = np.array([a * b for a in px for b in py])[:, None] * self._blocks[i][j]
-        return np.add.accumulate(terms, axis=0)[-1].tolist()
-
     def evaluate(self, u: float, v: float) -> tuple[list[float], ...]:
-        """``(S, S_u, S_v, S_uu, S_uv, S_vv)`` at scalar ``(u, v)`` (clamped), each a list of 3 floats."""
-        h = self._homogeneous(u, v)
-        w, wu, wv, wuu, wuv, wvv = h[3], h[7], h[11], h[15], h[19], h[23]
-        inv = 1.0 / w
-        s = [h[k] * inv for k in range(3)]
-        su = [(h[4 + k] - wu * s[k]) * inv for k in range(3)]
-        sv = [(h[8 + k] - wv * s[k]) * inv for k in range(3)]
-        suu = [(h[12 + k] - 2.0 * wu * su[k] - wuu * s[k]) * inv for k in range(3)]
-        suv = [(h[16 + k] - wu * sv[k] - wv * su[k] - wuv * s[k]) * inv for k in range(3)]
-        svv = [(h[20 + k] - 2.0 * wv * sv[k] - wvv * s[k]) * inv for k in range(3)]
-        return s, su, sv, suu, suv, svv
+        """``(S, S_u, S_v, S_uu, S_uv, S_vv)`` at scalar ``(u, v)`` (clamped), each a list of 3
+        floats (:func:`cnc_twin.geometry.span_eval.surface_evaluate`)."""
+        from cnc_twin.geometry.span_eval import surface_evaluate
+
+        s = np.zeros(18)
+        surface_evaluate(*self.patch_args, float(u), float(v), np.zeros(24), s)
+        s = s.tolist()
+        return tuple(s[3 * k:3 * k + 3] for k in range(6))
+
+    @property
+    def patch_args(self) -> tuple:
+        """The surface's part of :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple: patch starts,
+        blocks, degrees and the domain box ``(u0, u1, v0, v1)``."""
+        return (self.starts_u, self.starts_v, self.patches, self.degree_u, self.degree_v,
+                np.array([*self.domain_u, *self.domain_v], dtype=np.float64))
 
     def normal(self, u: float, v: float) -> list[float]:
         """Unit normal at scalar ``(u, v)`` (clamped), z >= 0 as :meth:`NurbsSurface.normal`."""
-        h = self._homogeneous(u, v)
-        w, wu, wv = h[3], h[7], h[11]
-        inv = 1.0 / w
-        s = [h[k] * inv for k in range(3)]
-        a = [(h[4 + k] - wu * s[k]) * inv for k in range(3)]
-        b = [(h[8 + k] - wv * s[k]) * inv for k in range(3)]
+        _, a, b, _, _, _ = self.evaluate(u, v)
         n = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
         length = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
         if length == 0.0:

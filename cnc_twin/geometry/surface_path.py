@@ -108,16 +108,22 @@ class SurfacePath:
 class SurfacePathEvaluator:
     """Scalar ``C, C', C''`` of a surface path for the card's per-period stepper.
 
-    Same interface as :class:`~cnc_twin.geometry.nurbs.SpanEvaluator` (``evaluate``, ``speed``,
-    ``next_break``, ``domain``). :meth:`evaluate` also keeps the surface tangents of the point
-    it evaluated (``last_su``, ``last_sv``, ``last_c1``), which the card's kinematics uses for the
-    tool axis of that period without evaluating the surface again.
+    Same interface as :class:`~cnc_twin.geometry.nurbs.SpanEvaluator` (``path``, ``dim``,
+    ``domain``, ``evaluate``, ``speed``, ``next_break``); the compiled functions of
+    :mod:`cnc_twin.geometry.span_eval` do the work. :meth:`evaluate` also keeps the surface
+    tangents of the point it evaluated (``last_su``, ``last_sv``, ``last_c1``), for the tool axis
+    of that point.
     """
+
+    dim = 3
+    """the points' dimension"""
 
     def __init__(self, surface: SurfaceSpanEvaluator, uv: SpanEvaluator):
         self.surface = surface
         self.uv = uv
         self.domain = uv.domain
+        self.path = (*uv.path[:5], *surface.patch_args)
+        """the path as :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple"""
         self.last_su = self.last_sv = self.last_c1 = (0.0, 0.0, 0.0)
 
     def next_break(self, t: float) -> float:
@@ -125,20 +131,19 @@ class SurfacePathEvaluator:
 
     def evaluate(self, t: float) -> tuple[list[float], list[float], list[float]]:
         """``(C, C', C'')`` at scalar ``t`` as float lists of length 3."""
-        (u, v), (u1, v1), (u2, v2) = self.uv.evaluate(t)
-        s, su, sv, suu, suv, svv = self.surface.evaluate(u, v)
-        uu, uv2, vv = u1 * u1, 2.0 * u1 * v1, v1 * v1
-        c1 = [su[k] * u1 + sv[k] * v1 for k in range(3)]
-        c2 = [suu[k] * uu + suv[k] * uv2 + svv[k] * vv + su[k] * u2 + sv[k] * v2 for k in range(3)]
-        self.last_su, self.last_sv, self.last_c1 = su, sv, c1
-        return s, c1, c2
+        from cnc_twin.geometry.span_eval import WORK, path_evaluate
+
+        c, c1, c2, tangents = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(6)
+        path_evaluate(self.path, float(t), np.zeros(WORK), c, c1, c2, tangents)
+        tangents = tangents.tolist()
+        self.last_su, self.last_sv, self.last_c1 = tangents[:3], tangents[3:], c1.tolist()
+        return c.tolist(), self.last_c1, c2.tolist()
 
     def speed(self, t: float) -> float:
         """``|C'(t)|``; leaves the kept tangents alone (the stepper calls it between points)."""
-        (u, v), (u1, v1), _ = self.uv.evaluate(t)
-        _, su, sv, _, _, _ = self.surface.evaluate(u, v)
-        x, y, z = (su[k] * u1 + sv[k] * v1 for k in range(3))
-        return math.sqrt(x * x + y * y + z * z)
+        from cnc_twin.geometry.span_eval import WORK, path_speed
+
+        return float(path_speed(self.path, float(t), np.zeros(WORK)))
 
     def tool_axis(self, lead: float, tilt: float) -> tuple[float, float, float]:
         """The tool axis at the last evaluated point (see the module docstring)."""
@@ -148,18 +153,27 @@ class SurfacePathEvaluator:
 def tool_axis_at(su, sv, c1, lead: float, tilt: float) -> tuple[float, float, float]:
     """The tool axis (unit, 3 floats) from the surface tangents ``su``, ``sv`` and the path's
     ``c1 = C'`` at a point (3 floats each), with ``lead`` and ``tilt`` [rad] (module docstring)."""
+    leaned = lead != 0.0 or tilt != 0.0
+    return tool_axis_leaned(su, sv, c1, math.cos(lead), math.sin(lead), math.cos(tilt), math.sin(tilt), leaned)
+
+
+def tool_axis_leaned(su, sv, c1, cos_lead: float, sin_lead: float, cos_tilt: float, sin_tilt: float,
+                     leaned: bool) -> tuple[float, float, float]:
+    """:func:`tool_axis_at` with the lead's and tilt's cosines and sines given (the batch kernel
+    computes them once per path and compiles this function: one implementation); ``leaned``
+    False gives the normal itself."""
     nx, ny, nz = su[1] * sv[2] - su[2] * sv[1], su[2] * sv[0] - su[0] * sv[2], su[0] * sv[1] - su[1] * sv[0]
     if nz < 0.0:  # out of the material: up
         nx, ny, nz = -nx, -ny, -nz
     inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
     nx, ny, nz = nx * inv, ny * inv, nz * inv
-    if lead == 0.0 and tilt == 0.0:
+    if not leaned:
         return nx, ny, nz
     dot = c1[0] * nx + c1[1] * ny + c1[2] * nz
     fx, fy, fz = c1[0] - dot * nx, c1[1] - dot * ny, c1[2] - dot * nz
     inv = 1.0 / math.sqrt(fx * fx + fy * fy + fz * fz)
     fx, fy, fz = fx * inv, fy * inv, fz * inv
     sx, sy, sz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
-    cl, sl, ct, st = math.cos(lead), math.sin(lead), math.cos(tilt), math.sin(tilt)
+    cl, sl, ct, st = cos_lead, sin_lead, cos_tilt, sin_tilt
     return ((nx * cl + fx * sl) * ct + sx * st, (ny * cl + fy * sl) * ct + sy * st,
             (nz * cl + fz * sl) * ct + sz * st)

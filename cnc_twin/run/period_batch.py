@@ -15,8 +15,7 @@ import math
 
 import numpy as np
 
-from cnc_twin.dsp import curve_kernel
-from cnc_twin.dsp.curve_kernel import CompiledCurveStepper
+from cnc_twin.dsp import curve_stepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, ForceWait, SurfaceRun
 from cnc_twin.dsp.supervisor import LIMITS, SUPERVISOR
@@ -86,8 +85,8 @@ class PeriodBatch:
         else:
             self._removal_args = removal_kernel.no_tracker()
         self._segment = None
-        self._no_curve = (curve_kernel.NO_PATH, True)
-        self._no_stepper = (np.zeros(curve_kernel.state_size(3)), np.zeros(curve_kernel.scratch_size(3)))
+        self._no_curve = (curve_stepper.NO_PATH, True)
+        self._no_stepper = (np.zeros(curve_stepper.state_size(3)), np.zeros(curve_stepper.scratch_size(3)))
         self._no_phases = (np.zeros((7, 5)), np.zeros(7))
         self._no_axis = (np.zeros(0), np.zeros((0, 2, 12)), 0.0, 1.0, 3, np.zeros((2, 3)))
         self._no_lines = (np.zeros(0), np.zeros(0))
@@ -150,7 +149,7 @@ class PeriodBatch:
         if isinstance(segment, Dwell):
             return None if tracking else DWELL
         curve = getattr(segment, "curve", None)
-        if (isinstance(curve, (Curve, SurfaceRun)) and isinstance(curve.stepper, CompiledCurveStepper)
+        if (isinstance(curve, (Curve, SurfaceRun)) and curve.stepper.compiled
                 and isinstance(segment.profile, SCurve) and interp._path_accel is None
                 and interp.override == interp.override_target * force.feed_factor):
             return CURVE
@@ -176,8 +175,7 @@ class PeriodBatch:
         check[HOLD, :3] = curve.hold
         tool_axis = curve.axis
         self._axis_args = self._no_axis if tool_axis is None else (
-            tool_axis.starts, np.ascontiguousarray(tool_axis.blocks), float(tool_axis.domain[0]),
-            float(tool_axis.domain[1]), tool_axis.dim, np.array([curve.pivot, curve.offset], dtype=np.float64))
+            *tool_axis.path[:5], np.array([curve.pivot, curve.offset], dtype=np.float64))
         if curve.line_us:
             self._lines = (np.array(curve.line_us, dtype=np.float64), np.array(curve.line_numbers, dtype=np.float64))
 
@@ -201,7 +199,7 @@ class PeriodBatch:
             axis_args, lines = self._axis_args, self._lines
             stepper = segment.curve.stepper
             phases, times, v1 = self._phases, self._times, prof.v1
-            curve_args, sstate, sscratch = (stepper._args, stepper.correct), stepper._state, stepper._scratch
+            curve_args, sstate, sscratch = (stepper.path, stepper.correct), stepper.state, stepper.scratch
             feed[S_DONE] = interp._s
             feed[QUEUED_PATH] = interp._queued_path
             feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
@@ -257,9 +255,7 @@ class PeriodBatch:
         feed, check, process, out = self.feed, self.check, self.process, self.out
         if mode == CURVE:
             curve = segment.curve
-            stepper = curve.stepper
-            stepper.u = float(stepper._state[0])
-            stepper.point = stepper._state[stepper._point].tolist()
+            curve.stepper.sync()
             interp._tau, interp._s = float(feed[TAU]), float(feed[S_DONE])
             interp._block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
             if isinstance(curve, SurfaceRun):

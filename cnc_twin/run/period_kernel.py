@@ -38,13 +38,12 @@ the card's task does.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import curve_kernel, feed_slew, force, servo, span_kernel, supervisor
+from cnc_twin.dsp import curve_stepper, feed_slew, force, servo, spindle, supervisor
+from cnc_twin.geometry import kinematics, span_eval, surface_path
 from cnc_twin.machine import plant
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
@@ -52,16 +51,24 @@ from cnc_twin.run import c_clock, servo_kernel
 
 # the batch kernel calls the path stepper, the force loop, the servo ticks, the removal update and
 # the clock: recompile when they change
-purge_stale(__file__, [curve_kernel.__file__, span_kernel.__file__, force.__file__, servo_kernel.__file__,
+purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file__, servo_kernel.__file__,
                        servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
-                       c_clock.__file__, feed_slew.__file__])
+                       c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
+                       spindle.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise
 _switch_bits = plant.switch_bits
 
+# the card's own plain functions, compiled here (one implementation, the same bits)
 _stop_distance = njit(cache=True)(feed_slew.stop_distance)
-"""the starved hold's stopping distance, compiled from the card's own function (the same bits)"""
+"""the starved hold's stopping distance"""
+_pose_to_axes = njit(cache=True)(kinematics.pose_to_axes)
+"""the head's inverse kinematics"""
+_tool_axis = njit(cache=True)(surface_path.tool_axis_leaned)
+"""a surface path's tool axis: the normal with lead and tilt"""
+_spindle_turn = njit(cache=True)(spindle.spindle_turn)
+"""the spindle's speed ramp and angle"""
 
 MAX_BATCH = SOLO_LIVENESS_PERIODS
 """periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""
@@ -101,54 +108,12 @@ def _scurve_state(phases, times, duration, length, v0, v1, t, out):
     if t <= 0.0:
         out[0], out[1], out[2] = 0.0, v0, 0.0
         return
-    p = span_kernel.bisect_right(times, t) - 1
+    p = span_eval.bisect_right(times, t) - 1
     t0, s0, pv0, a0, jk = phases[p, 0], phases[p, 1], phases[p, 2], phases[p, 3], phases[p, 4]
     dt = t - t0
     out[0] = s0 + dt * (pv0 + dt * (0.5 * a0 + dt * jk / 6.0))
     out[1] = pv0 + dt * (a0 + 0.5 * jk * dt)
     out[2] = a0 + jk * dt
-
-
-@njit(cache=True)
-def _pose_to_axes(tip, n, pivot, offset, out):
-    """X, Y, Z, A, B into ``out[:5]``, as :func:`cnc_twin.geometry.kinematics.pose_to_axes`."""
-    nx, ny, nz = n[0], n[1], n[2]
-    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
-    b = math.asin(max(-1.0, min(1.0, nx * inv)))
-    a = math.atan2(-ny * inv, nz * inv)
-    ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
-    ox, oy, oz = offset[0], offset[1], offset[2]
-    x1, z1 = cb * ox + sb * oz, -sb * ox + cb * oz
-    rx, ry, rz = x1, ca * oy - sa * z1, sa * oy + ca * z1
-    out[0] = tip[0] - pivot[0] - rx
-    out[1] = tip[1] - pivot[1] - ry
-    out[2] = tip[2] - pivot[2] - rz
-    out[3] = a
-    out[4] = b
-
-
-@njit(cache=True)
-def _surface_axis(tangents, c1, process, out):
-    """The tool axis from the surface tangents ``S_u, S_v`` (``tangents``, 6) and the path's ``C'``
-    with lead and tilt into ``out`` (3), as :func:`cnc_twin.geometry.surface_path.tool_axis_at`."""
-    su0, su1, su2, sv0, sv1, sv2 = tangents[0], tangents[1], tangents[2], tangents[3], tangents[4], tangents[5]
-    nx, ny, nz = su1 * sv2 - su2 * sv1, su2 * sv0 - su0 * sv2, su0 * sv1 - su1 * sv0
-    if nz < 0.0:  # out of the material: up
-        nx, ny, nz = -nx, -ny, -nz
-    inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
-    nx, ny, nz = nx * inv, ny * inv, nz * inv
-    if process[LEANED] == 0.0:
-        out[0], out[1], out[2] = nx, ny, nz
-        return
-    dot = c1[0] * nx + c1[1] * ny + c1[2] * nz
-    fx, fy, fz = c1[0] - dot * nx, c1[1] - dot * ny, c1[2] - dot * nz
-    inv = 1.0 / math.sqrt(fx * fx + fy * fy + fz * fz)
-    fx, fy, fz = fx * inv, fy * inv, fz * inv
-    sx, sy, sz = ny * fz - nz * fy, nz * fx - nx * fz, nx * fy - ny * fx
-    cl, sl, ct, st = process[COS_LEAD], process[SIN_LEAD], process[COS_TILT], process[SIN_TILT]
-    out[0] = (nx * cl + fx * sl) * ct + sx * st
-    out[1] = (ny * cl + fy * sl) * ct + sy * st
-    out[2] = (nz * cl + fz * sl) * ct + sz * st
 
 
 @njit(cache=True)
@@ -187,7 +152,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
     ``servo_kernel.run_ticks`` but the first row, then the first row and the rows per period; ``feed`` / ``check`` / ``cs`` / ``process``: the
     blocks above (updated to the last committed period); ``curve_args``: the path's ``ev``
-    (:mod:`cnc_twin.dsp.span_kernel`) and the corrector flag; ``sstate`` the stepper's state;
+    (:mod:`cnc_twin.geometry.span_eval`) and the corrector flag; ``sstate`` the stepper's state;
     ``axis_args``: the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: none) and the head
     geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
     displacement [counts] (a dwell's held setpoint in row 0); ``supervision``: the supervisor's
@@ -202,7 +167,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
     ev, correct = curve_args
-    d = span_kernel.path_dim(ev)
+    d = span_eval.path_dim(ev)
     a_starts, a_blocks, a_lo, a_hi, a_d, head = axis_args
     fxs, ffs, loop = force_args
     line_us, line_numbers = lines
@@ -262,21 +227,24 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             # --- the path, tentatively (committed below) ---
             trial[:] = sstate
             if ds > 0.0:
-                curve_kernel.step(ev, correct, ds, trial, sscratch)
+                curve_stepper.step(ev, correct, ds, trial, sscratch)
             point = trial[2 + 2 * d:2 + 3 * d]
             if surface:  # SurfaceRun.pose: the surface normal with lead and tilt, the kinematics
-                _surface_axis(trial[2 + 3 * d:2 + 3 * d + 6], trial[2:2 + d], process, tool)
-                _pose_to_axes(point, tool, head[0], head[1], pose)
+                tangents = trial[2 + 3 * d:2 + 3 * d + 6]
+                tool[0], tool[1], tool[2] = _tool_axis(tangents[0:3], tangents[3:6], trial[2:2 + d], process[COS_LEAD],
+                                                       process[SIN_LEAD], process[COS_TILT], process[SIN_TILT],
+                                                       process[LEANED] != 0.0)
+                pose[0], pose[1], pose[2], pose[3], pose[4] = _pose_to_axes(point, tool, head[0], head[1])
                 pose[5] = process[C_HOLD]
             else:
                 for i in range(n):
                     pose[i] = point[i] if i < 3 else check[HOLD, i - 3]
                 if tilting:  # Curve.pose: the tool axis at u, then the head's inverse kinematics
-                    span_kernel.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1,
+                    span_eval.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1,
                                               a_c2)
-                    _pose_to_axes(point, direction, head[0], head[1], pose)
+                    pose[0], pose[1], pose[2], pose[3], pose[4] = _pose_to_axes(point, direction, head[0], head[1])
                 if line_us.shape[0] > 0:  # Curve.line_at: the program line it runs now
-                    mark = line_numbers[max(span_kernel.bisect_right(line_us, trial[0]) - 1, 0)]
+                    mark = line_numbers[max(span_eval.bisect_right(line_us, trial[0]) - 1, 0)]
             for i in range(n):
                 held[i] = (pose[i] - check[POWER_ON, i]) * check[CPU, i]
         elif mode == MOVE:  # SegmentInterpolator._advance_move and Trapezoid.evaluate
@@ -317,10 +285,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
         c_offset = process[C_OFFSET]
         spin = process[SPIN]
         if process[SPINDLE_ON] != 0.0 or spin != 0.0:  # SegmentInterpolator._turn_spindle
-            target, step = process[SPIN_TARGET], process[SPIN_STEP]
-            turned = min(target, spin + step) if target > spin else max(target, spin - step)
-            c_offset += 0.5 * (spin + turned) * T
-            spin = turned
+            spin, turned = _spindle_turn(spin, process[SPIN_TARGET], process[SPIN_STEP], T)
+            c_offset += turned
         if c_offset != 0.0:
             setpoint[5] = setpoint[5] + c_offset * check[CPU, 5]
         if timed:

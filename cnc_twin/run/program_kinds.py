@@ -91,9 +91,9 @@ def _path_stop_time(limits) -> float:
 def _warm_curve_stepper(twin: Twin) -> None:
     """Compile (or load) the curve stepper when the card runs the compiled one."""
     if twin.interpolator.compiled:
-        from cnc_twin.dsp import curve_kernel
+        from cnc_twin.dsp import curve_stepper
 
-        curve_kernel.warm_up()
+        curve_stepper.warm_up()
 
 
 class _PathKind(ProgramKind):

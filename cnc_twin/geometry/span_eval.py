@@ -1,12 +1,14 @@
 """Span evaluation, compiled: NURBS curves, NURBS surfaces and surface paths for the card's stepper.
 
-The references are the Python evaluators: :class:`~cnc_twin.geometry.nurbs.SpanEvaluator`
-(curves), :class:`~cnc_twin.geometry.surface.SurfaceSpanEvaluator` (surfaces) and
-:class:`~cnc_twin.geometry.surface_path.SurfacePathEvaluator` (a (u, v) curve on a surface). These
-kernels do the same IEEE operations in the same order (a span's rows summed as
-``((b0 + x b1) + x^2 b2) + ...``, a patch's monomial rows ``x^a y^b`` summed in row order, the
-quotient rule, the chain rule left to right), no fast-math, so they agree bit for bit
-(``tests/test_curve_kernel.py``, ``tests/test_surface_kernel.py``).
+The evaluators :class:`~cnc_twin.geometry.nurbs.SpanEvaluator` (curves),
+:class:`~cnc_twin.geometry.surface.SurfaceSpanEvaluator` (surfaces) and
+:class:`~cnc_twin.geometry.surface_path.SurfacePathEvaluator` (a (u, v) curve on a surface) build
+the coefficient blocks and call these functions; the card's stepper
+(:mod:`cnc_twin.dsp.curve_stepper`) and the batch kernel call them on the ``ev`` tuple. A span's
+rows are summed as ``((b0 + x b1) + x^2 b2) + ...``, a patch's monomial rows ``x^a y^b`` in row
+order, then the quotient rule and the chain rule; ``tests/test_span_eval.py`` checks the results
+against scipy's B-splines (:class:`~cnc_twin.geometry.nurbs.NurbsCurve`,
+:class:`~cnc_twin.geometry.surface.NurbsSurface`).
 
 A path's evaluator is one tuple, ``ev``::
 
