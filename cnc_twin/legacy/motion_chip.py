@@ -46,6 +46,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from cnc_twin.motion.scurve import phase_state
+
 MAX_AXES = 4
 
 Segment = tuple[float, float, float]
@@ -134,17 +136,13 @@ class Profile:
     def state(self, t: float) -> tuple[float, float, float, float]:
         """``(s, v, a, j)`` at time ``t`` [s] (t >= t0)."""
         t0, s0, v0, a0, jerk = self._starts[max(0, bisect.bisect_right(self._times, t) - 1)]
-        d = t - t0
-        return (s0 + d * (v0 + d * (0.5 * a0 + d * jerk / 6.0)), v0 + d * (a0 + 0.5 * jerk * d),
-                a0 + jerk * d, jerk)
+        return (*phase_state(t0, s0, v0, a0, jerk, t), jerk)
 
     def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Vectorised :meth:`state`: arrays ``(s, v, a, j)`` at the times ``t``."""
         idx = np.maximum(np.searchsorted(self._array[:, 0], t, side="right") - 1, 0)
         t0, s0, v0, a0, jerk = self._array[idx].T
-        d = t - t0
-        return (s0 + d * (v0 + d * (0.5 * a0 + d * jerk / 6.0)), v0 + d * (a0 + 0.5 * jerk * d),
-                a0 + jerk * d, jerk)
+        return (*phase_state(t0, s0, v0, a0, jerk, t), jerk)
 
 
 def rest_to_rest(length: float, v_max: float, a_max: float | None, j_max: float | None) -> Profile:

@@ -23,6 +23,17 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def phase_state(t0, s0, v0, a0, jerk, t):
+    """``(s, v, a)`` at time ``t`` [s] of a constant-jerk phase that starts at ``t0`` with
+    ``(s0, v0, a0)`` [m, m/s, m/s^2] and has jerk ``jerk`` [m/s^3]: Horner's form of the cubic.
+    Scalars or numpy arrays (element-wise, the same bits); the batch kernel compiles it
+    (:mod:`cnc_twin.run.period_kernel`), so the card's feed is this one function everywhere."""
+    dt = t - t0
+    return (s0 + dt * (v0 + dt * (0.5 * a0 + dt * jerk / 6.0)),
+            v0 + dt * (a0 + 0.5 * jerk * dt),
+            a0 + jerk * dt)
+
+
 def ramp_times(dv: float, a_max: float, j_max: float) -> tuple[float, float]:
     """``(Tj, Ta)`` of a velocity change ``|dv|`` [s]."""
     dv = abs(dv)
@@ -57,7 +68,11 @@ class InfeasibleProfile(ValueError):
 
 @dataclass(frozen=True)
 class SCurve:
-    """A planned block. Lengths in path units (m), speeds [m/s], ``a_max`` [m/s^2], ``j_max`` [m/s^3]."""
+    """A planned block. Lengths in path units (m), speeds [m/s], ``a_max`` [m/s^2], ``j_max`` [m/s^3].
+
+    Made on construction: ``duration`` [s]; ``phases``, the seven phases' start rows
+    ``(t0, s0, v0, a0, jerk)``; ``phase_times``, their ``t0`` (a sorted list, for ``bisect``).
+    """
 
     length: float
     v0: float
@@ -107,8 +122,8 @@ class SCurve:
             v += a * dt + jk * dt * dt / 2
             a += jk * dt
             t += dt
-        object.__setattr__(self, "_starts", tuple(starts))
-        object.__setattr__(self, "_times", [st[0] for st in starts])
+        object.__setattr__(self, "phases", tuple(starts))
+        object.__setattr__(self, "phase_times", [st[0] for st in starts])
         object.__setattr__(self, "duration", t)
         object.__setattr__(self, "_end", (s, v, a))
 
@@ -117,12 +132,9 @@ class SCurve:
         one by one, bit for bit (the same arithmetic, element-wise): the planner checks blocks
         against the limit curve with it."""
         t = np.asarray(t, dtype=np.float64)
-        starts = np.array(self._starts)  # (7, 5): t0, s0, v0, a0, jerk
-        phase = np.searchsorted(np.asarray(self._times), t, side="right") - 1
-        t0, s0, v0, a0, jk = (starts[np.clip(phase, 0, 6), i] for i in range(5))
-        dt = t - t0
-        s = s0 + dt * (v0 + dt * (0.5 * a0 + dt * jk / 6.0))
-        v = v0 + dt * (a0 + 0.5 * jk * dt)
+        starts = np.array(self.phases)  # (7, 5): t0, s0, v0, a0, jerk
+        phase = np.searchsorted(np.asarray(self.phase_times), t, side="right") - 1
+        s, v, _ = phase_state(*(starts[np.clip(phase, 0, 6), i] for i in range(5)), t)
         end, start = t >= self.duration, t <= 0.0
         s = np.where(end, self.length, np.where(start, 0.0, s))
         v = np.where(end, self.v1, np.where(start, self.v0, v))
@@ -134,8 +146,4 @@ class SCurve:
             return self.length, self.v1, 0.0
         if t <= 0.0:
             return 0.0, self.v0, 0.0
-        t0, s0, v0, a0, jk = self._starts[bisect.bisect_right(self._times, t) - 1]
-        dt = t - t0
-        return (s0 + dt * (v0 + dt * (0.5 * a0 + dt * jk / 6.0)),
-                v0 + dt * (a0 + 0.5 * jk * dt),
-                a0 + jk * dt)
+        return phase_state(*self.phases[bisect.bisect_right(self.phase_times, t) - 1], t)

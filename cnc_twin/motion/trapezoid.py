@@ -52,14 +52,21 @@ class Trapezoid:
 
     def evaluate(self, t: float) -> tuple[float, float, float]:
         """``(s, ds/dt, d2s/dt2)`` at time ``t`` [s] after the start."""
-        if t <= 0.0:
-            return 0.0, 0.0, 0.0
-        t_acc, a = self.t_acc, self.accel
-        if t < t_acc:
-            return 0.5 * a * t * t, a * t, a
-        if t < t_acc + self.t_flat:
-            return 0.5 * a * t_acc * t_acc + self.v_peak * (t - t_acc), self.v_peak, 0.0
-        remaining = self.duration - t
-        if remaining > 0.0:
-            return 1.0 - 0.5 * a * remaining * remaining, a * remaining, -a
-        return 1.0, 0.0, 0.0
+        return trapezoid_state(self.t_acc, self.accel, self.t_flat, self.v_peak, self.duration, t)
+
+
+def trapezoid_state(t_acc: float, accel: float, t_flat: float, v_peak: float, duration: float,
+                    t: float) -> tuple[float, float, float]:
+    """``(s, ds/dt, d2s/dt2)`` of the normalised path (s: 0 -> 1) at time ``t`` [s] after the
+    start: ``accel`` [1/s^2] for ``t_acc`` [s], ``v_peak`` [1/s] for ``t_flat`` [s], then down to
+    rest at ``duration`` [s]. :meth:`Trapezoid.evaluate` and the batch kernel run this function."""
+    if t <= 0.0:
+        return 0.0, 0.0, 0.0
+    if t < t_acc:
+        return 0.5 * accel * t * t, accel * t, accel
+    if t < t_acc + t_flat:
+        return 0.5 * accel * t_acc * t_acc + v_peak * (t - t_acc), v_peak, 0.0
+    remaining = duration - t
+    if remaining > 0.0:
+        return 1.0 - 0.5 * accel * remaining * remaining, accel * remaining, -accel
+    return 1.0, 0.0, 0.0

@@ -160,8 +160,8 @@ class PeriodBatch:
         once per block."""
         self._segment = segment
         prof, curve, check, process = segment.profile, segment.curve, self.check, self.process
-        self._phases = np.array(prof._starts, dtype=np.float64)
-        self._times = np.array(prof._times, dtype=np.float64)
+        self._phases = np.array(prof.phases, dtype=np.float64)
+        self._times = np.array(prof.phase_times, dtype=np.float64)
         self._lines = self._no_lines
         process[SURFACE] = 0.0
         if isinstance(curve, SurfaceRun):

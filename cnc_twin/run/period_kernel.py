@@ -45,6 +45,7 @@ from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import curve_stepper, feed_slew, force, servo, spindle, supervisor
 from cnc_twin.geometry import kinematics, span_eval, surface_path
 from cnc_twin.machine import plant
+from cnc_twin.motion import scurve, trapezoid
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock, servo_kernel
@@ -54,7 +55,7 @@ from cnc_twin.run import c_clock, servo_kernel
 purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file__, servo_kernel.__file__,
                        servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
                        c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
-                       spindle.__file__])
+                       spindle.__file__, scurve.__file__, trapezoid.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise
@@ -69,6 +70,10 @@ _tool_axis = njit(cache=True)(surface_path.tool_axis_leaned)
 """a surface path's tool axis: the normal with lead and tilt"""
 _spindle_turn = njit(cache=True)(spindle.spindle_turn)
 """the spindle's speed ramp and angle"""
+_phase_state = njit(cache=True)(scurve.phase_state)
+"""a curve block's feed within one of its S-curve's phases"""
+_trapezoid_state = njit(cache=True)(trapezoid.trapezoid_state)
+"""a move's normalised path, (s, v, a) at a time"""
 
 MAX_BATCH = SOLO_LIVENESS_PERIODS
 """periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""
@@ -100,20 +105,15 @@ N_OUT = 5
 
 
 @njit(cache=True)
-def _scurve_state(phases, times, duration, length, v0, v1, t, out):
-    """``(s, v, a)`` of the S-curve at ``t`` into ``out``, as :meth:`SCurve.state`."""
+def _scurve_state(phases, times, duration, length, v0, v1, t):
+    """``(s, v, a)`` of the S-curve at ``t``: :meth:`SCurve.state`'s clamps at the block's ends,
+    the phase ``t`` falls in, and the card's :func:`~cnc_twin.motion.scurve.phase_state`."""
     if t >= duration:
-        out[0], out[1], out[2] = length, v1, 0.0
-        return
+        return length, v1, 0.0
     if t <= 0.0:
-        out[0], out[1], out[2] = 0.0, v0, 0.0
-        return
+        return 0.0, v0, 0.0
     p = span_eval.bisect_right(times, t) - 1
-    t0, s0, pv0, a0, jk = phases[p, 0], phases[p, 1], phases[p, 2], phases[p, 3], phases[p, 4]
-    dt = t - t0
-    out[0] = s0 + dt * (pv0 + dt * (0.5 * a0 + dt * jk / 6.0))
-    out[1] = pv0 + dt * (a0 + 0.5 * jk * dt)
-    out[2] = a0 + jk * dt
+    return _phase_state(phases[p, 0], phases[p, 1], phases[p, 2], phases[p, 3], phases[p, 4], t)
 
 
 @njit(cache=True)
@@ -182,7 +182,6 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     n = axes.shape[0]
     tpp = fractions.shape[0]
     pose = np.empty(n)
-    state = np.empty(3)
     trial = np.empty(sstate.shape[0])
     force_trial = loop.copy()
     held = np.empty(n)
@@ -212,8 +211,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             if feed[HAS_STATE] != 0.0:
                 s_now, v, a_now = feed[S_NOW], feed[V_NOW], feed[A_NOW]
             else:
-                _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, feed[TAU], state)
-                s_now, v, a_now = state[0], state[1], state[2]
+                s_now, v, a_now = _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, feed[TAU])
             if feed[OPEN_END] != 0.0:
                 remaining = feed[LENGTH] - s_now + feed[QUEUED_PATH]
                 lam = feed[LAM]
@@ -222,8 +220,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             tau = feed[TAU] + feed[LAM] * T
             if not tau < feed[DURATION]:
                 return k  # the block ends within this period
-            _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, tau, state)
-            ds = state[0] - feed[S_DONE]
+            s_tau, v_tau, a_tau = _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, tau)
+            ds = s_tau - feed[S_DONE]
             # --- the path, tentatively (committed below) ---
             trial[:] = sstate
             if ds > 0.0:
@@ -251,16 +249,7 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             tau = feed[TAU] + feed[LAM] * T
             if tau >= feed[DURATION] - 1e-9 * T:
                 return k  # the move ends within this period
-            t_acc, a = feed[T_ACC], feed[ACCEL]
-            if tau <= 0.0:
-                s = 0.0
-            elif tau < t_acc:
-                s = 0.5 * a * tau * tau
-            elif tau < t_acc + feed[T_FLAT]:
-                s = 0.5 * a * t_acc * t_acc + feed[V0] * (tau - t_acc)
-            else:
-                rest = feed[DURATION] - tau
-                s = 1.0 - 0.5 * a * rest * rest if rest > 0.0 else 1.0
+            s = _trapezoid_state(feed[T_ACC], feed[ACCEL], feed[T_FLAT], feed[V0], feed[DURATION], tau)[0]
             for i in range(n):
                 held[i] = move[0, i] + s * move[1, i]
         elif mode == DWELL:  # a dwell holds the setpoint
@@ -301,8 +290,8 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             limits[:] = limits_trial  # the DAC saturation runs this period's check counted
         if mode == CURVE:
             feed[TAU] = tau
-            feed[S_DONE] = state[0]
-            feed[S_NOW], feed[V_NOW], feed[A_NOW] = state[0], state[1], state[2]
+            feed[S_DONE] = s_tau
+            feed[S_NOW], feed[V_NOW], feed[A_NOW] = s_tau, v_tau, a_tau
             feed[HAS_STATE] = 1.0
             sstate[:] = trial
             if surface:
