@@ -19,8 +19,8 @@ ROOT = Path(__file__).resolve().parent.parent / "cnc_twin"
 MAY_IMPORT: dict[str, set[str]] = {
     # the bottom: the validated scenario in SI, axis names, units, errors
     "core": set(),
-    "legacy": set(),
     "motion": {"core"},
+    "legacy": {"motion"},
     "geometry": {"core"},
     "gcode": {"core", "geometry"},
     # shared by the PC and the card, and the card's own recording layout
@@ -185,6 +185,57 @@ def test_no_module_uses_another_modules_private_names():
     assert not wrong, "private names used across modules:\n" + "\n".join(wrong)
 
 
+PUBLIC_UNDERSCORE = {"_replace", "_asdict", "_fields", "_make", "_field_defaults", "_value_", "_name_", "_missing_",
+                     "_generate_next_value_", "_exit", "_getframe"}
+"""underscore names that are public API (namedtuples, enums, ``os._exit``, ``sys._getframe``)"""
+OUTSIDE_PRIVATE_ALLOWED = {("machine/mujoco_c.py", "_address")}
+"""MuJoCo's Python bindings give a model's or data's C pointer only as ``_address``: read in one place"""
+
+
+def _foreign_private_reads(source: str) -> list[tuple[int, str]]:
+    """``(line, "x._name")`` for each attribute ``x._name`` read on an object other than ``self``,
+    ``cls`` or ``super()`` whose name this source does not define itself (as ``self._name =``, a
+    ``def _name`` or a module-level ``_name``): one module reaching into another's private state."""
+    tree = ast.parse(source)
+    defined = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            defined.add(node.name)
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
+            node, (ast.AnnAssign, ast.AugAssign)) else []
+        for target in targets:
+            for t in ast.walk(target):
+                if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name) and t.value.id in ("self", "cls"):
+                    defined.add(t.attr)
+                elif isinstance(t, ast.Name):
+                    defined.add(t.id)
+    found = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")):
+            continue
+        owner = node.value
+        if isinstance(owner, ast.Name) and owner.id in ("self", "cls"):
+            continue
+        if isinstance(owner, ast.Call) and isinstance(owner.func, ast.Name) and owner.func.id == "super":
+            continue
+        if node.attr in PUBLIC_UNDERSCORE or node.attr in defined:
+            continue
+        found.append((node.lineno, ast.unparse(node)))
+    return sorted(found)
+
+
+def test_no_module_reads_another_objects_private_state():
+    """What a part shares with another is public and documented (the card's state that the batch
+    kernel runs, a stepper's state vector ...), never read as ``obj._x`` from outside its module."""
+    wrong = []
+    for path in _sources():
+        rel = str(path.relative_to(ROOT))
+        for line, expr in _foreign_private_reads(path.read_text(encoding="utf-8")):
+            if (rel, expr.rsplit(".", 1)[1]) not in OUTSIDE_PRIVATE_ALLOWED:
+                wrong.append(f"{rel}:{line}: {expr}")
+    assert not wrong, "private state read across modules:\n" + "\n".join(wrong)
+
+
 @pytest.mark.parametrize("path", _sources(), ids=lambda p: str(p.relative_to(ROOT)))
 def test_modules_stay_small(path):
     lines = len(path.read_text(encoding="utf-8").splitlines())
@@ -201,6 +252,10 @@ def test_the_checks_catch_what_they_are_for(tmp_path):
     found = _imports(bad)
     assert [(line, module) for line, module, _, _ in found] == [(5, "cnc_twin.run.twin")]
     assert "run" not in MAY_IMPORT["dsp"] and "dsp" in MAY_IMPORT["run"]
+    reader = ("class A:\n    def __init__(self):\n        self._mine = 1\n    def f(self, other):\n"
+              "        return self._mine + other._mine + other._theirs + super()._base + os._exit\n"
+              "def g(interp):\n    return interp._current, interp.current\n")
+    assert _foreign_private_reads(reader) == [(5, "other._theirs"), (7, "interp._current")]
 
 
 def test_the_public_api_imports_from_the_top():

@@ -185,3 +185,16 @@ def test_the_cli_says_when_it_compiles_the_kernels(monkeypatch, capsys, tmp_path
     monkeypatch.setattr(period_kernel, "kernels_cached", lambda: False)  # as on a fresh install
     assert cli.main(["run", "--no-rrd", "--out", str(tmp_path / "run")]) == 0
     assert "compiling the twin's kernels" in capsys.readouterr().err
+
+
+def test_an_empty_numba_cache_is_seen_as_kernels_to_compile(tmp_path):
+    """A fresh install: numba's cache directory (here NUMBA_CACHE_DIR, empty) holds no index of
+    the kernels, and kernels_cached says so (importing compiles nothing)."""
+    import os
+    import subprocess
+    import sys
+
+    code = "from cnc_twin.run import period_kernel; print(period_kernel.kernels_cached())"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+    assert proc.returncode == 0 and proc.stdout.split() == ["False"], proc.stderr

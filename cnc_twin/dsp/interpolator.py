@@ -96,9 +96,15 @@ class SegmentInterpolator:
                             if a.index_period > 0 else None for a, p in zip(axes, power_on)]
         self.programmed = tuple(self.power_on)
         """end position of the last move accepted [m | rad]"""
-        self._queue: deque[tuple[int, Record | MoveSegment]] = deque()
-        self._current: tuple[int, MoveSegment | Dwell] | None = None
-        self._tau, self._dwell_left = 0.0, 0
+        # the running state is public: the batch kernel (run/period_batch) reads it and writes it back
+        self.queue: deque[tuple[int, Record | MoveSegment]] = deque()
+        """accepted records and segments waiting to run, ``(seq, item)``"""
+        self.current: tuple[int, MoveSegment | Dwell] | None = None
+        """the running ``(seq, segment)`` (a move, dwell, curve block, force wait ...), or None"""
+        self.tau, self.dwell_left = 0.0, 0
+        """the running segment's own clock [s] (advancing by ``override`` periods); a dwell's periods left"""
+        self.lam_max, self.start_counts, self.delta_counts = math.inf, [], []
+        """the running move's largest time scale (every axis's limits), start and displacement [counts]"""
         self._a_lim = self._v_lim = math.inf
         self.override_target = 1.0
         self.override = 1.0
@@ -110,7 +116,8 @@ class SegmentInterpolator:
         self.last_seq_executed = 0
         self.force_setpoint = 0.0
         self.spindle_on, self.spindle_speed = False, 0.0
-        self._hold_counts = [0.0] * len(self.counts_per_unit)
+        self.hold_counts = [0.0] * len(self.counts_per_unit)
+        """the last period's path setpoint without the force loop's and the spindle's offsets [counts]"""
         self._queued_periods = 0
         self._pending_curve: Curve | SurfaceRun | None = None
         self._surface: Surface | None = None
@@ -120,26 +127,31 @@ class SegmentInterpolator:
         """load-cell force of the last servo tick [N], set by the period task before each period"""
         self.path_s = 0.0
         """path length run since the last surface definition [m] (the force profile's abscissa)"""
-        self._axis = (0.0, 0.0, 1.0)
+        self.tool_axis = (0.0, 0.0, 1.0)
         """tool axis of the last surface pose or force-control start (world frame), for the force offset"""
         c_axis = self.axes[5] if len(self.axes) > 5 else None
-        self._spindle_accel = SLEW_MARGIN * c_axis.max_acceleration if c_axis is not None else math.inf
-        self._spin = 0.0
+        self.spindle_accel = SLEW_MARGIN * c_axis.max_acceleration if c_axis is not None else math.inf
+        """the spindle's speed ramp [rad/s^2] (C's acceleration with the slew margin)"""
+        self.spin = 0.0
         """spindle speed commanded this period [rad/s]"""
-        self._c_offset = 0.0
+        self.c_offset = 0.0
         """C angle turned by the spindle so far [rad], added to every C setpoint"""
         self._curve: Curve | None = None
-        self._s = 0.0
-        self._starved_hold = False
-        self._queued_path = 0.0
+        self.block_s = 0.0
+        """path length done of the running curve block at the end of the last period [m]"""
+        self.starved_hold = False
+        """the queued path ran short of the stopping distance: the feed stops until records come"""
+        self.queued_path = 0.0
         """length of the curve blocks queued behind the running one [m]"""
-        self._path_open = False
+        self.path_open = False
         """the last queued record is a curve block ending at speed: the path continues beyond it"""
         self._arrivals = 0
         self._arrivals_at_latch = 0
         self._stop_reserve = 0.0
-        self._block_state: tuple[float, float, float] | None = None
-        self._path_accel: float | None = None  # [m/s^2] while the feed moves to a new scale (feed_slew)
+        self.block_state: tuple[float, float, float] | None = None
+        """``(s, v, a)`` [m, m/s, m/s^2] of the running block at ``tau``, or None (its S-curve's then)"""
+        self.path_accel: float | None = None
+        """path acceleration [m/s^2] while the feed slews to a new scale (:mod:`~cnc_twin.dsp.feed_slew`)"""
         self.path_u = -1.0
         """curve parameter at the end of the last period; -1 when not on a curve"""
         self.path_ds = 0.0
@@ -155,113 +167,113 @@ class SegmentInterpolator:
             segment = MoveSegment(start=self.programmed, end=tuple(record.end), profile=record.profile,
                                   periods=record.periods)
             self.programmed = segment.end
-            self._queue.append((seq, segment))
+            self.queue.append((seq, segment))
             self._queued_periods += record.periods
         elif isinstance(record, Dwell):  # holds wherever the axes are commanded when it starts
-            self._queue.append((seq, record))
+            self.queue.append((seq, record))
             self._queued_periods += record.periods
         elif isinstance(record, CurveGeometry):
             # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
             self._pending_curve = Curve(record, self.compiled)
             self.programmed = self._pending_curve.end
-            self._queue.append((seq, self._pending_curve))
+            self.queue.append((seq, self._pending_curve))
         elif isinstance(record, SurfaceGeometry):
             self._surface = Surface(record)
-            self._queue.append((seq, record))
-            self._path_open = False
+            self.queue.append((seq, record))
+            self.path_open = False
         elif isinstance(record, SurfaceCurve):
             self._pending_curve = SurfaceRun(self._surface, record, self.programmed[5], self.compiled)
             self.programmed = self._pending_curve.end
-            self._queue.append((seq, self._pending_curve))
+            self.queue.append((seq, self._pending_curve))
         elif isinstance(record, ForceControlRecord):
             wait = ForceWait(record, self._pending_curve)
             if not record.on:
                 self.programmed = wait.clear_pose
-            self._queue.append((seq, wait))
-            self._path_open = False
+            self.queue.append((seq, wait))
+            self.path_open = False
         elif isinstance(record, StepContour):
-            run = StepRun(record, self._counts_of(self.programmed))
+            run = StepRun(record, self.counts_of(self.programmed))
             run.periods = math.ceil(record.profile.duration / self.period)
             self.programmed = (*self._position_of(run.end)[:2], *self.programmed[2:])
-            self._queue.append((seq, run))
+            self.queue.append((seq, run))
             self._queued_periods += run.periods
-            self._path_open = False
+            self.path_open = False
         elif isinstance(record, CurveBlock):
             block = Block(record, self._pending_curve, self.period)
-            self._queue.append((seq, block))
+            self.queue.append((seq, block))
             self._queued_periods += block.periods
-            self._queued_path += block.profile.length
-            self._path_open = block.profile.v1 > 0.0
+            self.queued_path += block.profile.length
+            self.path_open = block.profile.v1 > 0.0
             self._arrivals += 1
             self._stop_reserve = stop_reserve(block.profile, self.period)
         else:
-            self._queue.append((seq, record))
-            self._path_open = False
+            self.queue.append((seq, record))
+            self.path_open = False
 
     @property
     def starved(self) -> bool:
         """Nothing running or queued and the program has not ended."""
-        return self._current is None and not self._queue and not self.finished
+        return self.current is None and not self.queue and not self.finished
 
     @property
     def in_motion(self) -> bool:
-        return (self._current is not None and isinstance(self._current[1], (MoveSegment, Block, StepRun, ChipRun))
+        return (self.current is not None and isinstance(self.current[1], (MoveSegment, Block, StepRun, ChipRun))
                 and self.override > 0.0)
 
     @property
     def queued_records(self) -> int:
-        return len(self._queue) + (self._current is not None)
+        return len(self.queue) + (self.current is not None)
 
     def wants_records(self, ahead: int) -> bool:
         """Decode more records? ``ahead`` behind the running one, and on an open curve path
         enough blocks to cover twice a full-speed stop (the rest stay in the FIFO)."""
-        if len(self._queue) < ahead:
+        if len(self.queue) < ahead:
             return True
         # Holding for data always wants more. The reserve covers a stop from the fastest of the
         # last queued block and the running one: the hold checks the running block's speed, so a
         # reserve sized from a slow block queued behind a fast one would hold the card with
         # records still waiting in the FIFO.
         reserve = self._stop_reserve
-        if self._current is not None and isinstance(self._current[1], Block):
-            reserve = max(reserve, stop_reserve(self._current[1].profile, self.period))
-        return self._path_open and (self._queued_path < reserve or self._starved_hold)
+        if self.current is not None and isinstance(self.current[1], Block):
+            reserve = max(reserve, stop_reserve(self.current[1].profile, self.period))
+        return self.path_open and (self.queued_path < reserve or self.starved_hold)
 
     @property
     def holding_for_data(self) -> bool:
         """Holding on a curve because the queued path ran short (a FIFO underrun feed hold)."""
-        return self._starved_hold and self._current is not None
+        return self.starved_hold and self.current is not None
 
     @property
     def on_curve(self) -> bool:
         """A curve block is running or next in line."""
-        if self._current is not None and isinstance(self._current[1], Block):
+        if self.current is not None and isinstance(self.current[1], Block):
             return True
-        return bool(self._queue) and isinstance(self._queue[0][1], (Block, Curve, SurfaceRun))
+        return bool(self.queue) and isinstance(self.queue[0][1], (Block, Curve, SurfaceRun))
 
     @property
     def pending(self) -> int:
         """Records waiting behind the running one."""
-        return len(self._queue)
+        return len(self.queue)
 
     @property
     def queued_periods(self) -> int:
         """Motion time still queued, including what is left of the running segment [periods]."""
         left = 0
-        if self._current is not None:
-            seg = self._current[1]
+        if self.current is not None:
+            seg = self.current[1]
             if isinstance(seg, Dwell):
-                left = self._dwell_left
+                left = self.dwell_left
             elif isinstance(seg, (ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
                 left = 0
             else:  # move or curve block
-                left = math.ceil(max(0.0, seg.profile.duration - self._tau) / self.period - 1e-9)
+                left = math.ceil(max(0.0, seg.profile.duration - self.tau) / self.period - 1e-9)
         return self._queued_periods + left
 
     @property
     def path_position(self) -> tuple[float, ...]:
         """Axis positions [m | rad] of the last period's path setpoint, shape ``(6,)``: without the
         force loop's offset along the tool axis and the spindle's turn of C."""
-        return self._position_of(self._hold_counts)
+        return self._position_of(self.hold_counts)
 
     # --- per period --------------------------------------------------------------------------
     def next_period(self) -> list[float]:
@@ -270,15 +282,15 @@ class SegmentInterpolator:
         was_off = force.state == ForceState.OFF
         depth = 0.0 if was_off else force.update(self.measured_force, self.path_s)
         self.tick_commands, self.events = None, []
-        if self._current is None:
+        if self.current is None:
             self._start_next()
             if was_off and force.state != ForceState.OFF:  # started now: hold at the standoff, no jump
                 depth = force.depth
         self.path_ds = 0.0
-        if self._current is None:
-            counts = list(self._hold_counts)
+        if self.current is None:
+            counts = list(self.hold_counts)
         else:
-            seq, seg = self._current
+            seq, seg = self.current
             if isinstance(seg, Block):
                 counts = self._advance_block(seq, seg)
             elif isinstance(seg, StepRun):
@@ -293,58 +305,54 @@ class SegmentInterpolator:
                     self.programmed = self._position_of(counts)
             elif isinstance(seg, ForceWait):
                 self.path_u = -1.0
-                self._axis = seg.axis
-                counts = self._counts_of(seg.base)
+                self.tool_axis = seg.axis
+                counts = self.counts_of(seg.base)
                 if force.state == (ForceState.TRACK if seg.on else ForceState.OFF):
                     self._complete(seq)
                     if not seg.on:  # retracted: from here on the pose is the clear pose, no offset
-                        counts = self._counts_of(seg.clear_pose)
+                        counts = self.counts_of(seg.clear_pose)
                         depth = 0.0
             elif isinstance(seg, Dwell):
                 self.path_u = -1.0
-                self._dwell_left -= 1
-                counts = list(self._hold_counts)
-                if self._dwell_left <= 0:
+                self.dwell_left -= 1
+                counts = list(self.hold_counts)
+                if self.dwell_left <= 0:
                     self._complete(seq)
             else:
                 self.path_u = -1.0
                 counts = self._advance_move(seq, seg)
-        self._hold_counts = counts
+        self.hold_counts = counts
         if depth != 0.0:  # the force loop pushes the tool along its axis (into the surface: -axis)
-            cpu, axis = self.counts_per_unit, self._axis
+            cpu, axis = self.counts_per_unit, self.tool_axis
             counts = [counts[0] - depth * axis[0] * cpu[0], counts[1] - depth * axis[1] * cpu[1],
                       counts[2] - depth * axis[2] * cpu[2], *counts[3:]]
-        if self.spindle_on or self._spin != 0.0:
-            self._turn_spindle()
-        if self._c_offset != 0.0:
-            counts = [*counts[:5], counts[5] + self._c_offset * self.counts_per_unit[5]]
-        elif counts is self._hold_counts:
+        if self.spindle_on or self.spin != 0.0:  # C in speed mode: ramped within C's acceleration
+            target = self.spindle_speed if self.spindle_on else 0.0
+            self.spin, turned = spindle_turn(self.spin, target, self.spindle_accel * self.period, self.period)
+            self.c_offset += turned
+        if self.c_offset != 0.0:
+            counts = [*counts[:5], counts[5] + self.c_offset * self.counts_per_unit[5]]
+        elif counts is self.hold_counts:
             counts = list(counts)
         return counts
 
-    def _turn_spindle(self) -> None:
-        """Spindle (C) in speed mode: ramp towards the commanded speed within C's acceleration."""
-        target = self.spindle_speed if self.spindle_on else 0.0
-        self._spin, turned = spindle_turn(self._spin, target, self._spindle_accel * self.period, self.period)
-        self._c_offset += turned
-
     def _start_next(self) -> None:
-        while self._queue and self._current is None and not self.finished:
-            seq, item = self._queue.popleft()
+        while self.queue and self.current is None and not self.finished:
+            seq, item = self.queue.popleft()
             if isinstance(item, (MoveSegment, Dwell, Block, StepRun)):
                 self._queued_periods -= item.periods
             if isinstance(item, Block):
                 self._begin_block(seq, item, 0.0)
             elif isinstance(item, StepRun):
-                self._current = (seq, item)
-                self._tau = 0.0
+                self.current = (seq, item)
+                self.tau = 0.0
             elif isinstance(item, ChipCommand):  # starts from where the axes are commanded now
-                self._current = (seq, ChipRun(item, list(self._hold_counts), dt=self.period, marks=self.index_marks))
+                self.current = (seq, ChipRun(item, list(self.hold_counts), dt=self.period, marks=self.index_marks))
             elif isinstance(item, (Curve, SurfaceRun)):
                 self._curve = item
                 self.last_seq_executed = seq
             elif isinstance(item, ForceWait):
-                self._current = (seq, item)
+                self.current = (seq, item)
                 if item.on:
                     self.force.start(item.record.params)
                 else:
@@ -355,8 +363,8 @@ class SegmentInterpolator:
             elif isinstance(item, MoveSegment):
                 self._begin_move(seq, item)
             elif isinstance(item, Dwell):
-                self._current = (seq, item)
-                self._dwell_left = item.periods
+                self.current = (seq, item)
+                self.dwell_left = item.periods
             else:
                 self._apply_modal(item)
                 self.last_seq_executed = seq
@@ -381,113 +389,106 @@ class SegmentInterpolator:
                 a_lim = min(a_lim, cfg.max_acceleration / d)
                 v_lim = min(v_lim, cfg.max_velocity / d)
         self._a_lim = a_lim
-        self._path_accel = None  # a move's scale slews on its own clock
+        self.path_accel = None  # a move's scale slews on its own clock
         prof = seg.profile
         lam_max = math.inf
         if prof.v_peak > 0.0:
             lam_max = min(lam_max, v_lim / prof.v_peak)
         if prof.accel > 0.0:
             lam_max = min(lam_max, math.sqrt(a_lim / prof.accel))
-        self._lam_max = lam_max
-        self._tau = 0.0
-        self._current = (seq, seg)
+        self.lam_max = lam_max
+        self.tau = 0.0
+        self.current = (seq, seg)
         # Start and displacement in counts, so each period is one multiply-add per axis.
-        self._start_counts = [(p - z) * c for p, z, c in zip(seg.start, self.power_on, self.counts_per_unit)]
-        self._delta_counts = [(p1 - p0) * c for p0, p1, c in zip(seg.start, seg.end, self.counts_per_unit)]
+        self.start_counts = [(p - z) * c for p, z, c in zip(seg.start, self.power_on, self.counts_per_unit)]
+        self.delta_counts = [(p1 - p0) * c for p0, p1, c in zip(seg.start, seg.end, self.counts_per_unit)]
 
     def _advance_move(self, seq: int, seg: MoveSegment) -> list[float]:
         """Advance the segment clock one period; the setpoint in counts."""
         prof = seg.profile
         lam = self.override
-        target = 0.0 if self.hold else min(self.override_target, self._lam_max)
+        target = 0.0 if self.hold else min(self.override_target, self.lam_max)
         if lam != target:
-            _, sd, sdd = prof.evaluate(self._tau)
+            _, sd, sdd = prof.evaluate(self.tau)
             lam = slew(lam, target, sd, sdd, self._a_lim, self.period)
             self.override = lam
-        self._tau += lam * self.period
-        if self._tau >= prof.duration - 1e-9 * self.period:
+        self.tau += lam * self.period
+        if self.tau >= prof.duration - 1e-9 * self.period:
             self._complete(seq)
-            return self._counts_of(seg.end)
-        s = prof.evaluate(self._tau)[0]
-        return [c0 + s * dc for c0, dc in zip(self._start_counts, self._delta_counts)]
+            return self.counts_of(seg.end)
+        s = prof.evaluate(self.tau)[0]
+        return [c0 + s * dc for c0, dc in zip(self.start_counts, self.delta_counts)]
 
     def _advance_steps(self, seq: int, run: StepRun) -> list[float]:
         """One period of a step interpolator: its lattice point at every tick; the last is the setpoint."""
-        prof = run.profile
-        lam = self.override
         target = 0.0 if self.hold else min(self.override_target, 1.0)
-        if lam != target:
-            _, v, a = prof.state(self._tau)
-            lam = slew(lam, target, v, a, prof.a_max, self.period)
-            self.override = lam
-        tau, dt = self._tau, lam * self.period / self.ticks_per_period
-        ticks = [run.point_at(tau + dt * (j + 1)) for j in range(self.ticks_per_period)]
-        self._tau = tau + lam * self.period
+        ticks, self.tau, self.override, done = run.advance(self.tau, self.override, target, self.period,
+                                                           self.ticks_per_period)
         self.tick_commands = ticks
-        if self._tau >= prof.duration - 1e-9 * self.period:
+        if done:
             self._complete(seq)
         return ticks[-1]
 
     def _begin_block(self, seq: int, block: Block, tau: float) -> None:
         """Make ``block`` the running segment, ``tau`` [s] into its clock (0 at a fresh start;
         the rest of a period when the previous block ended inside it)."""
-        self._queued_path -= block.profile.length
-        self._current = (seq, block)
-        self._tau = tau
-        self._s = block.profile.state(tau)[0] if tau > 0.0 else 0.0
-        self._block_state = None
+        self.queued_path -= block.profile.length
+        self.current = (seq, block)
+        self.tau = tau
+        self.block_s = block.profile.state(tau)[0] if tau > 0.0 else 0.0
+        self.block_state = None
 
     def _advance_block(self, seq: int, block: Block) -> list[float]:
         """One period along a curve block; the setpoint in counts."""
         prof = block.profile
-        tau = self._tau
-        s_now, v, a = self._block_state if self._block_state is not None else prof.state(tau)
+        tau = self.tau
+        s_now, v, a = self.block_state if self.block_state is not None else prof.state(tau)
         # Running dry? The queued path ends at speed and is no longer than the stopping distance.
-        remaining = prof.length - s_now + self._queued_path
-        open_end = self._path_open if self._queue else prof.v1 > 0.0
+        remaining = prof.length - s_now + self.queued_path
+        open_end = self.path_open if self.queue else prof.v1 > 0.0
         a_stop, j_stop = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
         lam = self.override
         if not open_end:
-            self._starved_hold = False
-        elif not self._starved_hold:
-            accel = lam * lam * a if self._path_accel is None else self._path_accel
+            self.starved_hold = False
+        elif not self.starved_hold:
+            accel = lam * lam * a if self.path_accel is None else self.path_accel
             if remaining <= feed_slew.stop_distance(lam * v, accel, a_stop, j_stop, self.period):
-                self._starved_hold = True
+                self.starved_hold = True
                 self._arrivals_at_latch = self._arrivals
         elif self._arrivals != self._arrivals_at_latch:  # new blocks came: resume if a full stop fits
             full = max(v, prof.vp)
             if remaining > feed_slew.stop_distance(full, 0.0, a_stop, j_stop, self.period):
-                self._starved_hold = False
+                self.starved_hold = False
             else:
                 self._arrivals_at_latch = self._arrivals
         force = self.force
-        if self.hold or self._starved_hold or force.path_gate:
+        if self.hold or self.starved_hold or force.path_gate:
             target = 0.0
         else:
             target = self.override_target * force.feed_factor
-        if lam != target or self._path_accel is not None:  # the path moves to the target's feed, jerk-limited
-            tau, self.override, self._path_accel = feed_slew.advance(
-                prof, tau, (s_now, v, a), lam, self._path_accel, target, self.period, a_stop, j_stop)
+        if lam != target or self.path_accel is not None:  # the path moves to the target's feed, jerk-limited
+            tau, self.override, self.path_accel = feed_slew.advance(
+                prof, tau, (s_now, v, a), lam, self.path_accel, target, self.period, a_stop, j_stop)
         else:
             tau += lam * self.period
         if tau < prof.duration:
             state = prof.state(tau)  # the next period starts from this state
-            self._block_state = state
+            self.block_state = state
             s_new = state[0]
-            ds = s_new - self._s
-            self._s = s_new
-            self._tau = tau
+            ds = s_new - self.block_s
+            self.block_s = s_new
+            self.tau = tau
         else:  # block done within this period: finish it, continue into the next blocks if queued
-            ds = prof.length - self._s
-            self._block_state = None
+            ds = prof.length - self.block_s
+            self.block_state = None
             self._complete(seq)
             rest = tau - prof.duration  # [s] of this period's path time left after the block
-            while self._queue and isinstance(self._queue[0][1], Block):
-                seq_next, nxt = self._queue.popleft()
+            while self.queue and isinstance(self.queue[0][1], Block):
+                seq_next, nxt = self.queue.popleft()
                 self._queued_periods -= nxt.periods
                 self._begin_block(seq_next, nxt, rest)
                 if rest < nxt.profile.duration:
-                    ds += self._s
+                    ds += self.block_s
                     break
                 # a block shorter than what is left of the period runs whole within it (blocks
                 # between close critical points at a short period): on to the next one
@@ -501,13 +502,13 @@ class SegmentInterpolator:
         self.path_ds = ds
         pose = curve.pose(point, stepper.u)
         if isinstance(curve, SurfaceRun):
-            self._axis = curve.axis
+            self.tool_axis = curve.axis
             self.path_s += ds
         elif curve.line_us:  # a G-code path joins several program lines: the one it runs now
             self.mark = curve.line_at(stepper.u)
-        return self._counts_of(pose)
+        return self.counts_of(pose)
 
-    def _counts_of(self, positions) -> list[float]:
+    def counts_of(self, positions) -> list[float]:
         return [(p - zero) * cpu for p, zero, cpu in zip(positions, self.power_on, self.counts_per_unit)]
 
     def _position_of(self, counts) -> tuple[float, ...]:
@@ -515,5 +516,5 @@ class SegmentInterpolator:
         return tuple(c / cpu + zero for c, cpu, zero in zip(counts, self.counts_per_unit, self.power_on))
 
     def _complete(self, seq: int) -> None:
-        self._current = None
+        self.current = None
         self.last_seq_executed = seq

@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from cnc_twin.dsp.path_blocks import slew
 from cnc_twin.legacy import dda, point_by_point
 from cnc_twin.whiteboard.records import STEP_ARC, STEP_DDA, STEP_LINE, STEP_POINT_BY_POINT, StepContour
 
@@ -80,6 +81,20 @@ class StepRun:
         out[0] = self._x[k]
         out[1] = self._y[k]
         return out
+
+    def advance(self, tau: float, lam: float, target: float, period: float,
+                ticks_per_period: int) -> tuple[list[list[float]], float, float, bool]:
+        """One interpolation period [s] from ``tau`` [s] into the element at time scale ``lam``,
+        slewed toward ``target`` within the S-curve's acceleration: the lattice point of every
+        servo tick [counts], the new ``tau`` and ``lam``, and whether the element ended."""
+        prof = self.profile
+        if lam != target:
+            _, v, a = prof.state(tau)
+            lam = slew(lam, target, v, a, prof.a_max, period)
+        dt = lam * period / ticks_per_period
+        ticks = [self.point_at(tau + dt * (j + 1)) for j in range(ticks_per_period)]
+        tau = tau + lam * period
+        return ticks, tau, lam, tau >= prof.duration - 1e-9 * period
 
     @property
     def end(self) -> list[float]:

@@ -8,5 +8,5 @@ twin's plant or whiteboard: each module is a generator of steps or per-cycle pul
 - :mod:`~cnc_twin.legacy.dda`             digital differential analyser (lines, arcs)
 - :mod:`~cnc_twin.legacy.motion_chip`     a 4-axis motion chip's per-cycle pulse profiles
 
-May import: nothing of cnc_twin. Imported by: dsp (step interpolation, the chip), scenario (lattice checks).
+May import: motion (a jerk phase evaluated as the S-curve's). Imported by: dsp (step interpolation, the chip), scenario (lattice checks).
 """

@@ -4,5 +4,5 @@
 - :mod:`~cnc_twin.motion.scurve`     the jerk-limited S-curve: phases, ramp distances, reachable speeds
 - :mod:`~cnc_twin.motion.segments`   planned segments (moves, dwells) before they become records
 
-May import: core. Imported by: whiteboard (records carry profiles), dsp, planner, polishing, run, studies.
+May import: core. Imported by: legacy (the chip's jerk phases), whiteboard (records carry profiles), dsp, planner, polishing, run, studies.
 """

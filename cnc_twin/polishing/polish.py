@@ -102,7 +102,7 @@ class RemovalTracker:
         # the compiled update's ball of candidates: indices, packed rows, centre and size
         self._ball_idx, self._ball = np.zeros(points, dtype=np.intp), np.zeros((7, points))
         self._ball_state = np.array([np.inf, np.inf, np.inf, 0.0])
-        self._boxes = rk.chunk_boxes(removal._packed)
+        self._boxes = rk.chunk_boxes(removal.packed)
 
     @property
     def calls(self) -> int:
@@ -141,7 +141,7 @@ class RemovalTracker:
         from cnc_twin.machine.mujoco_c import address
 
         return (address(self.model), address(d), d.sensordata, d.xmat, d.site_xpos, d.xipos, xfrc, self.ids,
-                self.params, self.model_removal._packed, self._boxes, depth, ball_idx, ball, ball_state, velocity,
+                self.params, self.model_removal.packed, self._boxes, depth, ball_idx, ball, ball_state, velocity,
                 totals)
 
     def contact_force(self) -> float:

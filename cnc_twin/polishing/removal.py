@@ -178,8 +178,9 @@ class PrestonModel:
         self._margin = BALL_MARGIN * self.pad_radius
         self.ball_limits = np.array([(self._reach + self._margin) ** 2, self._margin * self._margin])
         """squared radius of the ball and squared margin of its reuse [m^2]"""
-        # packed rows x y z nx ny nz area, one row each (structure of arrays): one gather per query
-        self._packed = np.ascontiguousarray(np.vstack([grid.points.T, grid.normals.T, grid.areas]))
+        self.packed = np.ascontiguousarray(np.vstack([grid.points.T, grid.normals.T, grid.areas]))
+        """the grid as rows x, y, z [m], nx, ny, nz, area [m^2], shape ``(7, points)`` (structure of
+        arrays: one gather per query; the compiled removal update reads it too)"""
         self._ball_centre = np.full(3, np.inf)
         self._ball_idx, self._ball = np.empty(0, dtype=np.intp), np.empty((7, 0))
 
@@ -188,13 +189,13 @@ class PrestonModel:
         off = tip - self._ball_centre
         if not (off[0] * off[0] + off[1] * off[1]) + off[2] * off[2] <= self.ball_limits[1]:
             self._ball_idx = self._ball_around(tip)
-            self._ball = np.take(self._packed, self._ball_idx, axis=1)
+            self._ball = np.take(self.packed, self._ball_idx, axis=1)
             self._ball_centre = tip.copy()
         return self._ball_idx, self._ball
 
     def _ball_around(self, tip: np.ndarray) -> np.ndarray:
         """Indices (increasing) of the grid points within the ball's radius of ``tip``."""
-        r = self._packed[:3] - tip[:, None]
+        r = self.packed[:3] - tip[:, None]
         return np.flatnonzero((r[0] * r[0] + r[1] * r[1]) + r[2] * r[2] <= self.ball_limits[0])
 
     def _contact(self, tip, axis, force):

@@ -128,8 +128,8 @@ class PeriodBatch:
         # planner leaves the period to the Python task, which raises the fault
         if k % SOLO_LIVENESS_PERIODS == 0 and not dsp.port.planner_alive():
             return None
-        current = interp._current
-        if current is None or interp.hold or interp._starved_hold:
+        current = interp.current
+        if current is None or interp.hold or interp.starved_hold:
             return None
         force = interp.force
         if force.frozen:
@@ -145,12 +145,12 @@ class PeriodBatch:
         if force.state not in (ForceState.OFF, ForceState.TRACK):
             return None
         if isinstance(segment, MoveSegment):
-            return MOVE if not tracking and interp.override == min(interp.override_target, interp._lam_max) else None
+            return MOVE if not tracking and interp.override == min(interp.override_target, interp.lam_max) else None
         if isinstance(segment, Dwell):
             return None if tracking else DWELL
         curve = getattr(segment, "curve", None)
         if (isinstance(curve, (Curve, SurfaceRun)) and curve.stepper.compiled
-                and isinstance(segment.profile, SCurve) and interp._path_accel is None
+                and isinstance(segment.profile, SCurve) and interp.path_accel is None
                 and interp.override == interp.override_target * force.feed_factor):
             return CURVE
         return None
@@ -187,9 +187,9 @@ class PeriodBatch:
         if mode is None:
             return 0
         dsp, interp, servo, rec = self.dsp, self.interp, self.servo, self.recorder
-        segment = interp._current[1]
+        segment = interp.current[1]
         feed, check, cs, move, process = self.feed, self.check, self.cs, self.move, self.process
-        feed[TAU], feed[LAM] = interp._tau, interp.override
+        feed[TAU], feed[LAM] = interp.tau, interp.override
         phases, times, v1 = self._no_phases[0], self._no_phases[1], 0.0
         curve_args, (sstate, sscratch), axis_args, lines = self._no_curve, self._no_stepper, self._no_axis, self._no_lines
         if mode == CURVE:
@@ -200,13 +200,13 @@ class PeriodBatch:
             stepper = segment.curve.stepper
             phases, times, v1 = self._phases, self._times, prof.v1
             curve_args, sstate, sscratch = (stepper.path, stepper.correct), stepper.state, stepper.scratch
-            feed[S_DONE] = interp._s
-            feed[QUEUED_PATH] = interp._queued_path
+            feed[S_DONE] = interp.block_s
+            feed[QUEUED_PATH] = interp.queued_path
             feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
-            open_end = interp._path_open if interp._queue else prof.v1 > 0.0
+            open_end = interp.path_open if interp.queue else prof.v1 > 0.0
             feed[OPEN_END] = 1.0 if open_end else 0.0
             feed[LENGTH], feed[DURATION], feed[V0] = prof.length, prof.duration, prof.v0
-            state = interp._block_state
+            state = interp.block_state
             feed[HAS_STATE] = 0.0 if state is None else 1.0
             if state is not None:
                 feed[S_NOW], feed[V_NOW], feed[A_NOW] = state
@@ -214,21 +214,21 @@ class PeriodBatch:
             prof = segment.profile
             feed[DURATION], feed[T_ACC], feed[ACCEL] = prof.duration, prof.t_acc, prof.accel
             feed[T_FLAT], feed[V0] = prof.t_flat, prof.v_peak
-            move[0], move[1] = interp._start_counts, interp._delta_counts
+            move[0], move[1] = interp.start_counts, interp.delta_counts
         elif mode == DWELL:
-            feed[DWELL_LEFT] = interp._dwell_left
+            feed[DWELL_LEFT] = interp.dwell_left
         else:  # the pose at the path's end, along its tool axis
-            move[0] = interp._counts_of(segment.base)
-        check[HELD] = interp._hold_counts
+            move[0] = interp.counts_of(segment.base)
+        check[HELD] = interp.hold_counts
         force = interp.force
         process[FORCE_ON] = 0.0 if force.state == ForceState.OFF else 1.0
-        process[PATH_S], process[C_OFFSET], process[MARK] = interp.path_s, interp._c_offset, interp.mark
+        process[PATH_S], process[C_OFFSET], process[MARK] = interp.path_s, interp.c_offset, interp.mark
         process[SPINDLE_ON] = 1.0 if interp.spindle_on else 0.0
-        process[SPIN] = interp._spin
+        process[SPIN] = interp.spin
         process[SPIN_TARGET] = interp.spindle_speed if interp.spindle_on else 0.0
-        process[SPIN_STEP] = interp._spindle_accel * interp.period
+        process[SPIN_STEP] = interp.spindle_accel * interp.period
         # the axis the force loop pushes along: a force wait's own (as its periods set it), else the last
-        process[AXIS_X:AXIS_Z + 1] = segment.axis if mode == FORCE_WAIT else interp._axis
+        process[AXIS_X:AXIS_Z + 1] = segment.axis if mode == FORCE_WAIT else interp.tool_axis
         force_args = self._force_args()
         n = servo.n_axes
         frame = servo.frame
@@ -256,21 +256,21 @@ class PeriodBatch:
         if mode == CURVE:
             curve = segment.curve
             curve.stepper.sync()
-            interp._tau, interp._s = float(feed[TAU]), float(feed[S_DONE])
-            interp._block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
+            interp.tau, interp.block_s = float(feed[TAU]), float(feed[S_DONE])
+            interp.block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
             if isinstance(curve, SurfaceRun):
                 interp.path_s = float(process[PATH_S])
                 curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
         elif mode == MOVE:
-            interp._tau = float(feed[TAU])
+            interp.tau = float(feed[TAU])
         elif mode == DWELL:
-            interp._dwell_left = int(feed[DWELL_LEFT])
+            interp.dwell_left = int(feed[DWELL_LEFT])
         interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
         interp.mark = int(process[MARK])
-        interp._axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
-        interp._c_offset = float(process[C_OFFSET])
-        interp._spin = float(process[SPIN])
-        interp._hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
+        interp.tool_axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
+        interp.c_offset = float(process[C_OFFSET])
+        interp.spin = float(process[SPIN])
+        interp.hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
         interp.tick_commands = None
         interp.events = []
         servo.use_tick_commands = False

@@ -89,7 +89,7 @@ the force loop making or releasing contact at a path's end (its seek, ramp, ramp
 PREV_COMMAND, PREV_ACTUAL, POWER_ON, CPU, HOLD, HELD = range(6)
 N_CHECK = 6
 """``HOLD``: a curve's held A, B, C [rad] (first three); ``HELD``: the path setpoint without the
-force loop's and the spindle's offsets [counts] (the interpolator's ``_hold_counts``)"""
+force loop's and the spindle's offsets [counts] (the interpolator's ``hold_counts``)"""
 # check scalars (float64)
 PREV_FORCE, INV_T, SUPERVISED = range(3)
 N_CHECK_SCALARS = 3
@@ -97,7 +97,7 @@ N_CHECK_SCALARS = 3
 PATH_S, C_OFFSET, SPIN, SPINDLE_ON, SPIN_TARGET, SPIN_STEP, FORCE_ON, SURFACE, LEANED, COS_LEAD, SIN_LEAD, COS_TILT, \
     SIN_TILT, C_HOLD, AXIS_X, AXIS_Y, AXIS_Z, EVERY, MARK = range(19)
 N_PROCESS = 19
-"""``AXIS_*``: the tool axis the force loop pushes along (the interpolator's ``_axis``); ``EVERY``:
+"""``AXIS_*``: the tool axis the force loop pushes along (the interpolator's ``tool_axis``); ``EVERY``:
 periods between removal updates (0: none); ``MARK``: the program line of the last period"""
 # the per-period outputs (float64, shape (N_OUT, MAX_BATCH))
 OUT_PATH_U, OUT_PATH_DS, OUT_TARGET, OUT_DEPTH, OUT_MARK = range(5)
@@ -335,13 +335,21 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
 
 def kernels_cached() -> bool:
     """Whether numba's on-disk cache holds the batch and servo kernels already (False on the first
-    run after installing, which compiles them: about 15 s). Reads numba's cache index paths; True
-    when they cannot be found out (nothing to warn about then)."""
-    try:
-        from pathlib import Path
+    run after installing, which compiles them: about 15 s). Looks for each kernel's index file
+    (``.nbi``, one per function, named after its module, name and first line) in the cache
+    directory numba reports for it (``Dispatcher.stats.cache_path``); True when that cannot be
+    found out (nothing to warn about then)."""
+    import sys
+    from pathlib import Path
 
-        return all(Path(kernel._cache._cache_file._index_path).exists()
-                   for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update,
-                                  *servo.TASK_FUNCTIONS, force.force_update, supervisor.supervise, plant.switch_bits))
-    except AttributeError:  # another numba's internals
+    version = f".py{sys.version_info.major}{sys.version_info.minor}"
+    try:
+        for kernel in (run_periods, servo_kernel.run_ticks, removal_kernel.tracker_update, *servo.TASK_FUNCTIONS,
+                       force.force_update, supervisor.supervise, plant.switch_bits):
+            code = kernel.py_func.__code__
+            name = f"*.{kernel.py_func.__qualname__}-{code.co_firstlineno}{version}*.nbi"
+            if not any(Path(kernel.stats.cache_path).glob(name)):
+                return False
+        return True
+    except (AttributeError, OSError):  # another numba's dispatchers
         return True
