@@ -1,6 +1,6 @@
 """What the planner process is asked to do (:class:`PlannerJob`) and the plan of each program kind.
 
-:func:`plan_for` is the one place a program kind's planner plugs in: it returns an object with
+:data:`PLANS` is the one place a program kind's planner plugs in: :func:`plan_for` returns an object with
 ``estimated_periods`` (the program's length, announced to the card up front) and ``chunks()``
 (successive ``(records, durations [periods])``, planned as they are asked for).
 """
@@ -15,7 +15,7 @@ from cnc_twin.core.config import (
 )
 from cnc_twin.motion.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.planner.ptp import plan_point_to_point
-from cnc_twin.whiteboard.records import CurveBlock, Dwell, EndOfProgram, Move, Record, StepContour
+from cnc_twin.whiteboard.records import Dwell, EndOfProgram, Move, Record
 
 
 @dataclass(frozen=True)
@@ -40,18 +40,17 @@ class PlannerJob:
     """curve length planned per window [m]"""
 
 
+_RECORD_OF = {
+    MoveSegment: lambda seg: Move(end=seg.end, profile=seg.profile, periods=seg.periods),
+    DwellSegment: lambda seg: Dwell(periods=seg.periods),
+}
+"""the wire record of each kind of planned segment"""
+
+
 def segments_to_records(segments: list[Segment]) -> tuple[list[Record], list[int]]:
     """Wire records for planned segments plus end of program, and each record's duration [periods]."""
-    records: list[Record] = []
-    periods: list[int] = []
-    for seg in segments:
-        if isinstance(seg, MoveSegment):
-            records.append(Move(end=seg.end, profile=seg.profile, periods=seg.periods))
-        elif isinstance(seg, DwellSegment):
-            records.append(Dwell(periods=seg.periods))
-        else:  # pragma: no cover
-            raise TypeError(f"cannot stream {type(seg).__name__}")
-        periods.append(seg.periods)
+    records: list[Record] = [_RECORD_OF[type(seg)](seg) for seg in segments]
+    periods: list[int] = [seg.periods for seg in segments]
     records.append(EndOfProgram())
     periods.append(0)
     return records, periods
@@ -73,30 +72,45 @@ class PointsPlan:
         yield segments_to_records(self.segments)
 
 
+def _chip_plan(job: PlannerJob):
+    from cnc_twin.planner.chip_program import ChipPlan
+
+    return ChipPlan(job.program, job.period)
+
+
+def _contour_plan(job: PlannerJob):
+    from cnc_twin.planner.contour_program import ContourPlan
+
+    return ContourPlan(job.program, job.axes, job.home, job.period)
+
+
+def _surface_plan(job: PlannerJob):
+    from cnc_twin.planner.surface_program import SurfacePlan
+
+    return SurfacePlan(job.program, job.axes, job.home, job.period)
+
+
+def _gcode_plan(job: PlannerJob):
+    from cnc_twin.planner.gcode_program import GcodePlan
+
+    return GcodePlan(job.program, job.axes, job.home, job.period, window=job.window)
+
+
+def _curve_plan(job: PlannerJob):
+    from cnc_twin.planner.curve_program import CurvePlan
+
+    return CurvePlan(job.program, job.axes, job.home, job.period, window=job.window)
+
+
+PLANS = {PointToPoint: PointsPlan, MotionChipProgram: _chip_plan, ContourProgram: _contour_plan,
+         SurfaceProgram: _surface_plan, GcodeProgram: _gcode_plan, NurbsProgram: _curve_plan}
+"""the plan of each program kind, from the job (each imports its planner when asked: the process
+loads only its own); a new kind plugs in here"""
+
+
 def plan_for(job: PlannerJob):
-    """The plan of ``job``'s program, by its kind (imported here: the process loads only its own)."""
-    prog = job.program
-    if isinstance(prog, MotionChipProgram):
-        from cnc_twin.planner.chip_program import ChipPlan
-
-        return ChipPlan(prog, job.period)
-    if isinstance(prog, ContourProgram):
-        from cnc_twin.planner.contour_program import ContourPlan
-
-        return ContourPlan(prog, job.axes, job.home, job.period)
-    if isinstance(prog, SurfaceProgram):
-        from cnc_twin.planner.surface_program import SurfacePlan
-
-        return SurfacePlan(prog, job.axes, job.home, job.period)
-    if isinstance(prog, GcodeProgram):
-        from cnc_twin.planner.gcode_program import GcodePlan
-
-        return GcodePlan(prog, job.axes, job.home, job.period, window=job.window)
-    if isinstance(prog, NurbsProgram):
-        from cnc_twin.planner.curve_program import CurvePlan
-
-        return CurvePlan(prog, job.axes, job.home, job.period, window=job.window)
-    return PointsPlan(job)
+    """The plan of ``job``'s program, by its kind (:data:`PLANS`)."""
+    return PLANS[type(job.program)](job)
 
 
 def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
@@ -106,4 +120,4 @@ def build_program(job: PlannerJob) -> tuple[list[Record], list[int], int]:
     for chunk, chunk_periods in plan_for(job).chunks():
         records += chunk
         periods += chunk_periods
-    return records, periods, sum(isinstance(r, (Move, CurveBlock, StepContour)) for r in records)
+    return records, periods, sum(r.motion_block for r in records)

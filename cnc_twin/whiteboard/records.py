@@ -36,6 +36,7 @@ GeometryPart        one piece of a CurveGeometry or SurfaceGeometry too long for
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -44,44 +45,53 @@ from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.motion.scurve import SCurve
 
 
+class WireRecord:
+    """What every command record shares (each is a frozen dataclass of its own fields)."""
+
+    motion_block: ClassVar[bool] = False
+    """the record is one block of motion (a move, a curve block, a step contour): the planner
+    counts them"""
+
+
 @dataclass(frozen=True)
-class Move:
+class Move(WireRecord):
     """Synchronised point-to-point move from the DSP's programmed position to ``end``."""
 
     end: tuple[float, ...]
     profile: Trapezoid
     periods: int
+    motion_block: ClassVar[bool] = True
 
 
 @dataclass(frozen=True)
-class Dwell:
+class Dwell(WireRecord):
     periods: int
 
 
 @dataclass(frozen=True)
-class FeedOverride:
+class FeedOverride(WireRecord):
     fraction: float
 
 
 @dataclass(frozen=True)
-class ForceSetpoint:
+class ForceSetpoint(WireRecord):
     newtons: float
 
 
 @dataclass(frozen=True)
-class Spindle:
+class Spindle(WireRecord):
     on: bool
     speed: float
     """[rad/s]"""
 
 
 @dataclass(frozen=True)
-class EndOfProgram:
+class EndOfProgram(WireRecord):
     pass
 
 
 @dataclass(frozen=True, eq=False)
-class DataBlock:
+class DataBlock(WireRecord):
     """Opaque program data moved in bulk (the card's 4 KB block transfers)."""
 
     words: np.ndarray
@@ -97,7 +107,7 @@ MAX_BLOCK_WORDS = 2048
 
 
 @dataclass(frozen=True)
-class CurveGeometry:
+class CurveGeometry(WireRecord):
     """A NURBS tool path: in axis space (X/Y/Z, m) with A, B, C held [rad]; or, with ``axis``
     given, tool-tip positions in the world frame plus a NURBS of tool directions on the same
     parameter, ``pivot`` and ``offset`` being the head geometry the card's kinematics needs."""
@@ -117,14 +127,15 @@ class CurveGeometry:
 
 
 @dataclass(frozen=True)
-class CurveBlock:
+class CurveBlock(WireRecord):
     """One S-curve block of the path's feed plan."""
 
     profile: SCurve
+    motion_block: ClassVar[bool] = True
 
 
 @dataclass(frozen=True)
-class SurfaceGeometry:
+class SurfaceGeometry(WireRecord):
     """The surface the following path sections run on, and the tool axis's lead and tilt [rad]."""
 
     surface: SurfaceDef
@@ -135,14 +146,14 @@ class SurfaceGeometry:
 
 
 @dataclass(frozen=True)
-class SurfaceCurve:
+class SurfaceCurve(WireRecord):
     """One section of a surface path: a (u, v) NURBS on the last SurfaceGeometry."""
 
     curve: UvCurve
 
 
 @dataclass(frozen=True)
-class ForceControlRecord:
+class ForceControlRecord(WireRecord):
     """Force control on (seek, ramp up, then let the path run) or off (ramp down, retract)."""
 
     on: bool
@@ -151,7 +162,7 @@ class ForceControlRecord:
 
 
 @dataclass(frozen=True)
-class StepContour:
+class StepContour(WireRecord):
     """A line or arc in the X/Y plane for the older cards' step interpolators, in pulses.
 
     ``method`` is ``STEP_POINT_BY_POINT`` or ``STEP_DDA``; ``kind`` ``STEP_LINE`` or ``STEP_ARC``.
@@ -169,6 +180,7 @@ class StepContour:
     clockwise: bool
     profile: SCurve
     dda_bits: int = 0
+    motion_block: ClassVar[bool] = True
 
 
 STEP_POINT_BY_POINT, STEP_DDA = 1, 2
@@ -176,14 +188,14 @@ STEP_LINE, STEP_ARC = 1, 2
 
 
 @dataclass(frozen=True)
-class Mark:
+class Mark(WireRecord):
     """A program mark (like an N number): the card shows it in the trace from here on."""
 
     number: int
 
 
 @dataclass(frozen=True)
-class ChipCommand:
+class ChipCommand(WireRecord):
     """A motion-chip command (the 4-axis chip's own profiles, in pulses; see
     :mod:`cnc_twin.dsp.chip`). ``op`` is one of ``CHIP_*``; ``profile`` ``CHIP_CONSTANT`` (no
     ramps), ``CHIP_TRAPEZOID`` (``accel``) or ``CHIP_S_CURVE`` (``accel`` and ``jerk``).
@@ -206,7 +218,7 @@ class ChipCommand:
 
 
 @dataclass(frozen=True, eq=False)
-class GeometryPart:
+class GeometryPart(WireRecord):
     """Piece ``index`` of ``count`` of a geometry record's payload (``kind`` = that record's wire
     type). A curve or surface longer than one record goes as consecutive parts; the card joins
     them (:class:`cnc_twin.whiteboard.codec.GeometryJoiner`) and acts on the whole record when the
