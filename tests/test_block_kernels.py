@@ -207,3 +207,35 @@ def test_supervise_and_the_switch_inputs(seed):
               supervise.py_func(settings.view(np.recarray)[0], interpreted, command, actual, saturations, inputs_i,
                                 force))
     _same(compiled, np.asarray(interpreted))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_the_path_functions_the_batch_kernel_compiles(seed):
+    """The card's feed, kinematics, tool axis and spindle functions, as the batch kernel compiles
+    them (:mod:`cnc_twin.run.period_kernel`), against the plain functions the Python task runs."""
+    import math
+
+    from cnc_twin.geometry import kinematics, surface_path
+    from cnc_twin.dsp import spindle
+    from cnc_twin.motion import scurve, trapezoid
+    from cnc_twin.run import period_kernel as pk
+
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        phase = rng.uniform(-1, 1, 6).tolist()
+        assert pk._phase_state(*phase) == scurve.phase_state(*phase)
+        t_acc, t_flat = rng.uniform(0, 0.5, 2)
+        shape = (t_acc, 4.0 * rng.uniform(0.1, 2), t_flat, rng.uniform(0.1, 2), 2 * t_acc + t_flat)
+        t = rng.uniform(-0.1, shape[-1] + 0.1)
+        assert pk._trapezoid_state(*shape, t) == trapezoid.trapezoid_state(*shape, t)
+        spin = (rng.uniform(-100, 100), rng.choice([0.0, rng.uniform(-100, 100)]), rng.uniform(0, 5), 1e-3)
+        assert pk._spindle_turn(*spin) == spindle.spindle_turn(*spin)
+        tip, axis, pivot, offset = (rng.uniform(-0.3, 0.3, 3) for _ in range(4))
+        axis[2] = abs(axis[2]) + 0.1
+        assert pk._pose_to_axes(tip, axis, pivot, offset) == kinematics.pose_to_axes(tip, axis, pivot, offset)
+        su, sv, c1 = (rng.uniform(-1, 1, 3) for _ in range(3))
+        lead, tilt = rng.uniform(-0.2, 0.2, 2)
+        angles = (math.cos(lead), math.sin(lead), math.cos(tilt), math.sin(tilt))
+        for leaned in (False, True):
+            assert pk._tool_axis(su, sv, c1, *angles, leaned) == surface_path.tool_axis_leaned(su, sv, c1, *angles,
+                                                                                                leaned)
