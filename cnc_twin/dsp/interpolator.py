@@ -51,19 +51,18 @@ from collections import deque
 from collections.abc import Sequence
 
 from cnc_twin.core.config import AxisConfig
+from cnc_twin.dsp import feed_slew
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
-from cnc_twin.dsp import feed_slew
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
+from cnc_twin.dsp.record_intake import MODAL, RecordIntake
+from cnc_twin.dsp.spindle import spindle_turn
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
-from cnc_twin.dsp.spindle import spindle_turn
-from cnc_twin.whiteboard.records import (
-    ChipCommand, CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move,
-    Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
-)
+from cnc_twin.whiteboard.records import ChipCommand, Dwell, Record, SurfaceGeometry
 
-class SegmentInterpolator:
+
+class SegmentInterpolator(RecordIntake):
     """Executes the queue of accepted records, one interpolation period at a time.
 
     Parameters
@@ -161,55 +160,6 @@ class SegmentInterpolator:
         None (the servo task interpolates linearly to the period's setpoint)"""
 
     # --- queue -------------------------------------------------------------------------------
-    def push(self, seq: int, record: Record) -> None:
-        """Queue an accepted record; moves start from the programmed position."""
-        if isinstance(record, Move):
-            segment = MoveSegment(start=self.programmed, end=tuple(record.end), profile=record.profile,
-                                  periods=record.periods)
-            self.programmed = segment.end
-            self.queue.append((seq, segment))
-            self._queued_periods += record.periods
-        elif isinstance(record, Dwell):  # holds wherever the axes are commanded when it starts
-            self.queue.append((seq, record))
-            self._queued_periods += record.periods
-        elif isinstance(record, CurveGeometry):
-            # Built when accepted (the card decodes ahead), run when it reaches the queue's head.
-            self._pending_curve = Curve(record, self.compiled)
-            self.programmed = self._pending_curve.end
-            self.queue.append((seq, self._pending_curve))
-        elif isinstance(record, SurfaceGeometry):
-            self._surface = Surface(record)
-            self.queue.append((seq, record))
-            self.path_open = False
-        elif isinstance(record, SurfaceCurve):
-            self._pending_curve = SurfaceRun(self._surface, record, self.programmed[5], self.compiled)
-            self.programmed = self._pending_curve.end
-            self.queue.append((seq, self._pending_curve))
-        elif isinstance(record, ForceControlRecord):
-            wait = ForceWait(record, self._pending_curve)
-            if not record.on:
-                self.programmed = wait.clear_pose
-            self.queue.append((seq, wait))
-            self.path_open = False
-        elif isinstance(record, StepContour):
-            run = StepRun(record, self.counts_of(self.programmed))
-            run.periods = math.ceil(record.profile.duration / self.period)
-            self.programmed = (*self._position_of(run.end)[:2], *self.programmed[2:])
-            self.queue.append((seq, run))
-            self._queued_periods += run.periods
-            self.path_open = False
-        elif isinstance(record, CurveBlock):
-            block = Block(record, self._pending_curve, self.period)
-            self.queue.append((seq, block))
-            self._queued_periods += block.periods
-            self.queued_path += block.profile.length
-            self.path_open = block.profile.v1 > 0.0
-            self._arrivals += 1
-            self._stop_reserve = stop_reserve(block.profile, self.period)
-        else:
-            self.queue.append((seq, record))
-            self.path_open = False
-
     @property
     def starved(self) -> bool:
         """Nothing running or queued and the program has not ended."""
@@ -217,8 +167,7 @@ class SegmentInterpolator:
 
     @property
     def in_motion(self) -> bool:
-        return (self.current is not None and isinstance(self.current[1], (MoveSegment, Block, StepRun, ChipRun))
-                and self.override > 0.0)
+        return self.current is not None and type(self.current[1]) in MOVING and self.override > 0.0
 
     @property
     def queued_records(self) -> int:
@@ -234,7 +183,7 @@ class SegmentInterpolator:
         # reserve sized from a slow block queued behind a fast one would hold the card with
         # records still waiting in the FIFO.
         reserve = self._stop_reserve
-        if self.current is not None and isinstance(self.current[1], Block):
+        if self.current is not None and type(self.current[1]) is Block:
             reserve = max(reserve, stop_reserve(self.current[1].profile, self.period))
         return self.path_open and (self.queued_path < reserve or self.starved_hold)
 
@@ -246,9 +195,9 @@ class SegmentInterpolator:
     @property
     def on_curve(self) -> bool:
         """A curve block is running or next in line."""
-        if self.current is not None and isinstance(self.current[1], Block):
+        if self.current is not None and type(self.current[1]) is Block:
             return True
-        return bool(self.queue) and isinstance(self.queue[0][1], (Block, Curve, SurfaceRun))
+        return bool(self.queue) and type(self.queue[0][1]) in ON_PATH
 
     @property
     def pending(self) -> int:
@@ -261,12 +210,11 @@ class SegmentInterpolator:
         left = 0
         if self.current is not None:
             seg = self.current[1]
-            if isinstance(seg, Dwell):
+            if type(seg) is Dwell:
                 left = self.dwell_left
-            elif isinstance(seg, (ForceWait, ChipRun)):  # as long as it needs: not motion the planner queued
-                left = 0
-            else:  # move or curve block
+            elif type(seg) in MOVING and type(seg) is not ChipRun:  # a move, curve block or step run
                 left = math.ceil(max(0.0, seg.profile.duration - self.tau) / self.period - 1e-9)
+            # a force wait or a chip command takes as long as it needs: not motion the planner queued
         return self._queued_periods + left
 
     @property
@@ -291,36 +239,7 @@ class SegmentInterpolator:
             counts = list(self.hold_counts)
         else:
             seq, seg = self.current
-            if isinstance(seg, Block):
-                counts = self._advance_block(seq, seg)
-            elif isinstance(seg, StepRun):
-                self.path_u = -1.0
-                counts = self._advance_steps(seq, seg)
-            elif isinstance(seg, ChipRun):
-                self.path_u = -1.0
-                counts = list(seg.step(self.inputs, self.actual))
-                self.events = seg.events
-                if seg.done:
-                    self._complete(seq)
-                    self.programmed = self._position_of(counts)
-            elif isinstance(seg, ForceWait):
-                self.path_u = -1.0
-                self.tool_axis = seg.axis
-                counts = self.counts_of(seg.base)
-                if force.state == (ForceState.TRACK if seg.on else ForceState.OFF):
-                    self._complete(seq)
-                    if not seg.on:  # retracted: from here on the pose is the clear pose, no offset
-                        counts = self.counts_of(seg.clear_pose)
-                        depth = 0.0
-            elif isinstance(seg, Dwell):
-                self.path_u = -1.0
-                self.dwell_left -= 1
-                counts = list(self.hold_counts)
-                if self.dwell_left <= 0:
-                    self._complete(seq)
-            else:
-                self.path_u = -1.0
-                counts = self._advance_move(seq, seg)
+            counts, depth = ADVANCE[type(seg)](self, seq, seg, depth)
         self.hold_counts = counts
         if depth != 0.0:  # the force loop pushes the tool along its axis (into the surface: -axis)
             cpu, axis = self.counts_per_unit, self.tool_axis
@@ -339,47 +258,90 @@ class SegmentInterpolator:
     def _start_next(self) -> None:
         while self.queue and self.current is None and not self.finished:
             seq, item = self.queue.popleft()
-            if isinstance(item, (MoveSegment, Dwell, Block, StepRun)):
-                self._queued_periods -= item.periods
-            if isinstance(item, Block):
-                self._begin_block(seq, item, 0.0)
-            elif isinstance(item, StepRun):
-                self.current = (seq, item)
-                self.tau = 0.0
-            elif isinstance(item, ChipCommand):  # starts from where the axes are commanded now
-                self.current = (seq, ChipRun(item, list(self.hold_counts), dt=self.period, marks=self.index_marks))
-            elif isinstance(item, (Curve, SurfaceRun)):
-                self._curve = item
-                self.last_seq_executed = seq
-            elif isinstance(item, ForceWait):
-                self.current = (seq, item)
-                if item.on:
-                    self.force.start(item.record.params)
-                else:
-                    self.force.stop()
-            elif isinstance(item, SurfaceGeometry):
-                self.path_s = 0.0
-                self.last_seq_executed = seq
-            elif isinstance(item, MoveSegment):
-                self._begin_move(seq, item)
-            elif isinstance(item, Dwell):
-                self.current = (seq, item)
-                self.dwell_left = item.periods
-            else:
-                self._apply_modal(item)
-                self.last_seq_executed = seq
+            START.get(type(item), SegmentInterpolator._apply_modal)(self, seq, item)
 
-    def _apply_modal(self, record: Record) -> None:
-        if isinstance(record, FeedOverride):
-            self.override_target = max(0.0, record.fraction)
-        elif isinstance(record, ForceSetpoint):
-            self.force_setpoint = record.newtons
-        elif isinstance(record, Spindle):
-            self.spindle_on, self.spindle_speed = record.on, record.speed
-        elif isinstance(record, Mark):
-            self.mark = record.number
-        elif isinstance(record, EndOfProgram):
-            self.finished = True
+    # --- starting each kind of queue item (START) ---------------------------------------------
+    def _start_block(self, seq: int, block: Block) -> None:
+        self._queued_periods -= block.periods
+        self._begin_block(seq, block, 0.0)
+
+    def _start_steps(self, seq: int, run: StepRun) -> None:
+        self._queued_periods -= run.periods
+        self.current = (seq, run)
+        self.tau = 0.0
+
+    def _start_chip(self, seq: int, command: ChipCommand) -> None:  # from where the axes are commanded now
+        self.current = (seq, ChipRun(command, list(self.hold_counts), dt=self.period, marks=self.index_marks))
+
+    def _start_path(self, seq: int, path: Curve | SurfaceRun) -> None:
+        self._curve = path
+        self.last_seq_executed = seq
+
+    def _start_force_wait(self, seq: int, wait: ForceWait) -> None:
+        self.current = (seq, wait)
+        if wait.on:
+            self.force.start(wait.record.params)
+        else:
+            self.force.stop()
+
+    def _start_surface(self, seq: int, _record: SurfaceGeometry) -> None:
+        self.path_s = 0.0
+        self.last_seq_executed = seq
+
+    def _start_move(self, seq: int, seg: MoveSegment) -> None:
+        self._queued_periods -= seg.periods
+        self._begin_move(seq, seg)
+
+    def _start_dwell(self, seq: int, dwell: Dwell) -> None:
+        self._queued_periods -= dwell.periods
+        self.current = (seq, dwell)
+        self.dwell_left = dwell.periods
+
+    def _apply_modal(self, seq: int, record: Record) -> None:
+        modal = MODAL.get(type(record))
+        if modal is not None:
+            modal(self, record)
+        self.last_seq_executed = seq
+
+    # --- one period of each kind of running item (ADVANCE): (counts, the force loop's depth) ----
+    def _run_block(self, seq: int, block: Block, depth: float) -> tuple[list[float], float]:
+        return self._advance_block(seq, block), depth
+
+    def _run_steps(self, seq: int, run: StepRun, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        return self._advance_steps(seq, run), depth
+
+    def _run_chip(self, seq: int, chip: ChipRun, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        counts = list(chip.step(self.inputs, self.actual))
+        self.events = chip.events
+        if chip.done:
+            self._complete(seq)
+            self.programmed = self._position_of(counts)
+        return counts, depth
+
+    def _run_force_wait(self, seq: int, wait: ForceWait, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        self.tool_axis = wait.axis
+        counts = self.counts_of(wait.base)
+        if self.force.state == (ForceState.TRACK if wait.on else ForceState.OFF):
+            self._complete(seq)
+            if not wait.on:  # retracted: from here on the pose is the clear pose, no offset
+                counts = self.counts_of(wait.clear_pose)
+                depth = 0.0
+        return counts, depth
+
+    def _run_dwell(self, seq: int, _dwell: Dwell, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        self.dwell_left -= 1
+        counts = list(self.hold_counts)
+        if self.dwell_left <= 0:
+            self._complete(seq)
+        return counts, depth
+
+    def _run_move(self, seq: int, seg: MoveSegment, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        return self._advance_move(seq, seg), depth
 
     def _begin_move(self, seq: int, seg: MoveSegment) -> None:
         a_lim = v_lim = math.inf
@@ -483,7 +445,7 @@ class SegmentInterpolator:
             self.block_state = None
             self._complete(seq)
             rest = tau - prof.duration  # [s] of this period's path time left after the block
-            while self.queue and isinstance(self.queue[0][1], Block):
+            while self.queue and type(self.queue[0][1]) is Block:
                 seq_next, nxt = self.queue.popleft()
                 self._queued_periods -= nxt.periods
                 self._begin_block(seq_next, nxt, rest)
@@ -501,7 +463,7 @@ class SegmentInterpolator:
         self.path_u = stepper.u
         self.path_ds = ds
         pose = curve.pose(point, stepper.u)
-        if isinstance(curve, SurfaceRun):
+        if type(curve) is SurfaceRun:
             self.tool_axis = curve.axis
             self.path_s += ds
         elif curve.line_us:  # a G-code path joins several program lines: the one it runs now
@@ -518,3 +480,20 @@ class SegmentInterpolator:
     def _complete(self, seq: int) -> None:
         self.current = None
         self.last_seq_executed = seq
+
+
+START = {Block: SegmentInterpolator._start_block, StepRun: SegmentInterpolator._start_steps,
+         ChipCommand: SegmentInterpolator._start_chip, Curve: SegmentInterpolator._start_path,
+         SurfaceRun: SegmentInterpolator._start_path, ForceWait: SegmentInterpolator._start_force_wait,
+         SurfaceGeometry: SegmentInterpolator._start_surface, MoveSegment: SegmentInterpolator._start_move,
+         Dwell: SegmentInterpolator._start_dwell}
+"""what each queue item does as it reaches the queue's head; any other is a modal record (MODAL)"""
+ADVANCE = {Block: SegmentInterpolator._run_block, StepRun: SegmentInterpolator._run_steps,
+           ChipRun: SegmentInterpolator._run_chip, ForceWait: SegmentInterpolator._run_force_wait,
+           Dwell: SegmentInterpolator._run_dwell, MoveSegment: SegmentInterpolator._run_move}
+"""one period of each kind of running item; a new kind plugs in here, in START and in
+:data:`cnc_twin.dsp.record_intake.ACCEPT`"""
+MOVING = frozenset({MoveSegment, Block, StepRun, ChipRun})
+"""running items that are motion (a feed hold and the override act on them)"""
+ON_PATH = frozenset({Block, Curve, SurfaceRun})
+"""queue items of a curve path"""

@@ -17,10 +17,9 @@ import numpy as np
 
 from cnc_twin.dsp import curve_stepper
 from cnc_twin.dsp.force import ForceState
-from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Curve, ForceWait, SurfaceRun
+from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, ForceWait, SurfaceRun
 from cnc_twin.dsp.supervisor import LIMITS, SUPERVISOR
 from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
-from cnc_twin.motion.scurve import SCurve
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock
@@ -140,17 +139,17 @@ class PeriodBatch:
         if interp.wants_records(QUEUE_AHEAD) and dsp.port.fifo.fill() != 0:
             return None
         segment = current[1]
-        if isinstance(segment, ForceWait):  # seek, ramp, ramp down, retract (until the state changes)
+        mode = BATCHED.get(type(segment))
+        if mode == FORCE_WAIT:  # seek, ramp, ramp down, retract (until the state changes)
             return FORCE_WAIT if force.state not in (ForceState.OFF, ForceState.TRACK) else None
-        if force.state not in (ForceState.OFF, ForceState.TRACK):
+        if mode is None or force.state not in (ForceState.OFF, ForceState.TRACK):
             return None
-        if isinstance(segment, MoveSegment):
+        if mode == MOVE:
             return MOVE if not tracking and interp.override == min(interp.override_target, interp.lam_max) else None
-        if isinstance(segment, Dwell):
+        if mode == DWELL:
             return None if tracking else DWELL
-        curve = getattr(segment, "curve", None)
-        if (isinstance(curve, (Curve, SurfaceRun)) and curve.stepper.compiled
-                and isinstance(segment.profile, SCurve) and interp.path_accel is None
+        # a curve block (its profile an S-curve, its path a curve or a surface section)
+        if (segment.curve.stepper.compiled and interp.path_accel is None
                 and interp.override == interp.override_target * force.feed_factor):
             return CURVE
         return None
@@ -164,7 +163,7 @@ class PeriodBatch:
         self._times = np.array(prof.phase_times, dtype=np.float64)
         self._lines = self._no_lines
         process[SURFACE] = 0.0
-        if isinstance(curve, SurfaceRun):
+        if type(curve) is SurfaceRun:
             sf = curve.surface
             process[SURFACE], process[C_HOLD] = 1.0, curve.c_hold
             process[LEANED] = 0.0 if sf.lead == 0.0 and sf.tilt == 0.0 else 1.0
@@ -258,7 +257,7 @@ class PeriodBatch:
             curve.stepper.sync()
             interp.tau, interp.block_s = float(feed[TAU]), float(feed[S_DONE])
             interp.block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
-            if isinstance(curve, SurfaceRun):
+            if type(curve) is SurfaceRun:
                 interp.path_s = float(process[PATH_S])
                 curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
         elif mode == MOVE:
@@ -287,3 +286,8 @@ class PeriodBatch:
             periods["force_setpoint"] = out[OUT_TARGET, :done]
             periods["force_depth"] = out[OUT_DEPTH, :done]
             periods["mark"] = out[OUT_MARK, :done]
+
+
+BATCHED = {Block: CURVE, MoveSegment: MOVE, Dwell: DWELL, ForceWait: FORCE_WAIT}
+"""the running items whose periods may be batched, and how; the others (step runs, chip commands)
+always run on the card's Python task"""
