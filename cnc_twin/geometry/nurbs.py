@@ -20,6 +20,7 @@ Units are whatever the control points are in (the twin uses metres).
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 
@@ -202,9 +203,10 @@ class SpanEvaluator:
         self.starts = np.array(starts)
         """the spans' first parameters (distinct knots but the last), shape ``(spans,)``"""
 
-    @property
+    @cached_property
     def path(self) -> tuple:
-        """The curve as :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple."""
+        """The curve as :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple (made once: every
+        evaluation passes it)."""
         from cnc_twin.geometry.span_eval import NO_SURFACE
 
         return (self.starts, self.blocks, float(self.domain[0]), float(self.domain[1]), self.dim, *NO_SURFACE)

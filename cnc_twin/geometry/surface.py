@@ -31,6 +31,7 @@ Units are whatever the control net is in (the twin uses metres).
 from __future__ import annotations
 
 import math
+from functools import cached_property
 
 import numpy as np
 
@@ -277,10 +278,11 @@ class SurfaceSpanEvaluator:
         s = s.tolist()
         return tuple(s[3 * k:3 * k + 3] for k in range(6))
 
-    @property
+    @cached_property
     def patch_args(self) -> tuple:
         """The surface's part of :mod:`~cnc_twin.geometry.span_eval`'s ``ev`` tuple: patch starts,
-        blocks, degrees and the domain box ``(u0, u1, v0, v1)``."""
+        blocks, degrees and the domain box ``(u0, u1, v0, v1)`` (made once: every evaluation
+        passes it)."""
         return (self.starts_u, self.starts_v, self.patches, self.degree_u, self.degree_v,
                 np.array([*self.domain_u, *self.domain_v], dtype=np.float64))
 
