@@ -130,6 +130,9 @@ def test_realtime_stall_enters_feed_hold_and_finishes_the_program():
 def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_scenario):
     path = write_scenario(jog_with(faults=[{"type": "planner_kill", "at": 0.5}]))
     out = tmp_path / "run"
+    # only what this run made counts: a segment another process left on the machine (a killed
+    # session's run, say) is not this run's leak
+    segments_before = set(leftover_segments())
     proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(path), "--out", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 3, proc.stderr
@@ -138,7 +141,7 @@ def test_cli_planner_kill_exits_3_with_complete_run_directory(tmp_path, write_sc
     assert metrics["status"] == "fault" and metrics["fault"]["code"] == "PLANNER_LOST"
     trace = read_trace(out / "trace.parquet")
     assert trace["state"][-1] == DspState.FAULT and trace["fault"][-1] == FaultCode.PLANNER_LOST
-    assert not leaked_segments(leftover_segments())
+    assert not leaked_segments(set(leftover_segments()) - segments_before)
 
 
 def test_benchmark_paths_move_and_verify_every_record():
@@ -173,10 +176,11 @@ def test_an_error_mid_run_still_reaps_the_planner_and_unlinks_the_segment(path, 
         return real(*args)
 
     monkeypatch.setattr(owner, name, failing)
+    segments_before = set(leftover_segments())
     with pytest.raises(RuntimeError, match="simulated failure"):
         twin.run()
     # the autouse fixture checks /dev/shm and child processes after this test too
-    assert not leaked_segments(leftover_segments())
+    assert not leaked_segments(set(leftover_segments()) - segments_before)
 
 
 def test_memory_map_in_the_docs_matches_the_layout():
