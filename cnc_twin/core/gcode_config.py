@@ -115,3 +115,30 @@ class GcodeProgram:
     @property
     def paths(self) -> tuple[GcodePath, ...]:
         return tuple(s for s in self.steps if isinstance(s, GcodePath))
+
+    def pressed_paths(self) -> tuple[GcodePath, ...]:
+        """The feed paths the program runs with the force loop on (M100 ... M101)."""
+        on, out = False, []
+        for step in self.steps:
+            if isinstance(step, GcodeForce):
+                on = step.control is not None
+            elif on and isinstance(step, GcodePath):
+                out.append(step)
+        return tuple(out)
+
+    def force_setpoints(self) -> tuple[tuple[float, float], ...]:
+        """``(setpoint [N], spindle speed [rad/s])`` of each M100 that turns the force loop on, the
+        speed being the last M3/M4/M5's before it (0 before any)."""
+        speed, out = 0.0, []
+        for step in self.steps:
+            if isinstance(step, GcodeSpindle):
+                speed = step.speed
+            elif isinstance(step, GcodeForce) and step.control is not None:
+                out.append((step.control.setpoint, speed))
+        return tuple(out)
+
+    def feed_rates(self) -> dict[int, float]:
+        """``{line: F [m/s]}`` of the program's feed moves (G1) of the linear axes: those with a
+        feed that move more than the rotary axes."""
+        return {s.line: s.feed for s in self.steps
+                if isinstance(s, GcodeMove) and s.feed is not None and not s.rotary_only}

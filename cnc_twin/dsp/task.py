@@ -49,7 +49,6 @@ from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT,
 from cnc_twin.geometry.kinematics import rotation_ab
 from cnc_twin.whiteboard.codec import GeometryJoiner, RecordError, decode
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost
-from cnc_twin.whiteboard.records import GeometryPart
 from cnc_twin.whiteboard.status import DspState, FaultCode
 
 SOLO_LIVENESS_PERIODS = 64
@@ -247,7 +246,7 @@ class DspTask:
                 if words is None:
                     return
                 seq, record = decode(words)
-                if seq == self.expected_seq and isinstance(record, GeometryPart):
+                if seq == self.expected_seq and record.part_of_whole:
                     record = self.geometry_joiner.add(record)
             except RecordError:
                 seq, record = None, None

@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
-from cnc_twin.core.gcode_config import GcodeForce, GcodeSpindle
 from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.run.program_check import curve_runs, pressed_paths
 from cnc_twin.trace.trace import Trace
@@ -91,13 +90,9 @@ def gcode_polish_metrics(trace: Trace, prog: GcodeProgram, removal, wall_time: f
     speed."""
     from cnc_twin.polishing.polish import force_metrics, preston_by_hand, removal_metrics
 
-    setpoints, speeds, speed = [], set(), 0.0
-    for step in prog.steps:
-        if isinstance(step, GcodeSpindle):
-            speed = step.speed
-        elif isinstance(step, GcodeForce) and step.control is not None:
-            setpoints.append(step.control.setpoint)
-            speeds.add(abs(speed))
+    pressed = prog.force_setpoints()
+    setpoints = [setpoint for setpoint, _ in pressed]
+    speeds = {abs(speed) for _, speed in pressed}
     w = prog.workpiece
     out: dict[str, Any] = {"force": force_metrics(trace, setpoints[0]) if setpoints else None,
                            "setpoints_n": setpoints,

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_twin.core.config import NurbsProgram, Scenario
+from cnc_twin.core.config import Scenario
 from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.polyline import point_to_polyline
@@ -61,7 +61,6 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
     reported beside them, without limits (the force loop's correction, not the planned path)."""
     prog = scenario.program
-    assert isinstance(prog, NurbsProgram)
     curve = tip_curve(prog)
     tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period

@@ -23,13 +23,8 @@ from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock
-from cnc_twin.run.period_kernel import (
-    A_NOW, A_STOP, ACCEL, AXIS_X, AXIS_Z, C_HOLD, C_OFFSET, COS_LEAD, COS_TILT, CPU, CURVE, DURATION, DWELL, DWELL_LEFT,
-    EVERY, FORCE_ON, FORCE_WAIT, HAS_STATE, HELD, HOLD, INV_T, J_STOP, LAM, LEANED, LENGTH, MARK, MAX_BATCH, MOVE,
-    N_CHECK, N_CHECK_SCALARS, N_FEED, N_OUT, N_PROCESS, OPEN_END, OUT_DEPTH, OUT_MARK, OUT_PATH_DS, OUT_PATH_U,
-    OUT_TARGET, PATH_S, PERIOD, POWER_ON, PREV_ACTUAL, PREV_COMMAND, PREV_FORCE, QUEUED_PATH, S_DONE, S_NOW, SIN_LEAD,
-    SIN_TILT, SPIN, SPIN_STEP, SPIN_TARGET, SPINDLE_ON, SUPERVISED, SURFACE, T_ACC, T_FLAT, TAU, V0, V_NOW, run_periods,
-)
+from cnc_twin.run.period_kernel import (AXIS_STATE, CHECK, CURVE, DWELL, FEED, FORCE_WAIT, MAX_BATCH, MOVE, OUT,
+                                         PROCESS, run_periods)
 from cnc_twin.whiteboard.records import Dwell
 from cnc_twin.whiteboard.status import DspState
 
@@ -57,36 +52,37 @@ class PeriodBatch:
         self.interp = dsp.interpolator
         self.servo = dsp.servo
         n = self.servo.n_axes
-        self.check = np.zeros((N_CHECK, n))
-        self.cs = np.zeros(N_CHECK_SCALARS)
-        self.feed = np.zeros(N_FEED)
+        # the kernel's records (cnc_twin.run.period_kernel documents their fields)
+        self.axis_state = np.zeros(n, AXIS_STATE)
+        self.check = np.zeros(1, CHECK)
+        self.feed = np.zeros(1, FEED)
         self.move = np.zeros((2, n))
-        self.process = np.zeros(N_PROCESS)
-        self.out = np.zeros((N_OUT, MAX_BATCH))
+        self.process = np.zeros(1, PROCESS)
+        self.out = np.zeros(MAX_BATCH, OUT)
         self.interp_ns = np.zeros(MAX_BATCH, dtype=np.int64)
         self._timespec = c_clock.timespec()
         interp = self.interp
-        self.check[POWER_ON] = interp.power_on
-        self.check[CPU] = interp.counts_per_unit
-        self.cs[INV_T] = self.servo.inv_period
-        self.feed[PERIOD] = interp.period
+        self.axis_state["power_on"] = interp.power_on
+        self.axis_state["counts_per_unit"] = interp.counts_per_unit
+        self.check[0]["inv_period"] = self.servo.inv_period
+        self.feed[0]["period"] = interp.period
         sup = dsp.supervisor
         if sup is not None:
-            self.cs[SUPERVISED] = 1.0
+            self.check[0]["supervised"] = True
             # the plant's switches, read by the card when it has the inputs (DspTask.read_inputs)
             with_inputs = switches is not None and dsp.read_inputs is not None
             self.supervision = (sup.settings, sup.limits, switches if with_inputs else _NO_SWITCHES)
-        else:  # nothing is checked (SUPERVISED 0): records of the right types
+        else:  # nothing is checked (supervised False): records of the right types
             self.supervision = (np.zeros(1, SUPERVISOR), np.zeros(n, LIMITS), _NO_SWITCHES)
         if removal is not None:
-            self.process[EVERY] = removal.every
+            self.process[0]["every"] = removal.every
             self._removal_args = removal.kernel_args()
         else:
             self._removal_args = removal_kernel.no_tracker()
         self._segment = None
-        self._no_curve = (curve_stepper.NO_PATH, True)
-        self._no_stepper = (np.zeros(curve_stepper.state_size(3)), np.zeros(curve_stepper.scratch_size(3)))
-        self._no_phases = (np.zeros((7, 5)), np.zeros(7))
+        self._no_curve = (curve_stepper.NO_PATH, True, np.zeros(curve_stepper.state_size(3)),
+                          np.zeros(curve_stepper.scratch_size(3)))
+        self._no_profile = (np.zeros((7, 5)), np.zeros(7), 0.0)
         self._no_axis = (np.zeros(0), np.zeros((0, 2, 12)), 0.0, 1.0, 3, np.zeros((2, 3)))
         self._no_lines = (np.zeros(0), np.zeros(0))
         self.periods = 0
@@ -98,10 +94,9 @@ class PeriodBatch:
         rec = self.recorder
         servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0]), 0, 0)
         # no periods: nothing is read or written, only the argument types count
-        run_periods(0, CURVE, 0, servo_args, self.feed, *self._no_phases, 0.0, self._no_curve, *self._no_stepper,
-                    self._no_axis, self.move, self.check, self.cs, self.supervision, self.process,
-                    self._force_args(), self._no_lines, self._removal_args, self.out, False,
-                    self.interp_ns, self._timespec)
+        run_periods(0, CURVE, 0, servo_args, self.feed, self._no_profile, self._no_curve, self._no_axis, self.move,
+                    self.axis_state, self.check, self.supervision, self.process, self._force_args(), self._no_lines,
+                    self._removal_args, self.out, (False, self.interp_ns, self._timespec))
 
     def _force_args(self) -> tuple:
         """``force_args`` of :func:`run_periods`: the force loop's profile and its record (the
@@ -158,20 +153,21 @@ class PeriodBatch:
         """The per-curve arguments (S-curve phases, held axes or the head's kinematics, line marks),
         once per block."""
         self._segment = segment
-        prof, curve, check, process = segment.profile, segment.curve, self.check, self.process
-        self._phases = np.array(prof.phases, dtype=np.float64)
-        self._times = np.array(prof.phase_times, dtype=np.float64)
+        prof, curve, process = segment.profile, segment.curve, self.process
+        self._profile = (np.array(prof.phases, dtype=np.float64), np.array(prof.phase_times, dtype=np.float64),
+                         prof.v1)
         self._lines = self._no_lines
-        process[SURFACE] = 0.0
+        process = process[0]
+        process["surface"] = False
         if type(curve) is SurfaceRun:
             sf = curve.surface
-            process[SURFACE], process[C_HOLD] = 1.0, curve.c_hold
-            process[LEANED] = 0.0 if sf.lead == 0.0 and sf.tilt == 0.0 else 1.0
-            process[COS_LEAD], process[SIN_LEAD] = math.cos(sf.lead), math.sin(sf.lead)
-            process[COS_TILT], process[SIN_TILT] = math.cos(sf.tilt), math.sin(sf.tilt)
+            process["surface"], process["c_hold"] = True, curve.c_hold
+            process["leaned"] = not (sf.lead == 0.0 and sf.tilt == 0.0)
+            process["cos_lead"], process["sin_lead"] = math.cos(sf.lead), math.sin(sf.lead)
+            process["cos_tilt"], process["sin_tilt"] = math.cos(sf.tilt), math.sin(sf.tilt)
             self._axis_args = (*self._no_axis[:5], np.array([sf.pivot, sf.offset], dtype=np.float64))
             return
-        check[HOLD, :3] = curve.hold
+        self.axis_state["hold"][:3] = curve.hold
         tool_axis = curve.axis
         self._axis_args = self._no_axis if tool_axis is None else (
             *tool_axis.path[:5], np.array([curve.pivot, curve.offset], dtype=np.float64))
@@ -187,60 +183,57 @@ class PeriodBatch:
             return 0
         dsp, interp, servo, rec = self.dsp, self.interp, self.servo, self.recorder
         segment = interp.current[1]
-        feed, check, cs, move, process = self.feed, self.check, self.cs, self.move, self.process
-        feed[TAU], feed[LAM] = interp.tau, interp.override
-        phases, times, v1 = self._no_phases[0], self._no_phases[1], 0.0
-        curve_args, (sstate, sscratch), axis_args, lines = self._no_curve, self._no_stepper, self._no_axis, self._no_lines
+        feed, move, process, axis_state = self.feed[0], self.move, self.process[0], self.axis_state
+        feed["tau"], feed["lam"] = interp.tau, interp.override
+        profile, curve_args, axis_args, lines = self._no_profile, self._no_curve, self._no_axis, self._no_lines
         if mode == CURVE:
             prof = segment.profile
             if self._segment is not segment:
                 self._curve_args(segment)
-            axis_args, lines = self._axis_args, self._lines
+            profile, axis_args, lines = self._profile, self._axis_args, self._lines
             stepper = segment.curve.stepper
-            phases, times, v1 = self._phases, self._times, prof.v1
-            curve_args, sstate, sscratch = (stepper.path, stepper.correct), stepper.state, stepper.scratch
-            feed[S_DONE] = interp.block_s
-            feed[QUEUED_PATH] = interp.queued_path
-            feed[A_STOP], feed[J_STOP] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
-            open_end = interp.path_open if interp.queue else prof.v1 > 0.0
-            feed[OPEN_END] = 1.0 if open_end else 0.0
-            feed[LENGTH], feed[DURATION], feed[V0] = prof.length, prof.duration, prof.v0
+            curve_args = (stepper.path, stepper.correct, stepper.state, stepper.scratch)
+            feed["s_done"] = interp.block_s
+            feed["queued_path"] = interp.queued_path
+            feed["a_stop"], feed["j_stop"] = SLEW_MARGIN * prof.a_max, SLEW_MARGIN * prof.j_max
+            feed["open_end"] = interp.path_open if interp.queue else prof.v1 > 0.0
+            feed["length"], feed["duration"], feed["v0"] = prof.length, prof.duration, prof.v0
             state = interp.block_state
-            feed[HAS_STATE] = 0.0 if state is None else 1.0
+            feed["has_state"] = state is not None
             if state is not None:
-                feed[S_NOW], feed[V_NOW], feed[A_NOW] = state
+                feed["s_now"], feed["v_now"], feed["a_now"] = state
         elif mode == MOVE:
             prof = segment.profile
-            feed[DURATION], feed[T_ACC], feed[ACCEL] = prof.duration, prof.t_acc, prof.accel
-            feed[T_FLAT], feed[V0] = prof.t_flat, prof.v_peak
+            feed["duration"], feed["t_acc"], feed["accel"] = prof.duration, prof.t_acc, prof.accel
+            feed["t_flat"], feed["v0"] = prof.t_flat, prof.v_peak
             move[0], move[1] = interp.start_counts, interp.delta_counts
         elif mode == DWELL:
-            feed[DWELL_LEFT] = interp.dwell_left
+            feed["dwell_left"] = interp.dwell_left
         else:  # the pose at the path's end, along its tool axis
             move[0] = interp.counts_of(segment.base)
-        check[HELD] = interp.hold_counts
+        axis_state["held"] = interp.hold_counts
         force = interp.force
-        process[FORCE_ON] = 0.0 if force.state == ForceState.OFF else 1.0
-        process[PATH_S], process[C_OFFSET], process[MARK] = interp.path_s, interp.c_offset, interp.mark
-        process[SPINDLE_ON] = 1.0 if interp.spindle_on else 0.0
-        process[SPIN] = interp.spin
-        process[SPIN_TARGET] = interp.spindle_speed if interp.spindle_on else 0.0
-        process[SPIN_STEP] = interp.spindle_accel * interp.period
+        process["force_on"] = force.state != ForceState.OFF
+        process["path_s"], process["c_offset"], process["mark"] = interp.path_s, interp.c_offset, interp.mark
+        process["spindle_on"] = interp.spindle_on
+        process["spin"] = interp.spin
+        process["spin_target"] = interp.spindle_speed if interp.spindle_on else 0.0
+        process["spin_step"] = interp.spindle_accel * interp.period
         # the axis the force loop pushes along: a force wait's own (as its periods set it), else the last
-        process[AXIS_X:AXIS_Z + 1] = segment.axis if mode == FORCE_WAIT else interp.tool_axis
+        process["axis"] = segment.axis if mode == FORCE_WAIT else interp.tool_axis
         force_args = self._force_args()
         n = servo.n_axes
         frame = servo.frame
-        check[PREV_COMMAND] = frame[0:n]
-        check[PREV_ACTUAL] = frame[n:2 * n]
-        cs[PREV_FORCE] = frame[3 * n]
+        axis_state["prev_command"] = frame[0:n]
+        axis_state["prev_actual"] = frame[n:2 * n]
+        self.check[0]["prev_force"] = frame[3 * n]
         servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
                                       0 if rec.scratch else servo.ticks_per_period)
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
         timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
-        done = run_periods(n_max, mode, k, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch,
-                           axis_args, move, check, cs, self.supervision, process, force_args, lines, self._removal_args,
-                           self.out, timed, self.interp_ns, self._timespec)
+        done = run_periods(n_max, mode, k, servo_args, self.feed, profile, curve_args, axis_args, move, axis_state,
+                           self.check, self.supervision, self.process, force_args, lines, self._removal_args,
+                           self.out, (timed, self.interp_ns, self._timespec))
         if done:
             self._commit(mode, segment, k, t, done)
             if timed:
@@ -251,25 +244,25 @@ class PeriodBatch:
     def _commit(self, mode: int, segment, k: int, t: int, done: int) -> None:
         """Leave every object as the Python task would after period ``k + done - 1``."""
         dsp, interp, servo, rec = self.dsp, self.interp, self.servo, self.recorder
-        feed, check, process, out = self.feed, self.check, self.process, self.out
+        feed, process, out = self.feed[0], self.process[0], self.out
         if mode == CURVE:
             curve = segment.curve
             curve.stepper.sync()
-            interp.tau, interp.block_s = float(feed[TAU]), float(feed[S_DONE])
-            interp.block_state = (float(feed[S_NOW]), float(feed[V_NOW]), float(feed[A_NOW]))
+            interp.tau, interp.block_s = float(feed["tau"]), float(feed["s_done"])
+            interp.block_state = (float(feed["s_now"]), float(feed["v_now"]), float(feed["a_now"]))
             if type(curve) is SurfaceRun:
-                interp.path_s = float(process[PATH_S])
-                curve.axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
+                interp.path_s = float(process["path_s"])
+                curve.axis = tuple(process["axis"].tolist())
         elif mode == MOVE:
-            interp.tau = float(feed[TAU])
+            interp.tau = float(feed["tau"])
         elif mode == DWELL:
-            interp.dwell_left = int(feed[DWELL_LEFT])
-        interp.path_u, interp.path_ds = float(out[OUT_PATH_U, done - 1]), float(out[OUT_PATH_DS, done - 1])
-        interp.mark = int(process[MARK])
-        interp.tool_axis = tuple(process[AXIS_X:AXIS_Z + 1].tolist())
-        interp.c_offset = float(process[C_OFFSET])
-        interp.spin = float(process[SPIN])
-        interp.hold_counts = check[HELD].tolist()  # the last path setpoint: no force or spindle offset
+            interp.dwell_left = int(feed["dwell_left"])
+        interp.path_u, interp.path_ds = float(out[done - 1]["path_u"]), float(out[done - 1]["path_ds"])
+        interp.mark = int(process["mark"])
+        interp.tool_axis = tuple(process["axis"].tolist())
+        interp.c_offset = float(process["c_offset"])
+        interp.spin = float(process["spin"])
+        interp.hold_counts = self.axis_state["held"].tolist()  # the last path setpoint: no force or spindle offset
         interp.tick_commands = None
         interp.events = []
         servo.use_tick_commands = False
@@ -281,11 +274,11 @@ class PeriodBatch:
         periods = rec.periods[0:1] if rec.scratch else rec.periods[k:k + done]
         periods[:] = tuple(servo.frame[servo.period_slot:])
         if not rec.scratch:
-            periods["path_u"] = out[OUT_PATH_U, :done]
-            periods["path_ds"] = out[OUT_PATH_DS, :done]
-            periods["force_setpoint"] = out[OUT_TARGET, :done]
-            periods["force_depth"] = out[OUT_DEPTH, :done]
-            periods["mark"] = out[OUT_MARK, :done]
+            periods["path_u"] = out["path_u"][:done]
+            periods["path_ds"] = out["path_ds"][:done]
+            periods["force_setpoint"] = out["target"][:done]
+            periods["force_depth"] = out["depth"][:done]
+            periods["mark"] = out["mark"][:done]
 
 
 BATCHED = {Block: CURVE, MoveSegment: MOVE, Dwell: DWELL, ForceWait: FORCE_WAIT}

@@ -78,30 +78,85 @@ _trapezoid_state = njit(cache=True)(trapezoid.trapezoid_state)
 MAX_BATCH = SOLO_LIVENESS_PERIODS
 """periods per call at most (a batch holds at most one of the card's liveness checks, made first)"""
 
-# the feed block (float64): clock, path, constant scale, and the (s, v, a) kept for the next period
-TAU, S_DONE, LAM, PERIOD, QUEUED_PATH, A_STOP, OPEN_END, HAS_STATE, S_NOW, V_NOW, A_NOW, LENGTH, DURATION, V0, \
-    DWELL_LEFT, T_ACC, ACCEL, T_FLAT, J_STOP = range(19)
-N_FEED = 19
 CURVE, MOVE, DWELL, FORCE_WAIT = 0, 1, 2, 3
 """what runs: a curve block (or a surface path's), a point-to-point move (its trapezoid), a dwell,
 the force loop making or releasing contact at a path's end (its seek, ramp, ramp down, retract)"""
-# the check block (float64, shape (N_CHECK, 6)): per axis
-PREV_COMMAND, PREV_ACTUAL, POWER_ON, CPU, HOLD, HELD = range(6)
-N_CHECK = 6
-"""``HOLD``: a curve's held A, B, C [rad] (first three); ``HELD``: the path setpoint without the
-force loop's and the spindle's offsets [counts] (the interpolator's ``hold_counts``)"""
-# check scalars (float64)
-PREV_FORCE, INV_T, SUPERVISED = range(3)
-N_CHECK_SCALARS = 3
-# the process block (float64): path length, spindle, force loop, the surface's tool axis, removal
-PATH_S, C_OFFSET, SPIN, SPINDLE_ON, SPIN_TARGET, SPIN_STEP, FORCE_ON, SURFACE, LEANED, COS_LEAD, SIN_LEAD, COS_TILT, \
-    SIN_TILT, C_HOLD, AXIS_X, AXIS_Y, AXIS_Z, EVERY, MARK = range(19)
-N_PROCESS = 19
-"""``AXIS_*``: the tool axis the force loop pushes along (the interpolator's ``tool_axis``); ``EVERY``:
-periods between removal updates (0: none); ``MARK``: the program line of the last period"""
-# the per-period outputs (float64, shape (N_OUT, MAX_BATCH))
-OUT_PATH_U, OUT_PATH_DS, OUT_TARGET, OUT_DEPTH, OUT_MARK = range(5)
-N_OUT = 5
+
+# The batch's own state: typed records, each its interface as the card's blocks have theirs
+# (:class:`~cnc_twin.run.period_batch.PeriodBatch` fills them from the card's objects before a call
+# and reads them back after it; ``run_periods`` reads and advances them per committed period).
+FEED = np.dtype([
+    ("tau", np.float64),          # s      the running item's clock (lambda-scaled)     batch <-> kernel
+    ("s_done", np.float64),       # m      path length done in the block (a curve)      batch <-> kernel
+    ("lam", np.float64),          # -      the feed override in effect (constant)       batch
+    ("period", np.float64),       # s      the interpolation period T                   set up
+    ("queued_path", np.float64),  # m      path queued behind the block (starved hold)  batch
+    ("a_stop", np.float64),       # m/s^2  the starved hold's deceleration              batch
+    ("j_stop", np.float64),       # m/s^3  and jerk                                     batch
+    ("open_end", np.bool_),       # -      the block ends at speed (nothing queued may stop it)  batch
+    ("has_state", np.bool_),      # -      (s_now, v_now, a_now) hold the last period's   batch <-> kernel
+    ("s_now", np.float64),        # m      the S-curve's s at tau                       batch <-> kernel
+    ("v_now", np.float64),        # m/s    its v                                        batch <-> kernel
+    ("a_now", np.float64),        # m/s^2  its a                                        batch <-> kernel
+    ("length", np.float64),       # m      the block's length (a curve)                 batch
+    ("duration", np.float64),     # s      the block's or move's duration               batch
+    ("v0", np.float64),           # m/s    a curve block's entry speed; a move's peak (normalised)  batch
+    ("dwell_left", np.float64),   # -      a dwell's periods left                       batch <-> kernel
+    ("t_acc", np.float64),        # s      a move's trapezoid: acceleration time        batch
+    ("accel", np.float64),        # 1/s^2  its normalised acceleration                  batch
+    ("t_flat", np.float64),       # s      its constant-speed time                      batch
+])
+"""the feed of the running item: shape ``(1,)``"""
+
+AXIS_STATE = np.dtype([
+    ("prev_command", np.float64),     # counts  the last tick's setpoint (supervisor)   batch <-> kernel
+    ("prev_actual", np.float64),      # counts  the last tick's encoder count           batch <-> kernel
+    ("power_on", np.float64),         # m|rad   the axis at power-on (counts' zero)     set up
+    ("counts_per_unit", np.float64),  # 1/m|1/rad                                       set up
+    ("hold", np.float64),             # rad     a curve's held A, B, C (first three rows) batch
+    ("held", np.float64),             # counts  the path setpoint without the force loop's and the
+                                      #         spindle's offsets (the interpolator's hold_counts)  batch <-> kernel
+])
+"""per axis, what the period's check and setpoint keep: shape ``(n_axes,)``"""
+
+CHECK = np.dtype([
+    ("prev_force", np.float64),   # N      the last tick's load-cell force              batch <-> kernel
+    ("inv_period", np.float64),   # 1/s    1 / T (the feed-forward's differences)      set up
+    ("supervised", np.bool_),     # -      the supervisor checks the periods             set up
+])
+"""the card's scalars for the checks and the feed-forward: shape ``(1,)``"""
+
+PROCESS = np.dtype([
+    ("path_s", np.float64),       # m      a surface path's length so far (force profile)  batch <-> kernel
+    ("c_offset", np.float64),     # rad    the spindle's turn added to C                batch <-> kernel
+    ("spin", np.float64),         # rad/s  the spindle's speed                          batch <-> kernel
+    ("spindle_on", np.bool_),     # -      the spindle is commanded on                  batch
+    ("spin_target", np.float64),  # rad/s  its commanded speed                          batch
+    ("spin_step", np.float64),    # rad/s  its speed change per period                  batch
+    ("force_on", np.bool_),       # -      the force loop runs (not OFF)                batch
+    ("surface", np.bool_),        # -      the path is a surface section                batch
+    ("leaned", np.bool_),         # -      the surface's tool axis has lead or tilt      batch
+    ("cos_lead", np.float64),     # -      the lead and tilt angles' cosines and sines   batch
+    ("sin_lead", np.float64),
+    ("cos_tilt", np.float64),
+    ("sin_tilt", np.float64),
+    ("c_hold", np.float64),       # rad    a surface path's held C                      batch
+    ("axis", np.float64, (3,)),   # -      the tool axis the force loop pushes along (world, unit;
+                                  #        the interpolator's tool_axis)                batch <-> kernel
+    ("every", np.int64),          # -      periods between removal updates (0: none)     set up
+    ("mark", np.float64),         # -      the program line of the last period          batch <-> kernel
+])
+"""the process around the path: spindle, force loop, surface tool axis, removal map, line marks:
+shape ``(1,)``"""
+
+OUT = np.dtype([
+    ("path_u", np.float64),       # -      the path parameter (-1: not on a curve)
+    ("path_ds", np.float64),      # m      the path length advanced
+    ("target", np.float64),       # N      the force setpoint in effect
+    ("depth", np.float64),        # m      the force loop's push
+    ("mark", np.float64),         # -      the program line
+])
+"""what each committed period recorded (the kernel writes row k): shape ``(MAX_BATCH,)``"""
 
 
 @njit(cache=True)
@@ -117,17 +172,18 @@ def _scurve_state(phases, times, duration, length, v0, v1, t):
 
 
 @njit(cache=True)
-def _supervise(check, cs, supervision, sensordata, axes, inputs, saturations, trial):
+def _supervise(axis_state, prev_force, supervision, sensordata, axes, inputs, saturations, trial):
     """The supervisor's checks on the last tick's signals (:func:`~cnc_twin.dsp.supervisor.supervise`,
     as ``Supervisor.check`` calls it) on ``trial``, a copy of its per-axis records (committed with
-    the period): True if one trips. ``supervision``: ``(settings, limits, switches)``."""
+    the period): True if one trips. ``supervision``: ``(settings, limits, switches)``;
+    ``axis_state``: :data:`AXIS_STATE` records; ``prev_force`` [N]."""
     settings, limits, switches = supervision
     trial[:] = limits
     _switch_bits(switches, sensordata, inputs)
     for i in range(axes.shape[0]):
         saturations[i] = axes[i].dac.saturations
-    code, _ = _supervise_checks(settings[0], trial, check[PREV_COMMAND], check[PREV_ACTUAL], saturations, inputs,
-                                cs[PREV_FORCE])
+    code, _ = _supervise_checks(settings[0], trial, axis_state.prev_command, axis_state.prev_actual, saturations,
+                                inputs, prev_force)
     return code != 0
 
 
@@ -143,38 +199,45 @@ def _force_keeps(xs, fs, measured, path_s, trial):
 
 
 @njit(cache=True)
-def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args, sstate, sscratch, axis_args, move,
-                check, cs, supervision, process, force_args, lines, removal_args, out, timed, interp_ns,
-                timespec):  # pragma: no cover - compiled
+def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, axis_args, move, axis_state,
+                check_record, supervision, process_record, force_args, lines, removal_args, out,
+                timing):  # pragma: no cover - compiled
     """Run up to ``n_max`` periods from the run's period ``k0``; returns how many were committed
     (0 .. n_max).
 
-    ``mode``: :data:`CURVE`, :data:`MOVE` or :data:`DWELL`. ``servo_args``: the arguments of
-    ``servo_kernel.run_ticks`` but the first row, then the first row and the rows per period; ``feed`` / ``check`` / ``cs`` / ``process``: the
-    blocks above (updated to the last committed period); ``curve_args``: the path's ``ev``
-    (:mod:`cnc_twin.geometry.span_eval`) and the corrector flag; ``sstate`` the stepper's state;
-    ``axis_args``: the tool-axis curve (``starts, blocks, lo, hi, d``; no spans: none) and the head
-    geometry (``(2, 3)``: pivot, offset); ``move``: shape ``(2, 6)``, a move's start and
-    displacement [counts] (a dwell's held setpoint in row 0); ``supervision``: the supervisor's
-    settings and per-axis records (:mod:`cnc_twin.dsp.supervisor`) and the plant's switches
-    (:attr:`~cnc_twin.machine.plant.Plant.switches`); ``force_args``: the force loop's profile and record ``(xs, fs, record)``
-    (:mod:`cnc_twin.dsp.force`); ``lines``: a G-code path's line starts [u] and line
-    numbers (empty: none); ``removal_args``: those of ``removal_kernel.tracker_update``;
-    ``out``: per committed period, the path's u and ds, the force setpoint and depth, the program
-    line; with ``timed``, ``interp_ns`` gets each period's interpolation time [ns] (feed, force,
-    path, kinematics, setpoint: what ``DspTask`` times around ``next_period``).
+    ``mode``: :data:`CURVE`, :data:`MOVE`, :data:`DWELL` or :data:`FORCE_WAIT`. ``servo_args``: the
+    arguments of ``servo_kernel.run_ticks`` but the first row, then the first row and the rows per
+    period. ``feed_record`` (:data:`FEED`), ``axis_state`` (:data:`AXIS_STATE`), ``check_record``
+    (:data:`CHECK`), ``process_record`` (:data:`PROCESS`): the batch's records, advanced to the last
+    committed period. ``profile``: a curve block's S-curve ``(phases (7, 5), phase_times (7,), v1)``;
+    ``curve_args``: the path's ``ev`` (:mod:`cnc_twin.geometry.span_eval`), the corrector flag, the
+    stepper's state and scratch (:mod:`cnc_twin.dsp.curve_stepper`); ``axis_args``: the tool-axis
+    curve (``starts, blocks, lo, hi, d``; no spans: none) and the head geometry (``(2, 3)``: pivot,
+    offset); ``move``: shape ``(2, n_axes)``, a move's start and displacement [counts] (a force
+    wait's pose in row 0); ``supervision``: the supervisor's settings and per-axis records
+    (:mod:`cnc_twin.dsp.supervisor`) and the plant's switches
+    (:attr:`~cnc_twin.machine.plant.Plant.switches`); ``force_args``: the force loop's profile and
+    record ``(xs, fs, record)`` (:mod:`cnc_twin.dsp.force`); ``lines``: a G-code path's line starts
+    [u] and line numbers (empty: none); ``removal_args``: those of
+    ``removal_kernel.tracker_update``; ``out``: :data:`OUT` rows, one per committed period;
+    ``timing``: ``(timed, interp_ns, timespec)``: with ``timed``, ``interp_ns`` gets each period's
+    interpolation time [ns] (feed, force, path, kinematics, setpoint: what ``DspTask`` times around
+    ``next_period``).
     """
     (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, ctrl,
      sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
-    ev, correct = curve_args
+    ev, correct, sstate, sscratch = curve_args
+    phases, times, v1 = profile
+    timed, interp_ns, timespec = timing
+    feed, cs, process = feed_record[0], check_record[0], process_record[0]
     d = span_eval.path_dim(ev)
     a_starts, a_blocks, a_lo, a_hi, a_d, head = axis_args
     fxs, ffs, loop = force_args
     line_us, line_numbers = lines
     tilting = a_starts.shape[0] > 0
-    surface = process[SURFACE] != 0.0
-    force_on = process[FORCE_ON] != 0.0
-    every = int(process[EVERY])
+    surface = process.surface
+    force_on = process.force_on
+    every = process.every
     direction = np.empty(3)
     a_h = np.empty(3 * (a_d + 1))
     a_c1 = np.empty(a_d)
@@ -191,37 +254,37 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
     inputs = np.zeros(n, np.int64)
     saturations = np.zeros(n, np.int64)
     tool = np.empty(3)
-    T = feed[PERIOD]
+    T = feed.period
     for k in range(n_max):
         # --- supervisor check on the last tick's signals (a trip: Python runs this period) ---
-        if cs[SUPERVISED] != 0.0 and _supervise(check, cs, supervision, sensordata, axes, inputs, saturations,
-                                                limits_trial):
+        if cs.supervised and _supervise(axis_state, cs.prev_force, supervision, sensordata, axes, inputs,
+                                        saturations, limits_trial):
             return k
         started = c_clock.monotonic_ns(timespec) if timed else 0
         ds = 0.0
-        mark = process[MARK]
-        tool[0], tool[1], tool[2] = process[AXIS_X], process[AXIS_Y], process[AXIS_Z]
+        mark = process.mark
+        tool[0], tool[1], tool[2] = process.axis[0], process.axis[1], process.axis[2]
         if mode == CURVE:
             # --- the force loop first, on the load cell and the path so far (ForceController.update) ---
             if force_on:
                 force_trial[:] = loop
-                if not _force_keeps(fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
+                if not _force_keeps(fxs, ffs, cs.prev_force, process.path_s, force_trial):
                     return k  # the feed adapts from this period on: the Python task slews it
             # --- the feed along the block (SegmentInterpolator._advance_block) ---
-            if feed[HAS_STATE] != 0.0:
-                s_now, v, a_now = feed[S_NOW], feed[V_NOW], feed[A_NOW]
+            if feed.has_state:
+                s_now, v, a_now = feed.s_now, feed.v_now, feed.a_now
             else:
-                s_now, v, a_now = _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, feed[TAU])
-            if feed[OPEN_END] != 0.0:
-                remaining = feed[LENGTH] - s_now + feed[QUEUED_PATH]
-                lam = feed[LAM]
-                if remaining <= _stop_distance(lam * v, lam * lam * a_now, feed[A_STOP], feed[J_STOP], T):
+                s_now, v, a_now = _scurve_state(phases, times, feed.duration, feed.length, feed.v0, v1, feed.tau)
+            if feed.open_end:
+                remaining = feed.length - s_now + feed.queued_path
+                lam = feed.lam
+                if remaining <= _stop_distance(lam * v, lam * lam * a_now, feed.a_stop, feed.j_stop, T):
                     return k  # the starved hold latches here
-            tau = feed[TAU] + feed[LAM] * T
-            if not tau < feed[DURATION]:
+            tau = feed.tau + feed.lam * T
+            if not tau < feed.duration:
                 return k  # the block ends within this period
-            s_tau, v_tau, a_tau = _scurve_state(phases, times, feed[DURATION], feed[LENGTH], feed[V0], v1, tau)
-            ds = s_tau - feed[S_DONE]
+            s_tau, v_tau, a_tau = _scurve_state(phases, times, feed.duration, feed.length, feed.v0, v1, tau)
+            ds = s_tau - feed.s_done
             # --- the path, tentatively (committed below) ---
             trial[:] = sstate
             if ds > 0.0:
@@ -229,14 +292,14 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             point = trial[2 + 2 * d:2 + 3 * d]
             if surface:  # SurfaceRun.pose: the surface normal with lead and tilt, the kinematics
                 tangents = trial[2 + 3 * d:2 + 3 * d + 6]
-                tool[0], tool[1], tool[2] = _tool_axis(tangents[0:3], tangents[3:6], trial[2:2 + d], process[COS_LEAD],
-                                                       process[SIN_LEAD], process[COS_TILT], process[SIN_TILT],
-                                                       process[LEANED] != 0.0)
+                tool[0], tool[1], tool[2] = _tool_axis(tangents[0:3], tangents[3:6], trial[2:2 + d], process.cos_lead,
+                                                       process.sin_lead, process.cos_tilt, process.sin_tilt,
+                                                       process.leaned)
                 pose[0], pose[1], pose[2], pose[3], pose[4] = _pose_to_axes(point, tool, head[0], head[1])
-                pose[5] = process[C_HOLD]
+                pose[5] = process.c_hold
             else:
                 for i in range(n):
-                    pose[i] = point[i] if i < 3 else check[HOLD, i - 3]
+                    pose[i] = point[i] if i < 3 else axis_state[i - 3].hold
                 if tilting:  # Curve.pose: the tool axis at u, then the head's inverse kinematics
                     span_eval.evaluate_span(a_starts, a_blocks, a_lo, a_hi, a_d, trial[0], a_h, direction, a_c1,
                                               a_c2)
@@ -244,22 +307,22 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
                 if line_us.shape[0] > 0:  # Curve.line_at: the program line it runs now
                     mark = line_numbers[max(span_eval.bisect_right(line_us, trial[0]) - 1, 0)]
             for i in range(n):
-                held[i] = (pose[i] - check[POWER_ON, i]) * check[CPU, i]
+                held[i] = (pose[i] - axis_state[i].power_on) * axis_state[i].counts_per_unit
         elif mode == MOVE:  # SegmentInterpolator._advance_move and Trapezoid.evaluate
-            tau = feed[TAU] + feed[LAM] * T
-            if tau >= feed[DURATION] - 1e-9 * T:
+            tau = feed.tau + feed.lam * T
+            if tau >= feed.duration - 1e-9 * T:
                 return k  # the move ends within this period
-            s = _trapezoid_state(feed[T_ACC], feed[ACCEL], feed[T_FLAT], feed[V0], feed[DURATION], tau)[0]
+            s = _trapezoid_state(feed.t_acc, feed.accel, feed.t_flat, feed.v0, feed.duration, tau)[0]
             for i in range(n):
                 held[i] = move[0, i] + s * move[1, i]
         elif mode == DWELL:  # a dwell holds the setpoint
-            if feed[DWELL_LEFT] - 1.0 <= 0.0:
+            if feed.dwell_left - 1.0 <= 0.0:
                 return k  # the dwell ends in this period
             for i in range(n):
-                held[i] = check[HELD, i]
+                held[i] = axis_state[i].held
         else:  # the force loop at a path's end: the pose there (move row 0) and the loop's push
             force_trial[:] = loop
-            if not _force_keeps(fxs, ffs, cs[PREV_FORCE], process[PATH_S], force_trial):
+            if not _force_keeps(fxs, ffs, cs.prev_force, process.path_s, force_trial):
                 return k  # contact, or a ramp's or the retract's end: the Python task takes it on
             for i in range(n):
                 held[i] = move[0, i]
@@ -270,60 +333,61 @@ def run_periods(n_max, mode, k0, servo_args, feed, phases, times, v1, curve_args
             depth = force_trial[0].depth
             if depth != 0.0:
                 for i in range(3):
-                    setpoint[i] = held[i] - depth * tool[i] * check[CPU, i]
-        c_offset = process[C_OFFSET]
-        spin = process[SPIN]
-        if process[SPINDLE_ON] != 0.0 or spin != 0.0:  # SegmentInterpolator._turn_spindle
-            spin, turned = _spindle_turn(spin, process[SPIN_TARGET], process[SPIN_STEP], T)
+                    setpoint[i] = held[i] - depth * tool[i] * axis_state[i].counts_per_unit
+        c_offset = process.c_offset
+        spin = process.spin
+        if process.spindle_on or spin != 0.0:  # SegmentInterpolator._turn_spindle
+            spin, turned = _spindle_turn(spin, process.spin_target, process.spin_step, T)
             c_offset += turned
         if c_offset != 0.0:
-            setpoint[5] = setpoint[5] + c_offset * check[CPU, 5]
+            setpoint[5] = setpoint[5] + c_offset * axis_state[5].counts_per_unit
         if timed:
             interp_ns[k] = c_clock.monotonic_ns(timespec) - started
         # --- soft limits (a clamp: Python runs this period) ---
-        if cs[SUPERVISED] != 0.0:
+        if cs.supervised:
             for i in range(n):
                 if setpoint[i] < limits[i].soft_lo or setpoint[i] > limits[i].soft_hi:
                     return k
         # --- commit the period ---
-        if cs[SUPERVISED] != 0.0:
+        if cs.supervised:
             limits[:] = limits_trial  # the DAC saturation runs this period's check counted
+        row_out = out[k]
         if mode == CURVE:
-            feed[TAU] = tau
-            feed[S_DONE] = s_tau
-            feed[S_NOW], feed[V_NOW], feed[A_NOW] = s_tau, v_tau, a_tau
-            feed[HAS_STATE] = 1.0
+            feed.tau = tau
+            feed.s_done = s_tau
+            feed.s_now, feed.v_now, feed.a_now = s_tau, v_tau, a_tau
+            feed.has_state = True
             sstate[:] = trial
             if surface:
-                process[PATH_S] += ds
-                process[AXIS_X], process[AXIS_Y], process[AXIS_Z] = tool[0], tool[1], tool[2]
-            out[OUT_PATH_U, k] = trial[0]
+                process.path_s += ds
+                process.axis[0], process.axis[1], process.axis[2] = tool[0], tool[1], tool[2]
+            row_out.path_u = trial[0]
         else:
             if mode == MOVE:
-                feed[TAU] = tau
+                feed.tau = tau
             elif mode == DWELL:
-                feed[DWELL_LEFT] -= 1.0
-            out[OUT_PATH_U, k] = -1.0
+                feed.dwell_left -= 1.0
+            row_out.path_u = -1.0
         if force_on:
             loop[:] = force_trial
-        out[OUT_PATH_DS, k] = ds
-        out[OUT_TARGET, k] = loop[0].target
-        out[OUT_DEPTH, k] = loop[0].depth
-        out[OUT_MARK, k] = mark
-        process[MARK] = mark
-        process[C_OFFSET] = c_offset
-        process[SPIN] = spin
+        row_out.path_ds = ds
+        row_out.target = loop[0].target
+        row_out.depth = loop[0].depth
+        row_out.mark = mark
+        process.mark = mark
+        process.c_offset = c_offset
+        process.spin = spin
         for i in range(n):
-            check[HELD, i] = held[i]
-        _latch_setpoint(axes, setpoint, cs[INV_T])  # ServoTask.begin_period: the feed-forward terms
+            axis_state[i].held = held[i]
+        _latch_setpoint(axes, setpoint, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
         servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, False, qpos,
                                ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row)
         last = row + tpp - 1
         for i in range(n):
-            check[PREV_COMMAND, i] = rec_command[last, i]
-            check[PREV_ACTUAL, i] = axes[i].qep.position32
-        cs[PREV_FORCE] = rec_force[last]
+            axis_state[i].prev_command = rec_command[last, i]
+            axis_state[i].prev_actual = axes[i].qep.position32
+        cs.prev_force = rec_force[last]
         # --- the removal map, after the period's ticks (as the clock calls RemovalTracker.update) ---
         if every > 0 and (k0 + k + 1) % every == 0:
             began = c_clock.monotonic_ns(timespec)

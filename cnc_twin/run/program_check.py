@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
-from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath
 from cnc_twin.geometry.kinematics import HeadGeometry, tool_axis
 from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.trace.trace import Trace
@@ -56,13 +55,7 @@ def curve_runs(u: np.ndarray) -> list[tuple[int, int]]:
 
 def pressed_paths(prog: GcodeProgram) -> set[int]:
     """``id`` of each feed path the program runs with the force loop on (M100 ... M101)."""
-    on, out = False, set()
-    for step in prog.steps:
-        if isinstance(step, GcodeForce):
-            on = step.control is not None
-        elif on and isinstance(step, GcodePath):
-            out.add(id(step))
-    return out
+    return {id(step) for step in prog.pressed_paths()}
 
 
 def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.ndarray, T: float):
@@ -70,7 +63,7 @@ def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.nd
     coordinated moves of the axes (their periods: off a curve, marked with their line), the tip's
     speed from the commanded tips; the arrays are per period (``tips`` (n, 3), ``u`` the path
     parameter, ``mark`` the program line); None without such moves."""
-    feeds = {s.line: s.feed for s in prog.steps if isinstance(s, GcodeMove) and s.feed is not None and not s.rotary_only}
+    feeds = prog.feed_rates()
     if not feeds:
         return None
     speed = np.concatenate([[0.0], np.linalg.norm(np.diff(tips, axis=0), axis=1) / T])

@@ -52,6 +52,10 @@ class WireRecord:
     """the record is one block of motion (a move, a curve block, a step contour): the planner
     counts them"""
 
+    part_of_whole: ClassVar[bool] = False
+    """the record is a piece of a longer one: the card joins the pieces
+    (:class:`cnc_twin.whiteboard.codec.GeometryJoiner`) and acts on the whole"""
+
 
 @dataclass(frozen=True)
 class Move(WireRecord):
@@ -229,6 +233,8 @@ class GeometryPart(WireRecord):
     count: int
     words: np.ndarray
     """uint16, this piece of the whole record's payload"""
+
+    part_of_whole: ClassVar[bool] = True
 
     def __eq__(self, other: object) -> bool:
         return (isinstance(other, GeometryPart) and (self.kind, self.index, self.count) == (other.kind, other.index, other.count)
