@@ -9,12 +9,13 @@ import pytest
 from cnc_twin.machine.plant import Plant, load_model
 from cnc_twin.scenario.resources import models_dir
 
-SCENES = sorted(p for p in models_dir().glob("*.xml"))
+# every machine and scene; the work cell alone (workcell.xml, included by the scenes) has no machine
+SCENES = sorted(p for p in models_dir().glob("*.xml") if p.name != "workcell.xml")
 
 
 def test_bundled_models_found():
     names = {p.name for p in SCENES}
-    assert {"polisher.xml", "scene.xml"} <= names
+    assert {"polisher.xml", "scene.xml", "polisher_compliant.xml", "scene_compliant.xml"} <= names
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.name)
@@ -116,7 +117,7 @@ def test_compiled_models_are_reused_as_copies_and_recompiled_when_a_file_in_the_
     import os
     import shutil
 
-    for name in ("scene.xml", "polisher.xml"):
+    for name in ("scene.xml", "polisher.xml", "workcell.xml"):
         shutil.copy(models_dir() / name, tmp_path / name)
     scene = tmp_path / "scene.xml"
     first = load_model(scene)

@@ -28,3 +28,9 @@ def joint_name(axis: str) -> str:
 def actuator_name(axis: str) -> str:
     """MJCF actuator (the servo amplifier) of ``axis``, e.g. ``"X" -> "x_drive"``."""
     return f"{axis.lower()}_drive"
+
+
+def motor_joint_name(axis: str) -> str:
+    """MJCF hinge of ``axis``'s motor rotor in a compliant machine, e.g. ``"X" -> "x_motor"``
+    (absent in a rigid one, where the drive turns the axis joint itself)."""
+    return f"{axis.lower()}_motor"

@@ -252,7 +252,8 @@ class ServoTask:
 
         Parameters
         ----------
-        positions : true axis positions [m | rad], shape ``(6,)`` (an array: MuJoCo's ``qpos``).
+        positions : the encoders' positions [m | rad], shape ``(6,)`` (an array:
+            :meth:`~cnc_twin.machine.plant.Plant.encoder_positions`).
         pad_force : load-cell force [N].
 
         Returns

@@ -1,12 +1,19 @@
 """The machine as MuJoCo sees it: load the MJCF, resolve names to ids once, step, read sensors.
 
 Inputs per servo tick: drive command voltages, shape ``(6,)`` [V], axis order ``X Y Z A B C``.
-Outputs: axis positions [m | rad], the pad load-cell force [N, compression positive], the
-tool-tip position in the world frame [m].
+Outputs: the encoders' positions [m | rad], the pad load-cell force [N, compression positive],
+the tool-tip position in the world frame [m].
 
 The servo amplifiers (velocity mode) are MuJoCo ``general`` actuators whose ctrl is the analog
 command in volts, so the drive's own velocity loop runs in C at the physics rate. Their scaling
 ``speed_per_volt`` is read back from the model so the controller and the machine cannot disagree.
+
+Where the encoders are: an axis whose model has a motor rotor hinge (``x_motor``, a compliant
+machine: the rotor coupled to the table through the screw's or the harmonic drive's compliance)
+is read on the motor, as a rotary encoder on the motor shaft reads it (semi-closed loop): the
+hinge's angle times its drive's gear (lead / 2 pi, or 1 / ratio), in axis units. Otherwise the
+axis joint itself is read (a rigid machine, where motor and table are one body). Each axis's
+reading is one :data:`ENCODER_TAP` (``Plant.encoder_taps``), gathered by :func:`gather_encoders`.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from cnc_twin.core.axes import (
-    AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name,
+    AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name, motor_joint_name,
 )
 from cnc_twin.core.errors import ScenarioError
 
@@ -112,11 +119,38 @@ def _require(model: mujoco.MjModel, path: Path) -> None:
 
 
 BRAKES = {2: 1e7, 3: 1e6, 4: 1e6}
-"""holding brakes that close when the drives are disabled: axis index -> joint damping
-[N s/m | N m s/rad]. Z's motor has one (it hangs on its counterbalance), and so do the A/B
-motors of the tilting head. A brake is modelled as heavy viscous damping rather than
+"""holding brakes that close when the drives are disabled: axis index -> damping in axis units
+[N s/m | N m s/rad at the axis]. Z's motor has one (it hangs on its counterbalance), and so do
+the A/B motors of the tilting head. A brake is modelled as heavy viscous damping rather than
 frictionloss: MuJoCo's soft frictionloss lets a load below it creep at a rate independent of
-its size, while damping of 1e7 N s/m lets Z's 88 N of unbalance creep under 10 um/s."""
+its size, while damping of 1e7 N s/m lets Z's 88 N of unbalance creep under 10 um/s. It acts
+where the encoder is read: on the motor hinge of a compliant machine (damping x gear^2 there)."""
+
+ENCODER_TAP = np.dtype([("qpos_adr", np.int64), ("dof_adr", np.int64), ("scale", np.float64)])
+"""Where one axis's encoder reads the machine: ``qpos_adr`` / ``dof_adr`` of the joint it sits on
+(the motor hinge, or the axis joint) and ``scale``, that joint's units to axis units [m/rad at a
+screw, rad/rad at a harmonic drive; 1 on the axis joint]."""
+
+
+def encoder_taps(model: mujoco.MjModel) -> np.ndarray:
+    """Each axis's :data:`ENCODER_TAP`, shape ``(6,)``: on the motor hinge (scale: its drive's gear)
+    where the model has one, else on the axis joint (scale 1)."""
+    taps = np.zeros(len(AXES), ENCODER_TAP)
+    for i, axis in enumerate(AXES):
+        motor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, motor_joint_name(axis))
+        joint = motor if motor >= 0 else model.joint(joint_name(axis)).id
+        taps[i]["qpos_adr"] = model.jnt_qposadr[joint]
+        taps[i]["dof_adr"] = model.jnt_dofadr[joint]
+        taps[i]["scale"] = model.actuator(actuator_name(axis)).gear[0] if motor >= 0 else 1.0
+    return taps
+
+
+@njit(cache=True)
+def gather_encoders(qpos, taps, out):
+    """The encoders' positions [m | rad] into ``out`` (shape ``(n,)``) from MuJoCo's ``qpos`` and
+    the axes' :data:`ENCODER_TAP` records ``taps``."""
+    for i in range(taps.shape[0]):
+        out[i] = qpos[taps[i].qpos_adr] * taps[i].scale
 
 OBSTACLE_PARK = (0.0, 0.0, -50.0)
 """where an obstacle waits until its time comes [m]: far below the table"""
@@ -182,11 +216,14 @@ class Plant:
         self.data = mujoco.MjData(model)
         self.info = model_info(model)
         self.qpos_adr = np.array([model.joint(joint_name(a)).qposadr[0] for a in AXES], dtype=np.intp)
+        """the axis joints' addresses in ``qpos`` (the table and head positions)"""
         self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
         if not np.array_equal(self.actuator_ids, np.arange(len(AXES))):
             raise ScenarioError("<model>", "", "drive actuators must be the first six actuators, in X Y Z A B C order")
-        if not np.array_equal(self.qpos_adr, np.arange(len(AXES))):
-            raise ScenarioError("<model>", "", "axis joints must be the first six joints, in X Y Z A B C order")
+        self.encoder_taps = encoder_taps(model)
+        """where each axis's encoder reads the machine (:data:`ENCODER_TAP`, shape ``(6,)``)"""
+        self.encoders = np.zeros(len(AXES))
+        """the encoders' positions [m | rad], shape ``(6,)``: :meth:`encoder_positions` fills it"""
         force = model.sensor(PAD_FORCE_SENSOR)
         # z of the force sensor, in the pad site frame (tool axis); see pad_force().
         self._force_z_adr = int(force.adr[0]) + 2
@@ -219,11 +256,24 @@ class Plant:
         self.data.ctrl[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
+    @property
+    def encoder_home(self) -> tuple[float, ...]:
+        """The encoders' positions at the ``home`` keyframe [m | rad], shape ``(6,)``: where they
+        count from at power-on (the axis positions on a rigid machine)."""
+        out = np.zeros(len(AXES))
+        gather_encoders(self.model.key(HOME_KEYFRAME).qpos, self.encoder_taps, out)
+        return tuple(out.tolist())
+
     # --- lean per-tick path -------------------------------------------------------------
     def axis_positions(self) -> list[float]:
-        """Joint positions in axis order [m | rad], as a list of 6 floats."""
-        # The axis joints are qpos[0:6] (checked in __init__); tolist() is the cheapest exit.
-        return self._qpos.tolist()[: self._n_drives]
+        """The axis joints' positions [m | rad] (table, head), as a list of 6 floats."""
+        return self._qpos[self.qpos_adr].tolist()
+
+    def encoder_positions(self) -> np.ndarray:
+        """The encoders' positions now [m | rad], shape ``(6,)`` (:attr:`encoders`, overwritten
+        by the next call)."""
+        gather_encoders(self._qpos, self.encoder_taps, self.encoders)
+        return self.encoders
 
     def apply_volts(self, volts: list[float]) -> None:
         """Set the six drive command voltages [V] (held until the next call)."""
@@ -265,7 +315,8 @@ class Plant:
         model.actuator_biasprm[ids, 2] = 0.0
         self._ctrl[: self._n_drives] = 0.0
         for axis, damping in BRAKES.items():
-            model.dof_damping[model.jnt_dofadr[self.qpos_adr[axis]]] = damping
+            tap = self.encoder_taps[axis]
+            model.dof_damping[tap["dof_adr"]] = damping * tap["scale"] ** 2
 
     def scale_force_limit(self, axis: int, fraction: float) -> None:
         """The drive of ``axis`` can deliver only ``fraction`` of its force range from now on."""

@@ -116,9 +116,9 @@ class Clock:
         """the run's recorder"""
         # what the Python servo-tick variants call every tick, looked up once
         plant = twin.plant
-        self._plant_calls = (plant.data.qpos, plant.pad_force, plant.apply_volts, plant.step,
+        self._plant_calls = (plant.encoder_positions, plant.pad_force, plant.apply_volts, plant.step,
                              self.recorder.record_tick)
-        """MuJoCo's qpos (the axes first: the servo reads positions[0:6]) and the plant's calls"""
+        """the plant's calls: the encoders' positions, the load cell, the drives, the physics; the recorder's"""
         self.late_periods = self.missed_ticks = 0
         # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
         # per compiled call, the removal map's updates included (lockstep only: real time paces
@@ -205,12 +205,13 @@ class Clock:
             kernel.run_period(self.recorder, t)
             return t + self.ticks_per_period
         servo, frame = twin.servo, twin.servo.frame
-        positions, pad_force, apply_volts, step, record_tick = self._plant_calls
+        encoders, pad_force, apply_volts, step, record_tick = self._plant_calls
         substeps = self.substeps
         if self.dsp.drives_enabled and twin.drives is not None:
             # variant: pulse; step pulses -> the amplifiers' position loops -> their speed loops
             tick_pulses, drive = servo.tick_pulses, twin.drives.update
             for j in range(self.ticks_per_period):
+                positions = encoders()
                 apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
                 step(substeps)
                 record_tick(t, frame)
@@ -222,7 +223,7 @@ class Clock:
             twin.drives_off()  # at the first such period: the stop just disabled them
             tick = servo.tick_disabled
         for j in range(self.ticks_per_period):
-            apply_volts(tick(j, positions, pad_force()))
+            apply_volts(tick(j, encoders(), pad_force()))
             step(substeps)
             record_tick(t, frame)
             t += 1
@@ -248,7 +249,7 @@ class Clock:
                     dsp.raise_fault(FaultCode.WATCHDOG, f"no servo interrupt for {sc.supervisor.watchdog * 1e3:g} ms",
                                     k, stop=STOP_DISABLE)
                     injector.hang_ticks = 0
-            servo.read_encoders(plant.data.qpos)
+            servo.read_encoders(plant.encoder_positions())
             self.recorder.record_tick(t, frame)
             t += 1
         if not injector.hang_ticks:

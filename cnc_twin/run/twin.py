@@ -78,14 +78,14 @@ class Twin:
         obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
         self.plant, self.removal, self.tiling = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
-            scenario.axes, timing=timing, power_on=scenario.home, force_sensor=scenario.force_sensor,
+            scenario.axes, timing=timing, power_on=self.plant.encoder_home, force_sensor=scenario.force_sensor,
             output=scenario.command_output,
         )
         self.drives = None
         if scenario.command_output == "pulse":
             from cnc_twin.machine.drive import PositionModeDrives
 
-            self.drives = PositionModeDrives(scenario.axes, tick=timing.servo_period, power_on=scenario.home)
+            self.drives = PositionModeDrives(scenario.axes, tick=timing.servo_period, power_on=self.plant.encoder_home)
         self.interpolator = SegmentInterpolator(
             axes=scenario.axes, power_on=scenario.home, period=timing.interpolation_period,
             ticks_per_period=timing.ticks_per_period, compiled=compiled,
