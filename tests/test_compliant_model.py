@@ -1,0 +1,176 @@
+"""The compliant machine (models/polisher_compliant.xml) against outside references: the two-mass
+formulas for its entered parameters, Hooke's law on a clamped table, the harmonic drive's
+catalogue curve; and the card reading its encoders on the motors.
+
+Reference values: the two-mass formulas (resonance f_r = sqrt(k (1/m_t + 1/m_m)) / 2 pi,
+motor-side antiresonance f_a = sqrt(k / m_t) / 2 pi, m_m = J (2 pi / lead)^2) and the harmonic
+drive's catalogue example (size 32: 60 N m -> 7.15e-4 rad) from the shared machine-dynamics
+reference; the parameters (k, J, lead, masses) as the MJCF enters them.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import mujoco
+import numpy as np
+import pytest
+
+from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.scenario.resources import models_dir
+
+MACHINE = models_dir() / "polisher_compliant.xml"
+LOCK = 1e9
+"""armature that holds a dof still [kg | kg m^2]"""
+DT = 0.00025
+
+
+def elastic_model() -> mujoco.MjModel:
+    """The compliant machine without the harmonic drives' plastic state: mjd_transitionFD gives a
+    wrong A for a model with plastic state (MuJoCo 4.0.0); below the yield the element is a linear
+    spring, so the modes at rest are the same."""
+    return mujoco.MjModel.from_xml_string(re.sub(r' springyield="[^"]*"', "", MACHINE.read_text()))
+
+
+def screw(model: mujoco.MjModel, axis: str) -> tuple[float, float]:
+    """``(k [N/m], lead / 2 pi [m/rad])`` of ``axis``'s screw tendon as the MJCF enters them."""
+    t = model.tendon(f"{axis}_screw").id
+    adr, num = int(model.tendon_adr[t]), int(model.tendon_num[t])
+    coefs = {model.joint(int(model.wrap_objid[w])).name: float(model.wrap_prm[w]) for w in range(adr, adr + num)}
+    return float(np.ravel(model.tendon_stiffness[t])[0]), -coefs[f"{axis}_motor"]
+
+
+def two_mass(axis: str, *, motor_held: bool, timestep: float, position: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The machine with every dof but ``axis``'s table and motor held still (the motor too with
+    ``motor_held``); no actuation, Coulomb friction or joint limits (not smooth: not linearisable),
+    the table at ``position`` [m] with the screw relaxed."""
+    m = elastic_model()
+    m.opt.timestep = timestep
+    m.opt.disableflags |= (mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+                           | mujoco.mjtDisableBit.mjDSBL_LIMIT)
+    free = {f"{axis}_joint"} | (set() if motor_held else {f"{axis}_motor"})
+    for j in range(m.njnt):
+        if m.joint(j).name not in free:
+            m.dof_armature[m.jnt_dofadr[j]] = LOCK
+    d = mujoco.MjData(m)
+    mujoco.mj_setConst(m, d)
+    _, r = screw(m, axis)
+    d.qpos[m.joint(f"{axis}_joint").qposadr[0]] = position
+    d.qpos[m.joint(f"{axis}_motor").qposadr[0]] = position / r
+    mujoco.mj_forward(m, d)
+    return m, d
+
+
+def highest_mode_hz(m: mujoco.MjModel, d: mujoco.MjData) -> float:
+    """The highest undamped natural frequency [Hz] of the one-step transition matrix."""
+    nx = 2 * m.nv + m.na
+    A = np.zeros((nx, nx))
+    mujoco.mjd_transitionFD(m, d, 1e-7, True, A, None, None, None)
+    s = np.log(np.linalg.eigvals(A).astype(complex)) / m.opt.timestep
+    oscillating = s[s.imag > 2 * np.pi]
+    return float(np.abs(oscillating).max() / (2 * np.pi))
+
+
+@pytest.mark.parametrize("axis", ["x", "y", "z"])
+def test_two_mass_modes_match_the_formulas_at_both_ends_and_mid_travel(axis):
+    model = load_model(MACHINE)
+    k, r = screw(model, axis)
+    m_t = float(model.body_subtreemass[model.joint(f"{axis}_joint").bodyid[0]])  # all the slide carries
+    J = float(model.dof_armature[model.joint(f"{axis}_motor").dofadr[0]])
+    m_m = J / r ** 2
+    f_r = math.sqrt(k * (1 / m_t + 1 / m_m)) / (2 * math.pi)
+    f_a = math.sqrt(k / m_t) / (2 * math.pi)
+    lo, hi = model.joint(f"{axis}_joint").range
+    for position in (lo + 0.002, 0.5 * (lo + hi), hi - 0.002):
+        got = {(held, dt): highest_mode_hz(*two_mass(axis, motor_held=held, timestep=dt, position=position))
+               for held in (False, True) for dt in (DT, DT / 2)}
+        assert got[False, DT] == pytest.approx(f_r, rel=0.03), (position, got)
+        assert got[True, DT] == pytest.approx(f_a, rel=0.03), (position, got)
+        for held in (False, True):  # halving the physics step moves them less than 1 %
+            assert got[held, DT / 2] == pytest.approx(got[held, DT], rel=0.01), (position, held, got)
+
+
+@pytest.mark.parametrize("axis", ["x", "y", "z"])
+def test_a_force_on_the_clamped_table_deflects_it_f_over_k(axis):
+    model = load_model(MACHINE)
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+    model.dof_armature[model.joint(f"{axis}_motor").dofadr[0]] = LOCK  # the motor held (its brake)
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    k, r = screw(model, axis)
+    joint = model.joint(f"{axis}_joint")
+    mid = 0.5 * (joint.range[0] + joint.range[1])  # away from the stops (Z's home is its top)
+    rest = {}
+    for force in (0.0, 2000.0, -2000.0):
+        d = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+        d.qpos[joint.qposadr[0]] += mid
+        d.qpos[model.joint(f"{axis}_motor").qposadr[0]] += mid / r
+        d.qfrc_applied[joint.dofadr[0]] = force
+        mujoco.mj_step(model, d, nstep=6000)  # 1.5 s, many times the axial mode's decay time
+        rest[force] = float(d.qpos[joint.qposadr[0]])
+    deflection = 0.5 * (rest[2000.0] - rest[-2000.0])
+    assert deflection == pytest.approx(2000.0 / k, rel=0.05)
+
+
+def test_harmonic_drive_follows_the_catalogue_curve_with_a_hysteresis_loop():
+    """Output torque ramped 0 -> +120 -> -120 -> +120 N m on A with its motor held: the loop's
+    midline at 60 N m is the catalogue's 7.15e-4 rad within 5 %; the branches part at 0 N m (the
+    hysteresis loss, about 1 arcmin entered)."""
+    model = load_model(MACHINE)
+    model.opt.disableflags |= (mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+                               | mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+    model.dof_armature[model.joint("a_motor").dofadr[0]] = LOCK
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    d = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+    out, motor, dof = model.joint("a_joint").qposadr[0], model.joint("a_motor").qposadr[0], model.joint("a_joint").dofadr[0]
+    torques, angles = [], []
+    for start, end in ((0.0, 120.0), (120.0, -120.0), (-120.0, 120.0)):
+        n = int(abs(end - start) / 60.0 / model.opt.timestep)  # 60 N m/s: slow against the drive's mode
+        for i in range(1, n + 1):
+            d.qfrc_applied[dof] = start + (end - start) * i / n
+            mujoco.mj_step(model, d)
+            torques.append(d.qfrc_applied[dof])
+            angles.append(d.qpos[out] - d.qpos[motor] / 100.0)
+    torques, angles = np.array(torques), np.array(angles)
+    first = int(np.argmax(torques >= 120.0))
+    turn = first + int(np.argmax(torques[first:] <= -120.0))
+    falling, rising = slice(first, turn), slice(turn, len(torques))
+
+    def angle_at(branch, torque):
+        order = np.argsort(torques[branch])
+        return float(np.interp(torque, torques[branch][order], angles[branch][order]))
+
+    midline = 0.5 * (angle_at(falling, 60.0) + angle_at(rising, 60.0))
+    assert midline == pytest.approx(7.15e-4, rel=0.05)
+    loss_arcmin = math.degrees(angle_at(falling, 0.0) - angle_at(rising, 0.0)) * 60.0
+    assert 0.5 < loss_arcmin < 2.0  # the lost motion shows as a loop, about the 1 arcmin entered
+
+
+def test_the_card_reads_the_encoders_on_the_motors_of_the_compliant_machine():
+    """Each axis's encoder is its motor hinge times the drive's gear (a rotary encoder on the
+    motor, semi-closed loop); under a steady force on the table, the motor reading and the
+    table part by F/k: the card sees the motor, not the table."""
+    plant = Plant(load_model(models_dir() / "scene_compliant.xml"), timestep=DT)
+    model, data = plant.model, plant.data
+    for i, axis in enumerate("xyzab"):
+        motor = model.joint(f"{axis}_motor")
+        assert plant.encoder_taps[i]["qpos_adr"] == motor.qposadr[0]
+        assert plant.encoder_taps[i]["scale"] == pytest.approx(model.actuator(f"{axis}_drive").gear[0])
+    assert plant.encoder_taps[5]["qpos_adr"] == model.joint("c_joint").qposadr[0]  # C: no compliance modelled
+    k, _ = screw(model, "y")
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
+    data.qfrc_applied[model.joint("y_joint").dofadr[0]] = 1000.0
+    plant.apply_volts([0.0] * 6)  # the drives hold the motors at zero speed (their velocity loops)
+    plant.step(8000)
+    table = plant.axis_positions()[1]
+    encoder = float(plant.encoder_positions()[1])
+    assert table - encoder == pytest.approx(1000.0 / k, rel=0.05)
+
+
+def test_a_rigid_machine_reads_its_encoders_on_the_axis_joints():
+    plant = Plant(load_model(models_dir() / "scene.xml"), timestep=DT)
+    assert list(plant.encoder_taps["qpos_adr"]) == list(plant.qpos_adr)
+    assert list(plant.encoder_taps["scale"]) == [1.0] * 6
+    assert plant.encoder_home == tuple(plant.axis_positions())
