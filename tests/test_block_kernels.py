@@ -239,3 +239,41 @@ def test_the_path_functions_the_batch_kernel_compiles(seed):
         for leaned in (False, True):
             assert pk._tool_axis(su, sv, c1, *angles, leaned) == surface_path.tool_axis_leaned(su, sv, c1, *angles,
                                                                                                 leaned)
+
+
+def _amps(rng: np.random.Generator, n: int = 6) -> np.ndarray:
+    """Amplifiers with random loops (some P only, some with notches) and state near their limits."""
+    from cnc_twin.core.config import DriveConfig, Notch
+    from cnc_twin.machine import amplifier, plant
+
+    dt = 2.5e-4
+    drives = [None if rng.random() < 0.2 else DriveConfig(
+        speed_per_volt=rng.uniform(0.01, 0.5), kp=10 ** rng.uniform(1, 6), tn=rng.choice([0.0, rng.uniform(1e-3, 0.05)]),
+        current_bandwidth=rng.uniform(300, 3000), force_limit=rng.uniform(10, 1e4),
+        notches=tuple(Notch(rng.uniform(20, 900), rng.uniform(5, 200), rng.uniform(3, 40))
+                      for _ in range(rng.integers(0, 3))))
+        for _ in range(n)]
+    taps = np.zeros(n, plant.ENCODER_TAP)
+    taps["dof_adr"], taps["scale"] = rng.integers(0, 8, n), rng.uniform(1e-3, 1.0, n)
+    amps = amplifier.setup_amps(drives, taps, dt)
+    amps["integral"] = rng.uniform(-1, 1, n) * amps["limit"]
+    amps["notch_state"] = rng.uniform(-100, 100, amps["notch_state"].shape)
+    return amps
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_amp_force_and_drive_amps(seed):
+    from cnc_twin.machine import amplifier
+
+    rng = np.random.default_rng(seed)
+    amps = _amps(rng)
+    _walk(amplifier.amp_force, amps[amps["modelled"]] if amps["modelled"].any() else amps, rng,
+          lambda r: (r.uniform(-12, 12), r.uniform(-5, 5)), 50)
+    compiled, interpreted = _twins(amps)
+    for _ in range(20):
+        volts, qvel = rng.uniform(-12, 12, 6), rng.uniform(-50, 50, 8)
+        ctrl_c, ctrl_i = np.zeros(6), np.zeros(6)
+        amplifier.drive_amps(compiled, volts, qvel, ctrl_c)
+        amplifier.drive_amps.py_func(interpreted, volts, qvel, ctrl_i)
+        _same(ctrl_c, ctrl_i)
+    _same(compiled, np.asarray(interpreted))

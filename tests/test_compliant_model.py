@@ -152,7 +152,7 @@ def test_the_card_reads_the_encoders_on_the_motors_of_the_compliant_machine():
     """Each axis's encoder is its motor hinge times the drive's gear (a rotary encoder on the
     motor, semi-closed loop); under a steady force on the table, the motor reading and the
     table part by F/k: the card sees the motor, not the table."""
-    plant = Plant(load_model(models_dir() / "scene_compliant.xml"), timestep=DT)
+    plant = Plant(load_model(models_dir() / "scene_compliant.xml"), timestep=DT, drives=compliant_jog().drives)
     model, data = plant.model, plant.data
     for i, axis in enumerate("xyzab"):
         motor = model.joint(f"{axis}_motor")
@@ -162,7 +162,7 @@ def test_the_card_reads_the_encoders_on_the_motors_of_the_compliant_machine():
     k, _ = screw(model, "y")
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
     data.qfrc_applied[model.joint("y_joint").dofadr[0]] = 1000.0
-    plant.apply_volts([0.0] * 6)  # the drives hold the motors at zero speed (their velocity loops)
+    plant.apply_volts([0.0] * 6)  # the drives hold the motors still (their velocity loops)
     plant.step(8000)
     table = plant.axis_positions()[1]
     encoder = float(plant.encoder_positions()[1])
@@ -174,3 +174,60 @@ def test_a_rigid_machine_reads_its_encoders_on_the_axis_joints():
     assert list(plant.encoder_taps["qpos_adr"]) == list(plant.qpos_adr)
     assert list(plant.encoder_taps["scale"]) == [1.0] * 6
     assert plant.encoder_home == tuple(plant.axis_positions())
+
+
+def test_a_notch_filter_attenuates_its_centre_by_its_depth_and_passes_the_rest():
+    """The drive's notch (bilinear, prewarped at the centre) against its analog prototype:
+    -depth dB at the centre, about -3 dB of the shallow prototype at the band's edges, 0 dB far away."""
+    from cnc_twin.machine.amplifier import notch_coefficients
+
+    dt, f0, width, depth = DT, 180.0, 60.0, 20.0
+    b0, b1, b2, a1, a2 = notch_coefficients(f0, width, depth, dt)
+
+    def gain_db(f):
+        z = np.exp(-1j * 2 * np.pi * f * dt)
+        return 20 * np.log10(abs((b0 + b1 * z + b2 * z * z) / (1 + a1 * z + a2 * z * z)))
+
+    assert gain_db(f0) == pytest.approx(-depth, abs=0.01)
+    assert abs(gain_db(1.0)) < 0.01 and abs(gain_db(1500.0)) < 0.5
+    s = 2j * np.pi * np.array([f0 - width / 2, f0 + width / 2])
+    w, zp = 2 * np.pi * f0, width / (2 * f0)
+    zz = zp * 10 ** (-depth / 20)
+    analog = 20 * np.log10(np.abs((s * s + 2 * zz * w * s + w * w) / (s * s + 2 * zp * w * s + w * w)))
+    for f, expected in zip((f0 - width / 2, f0 + width / 2), analog):
+        assert gain_db(f) == pytest.approx(expected, abs=0.5)
+
+
+def compliant_jog(**overrides):
+    from cnc_twin import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    return load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={
+        "machine.model": "scene_compliant.xml", "machine.parameters": "polisher_compliant.yaml", **overrides})
+
+
+def test_the_compliant_machine_gives_one_trace_batched_compiled_and_in_python():
+    """The amplifiers' loops are one implementation: the period batches, the compiled servo and
+    the Python reference path give the same trace bit for bit on the compliant machine."""
+    from cnc_twin.run.twin import Twin
+
+    sc = compliant_jog(max_time=1.5)
+    traces = [Twin(sc, compiled=compiled, batch=batch).run().trace for compiled, batch in
+              ((True, True), (True, False), (False, False))]
+    for other in traces[1:]:
+        for name, column in traces[0].columns().items():
+            assert np.asarray(column).tobytes() == np.asarray(other.columns()[name]).tobytes(), name
+
+
+def test_the_drive_loops_are_required_on_a_current_mode_machine_and_refused_on_a_velocity_mode_one(write_scenario):
+    """A parameter file that leaves out a current-mode drive's loops (or gives them to a
+    velocity-mode drive) is refused at load, naming the key."""
+    from cnc_twin.core.errors import ScenarioError
+    from cnc_twin.scenario.load import load_scenario
+
+    for model, parameters in (("scene_compliant.xml", "polisher.yaml"), ("scene.xml", "polisher_compliant.yaml")):
+        path = write_scenario({"name": "mismatch", "machine": {"model": model, "parameters": parameters},
+                               "program": {"type": "point_to_point", "moves": [{"X": 1.0}]}})
+        with pytest.raises(ScenarioError) as caught:
+            load_scenario(path)
+        assert caught.value.key_path.startswith("axes.X.drive"), caught.value

@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
+from cnc_twin.core.axis_config import AxisConfig, DriveConfig, Notch  # noqa: F401  (part of this module's interface)
 from cnc_twin.core.gcode_config import GcodeProgram
 
 
@@ -26,79 +26,6 @@ class Timing:
     substeps_per_tick: int
     """physics steps per servo tick"""
     mode: str
-
-
-@dataclass(frozen=True)
-class AxisConfig:
-    """One axis in SI. Positions in m (linear) or rad (rotary)."""
-
-    name: str
-    rotary: bool
-    max_velocity: float
-    """[m/s | rad/s]"""
-    max_acceleration: float
-    """[m/s^2 | rad/s^2]"""
-    max_jerk: float
-    """[m/s^3 | rad/s^3]"""
-    counts_per_unit: float
-    """encoder counts per m or per rad (4 x lines x gear / lead)"""
-    kp: float
-    """[1/s]"""
-    ki: float
-    """[1/s^2]"""
-    kd: float
-    """[-]"""
-    kvff: float
-    """[-]"""
-    kaff: float
-    """[s]"""
-    output_limit: float
-    """[V]"""
-    integrator_limit: float
-    """[V]"""
-    travel: tuple[float, float] | None
-    """hard travel from the MJCF [m | rad]; None when unlimited"""
-    speed_per_volt: float
-    """drive scaling read from the MJCF [m/s/V | rad/s/V]"""
-    pulse_max_rate: float = 500e3
-    """pulse output: highest step rate of the card's generator and the drive input [pulses/s]"""
-    drive_position_gain: float = 80.0
-    """pulse output: the amplifier's position-loop gain in position mode [1/s]"""
-    drive_velocity_ff: float = 1.0
-    """pulse output: the amplifier's velocity feed-forward [-]"""
-    drive_ff_filter: float = 1e-3
-    """pulse output: time constant of the amplifier's feed-forward filter [s]"""
-    friction_ff: float = 0.0
-    """friction feed-forward [V] with the sign of the commanded speed; 0 = off"""
-    friction_ff_band: float = 1e-3
-    """commanded speed over which the friction feed-forward ramps from 0 to full [m/s | rad/s]"""
-    index_period: float = 0.0
-    """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
-    index_offset: float = 0.0
-    """position of one index pulse [m | rad]"""
-    following_error_limit: float = 0.0
-    """the supervisor's following-error limit [m | rad]; 0 = not checked"""
-    soft_limits: tuple[float, float] | None = None
-    """the supervisor's soft limits [m | rad]; None = the hard travel only"""
-
-    @property
-    def allowed(self) -> tuple[float, float] | None:
-        """Where programs may go [m | rad]: the soft limits if set, else the travel (None: anywhere)."""
-        return self.soft_limits if self.soft_limits is not None else self.travel
-
-    @property
-    def allowed_name(self) -> str:
-        """What :attr:`allowed` is called in messages: ``soft limits`` or ``travel``."""
-        return "soft limits" if self.soft_limits is not None else "travel"
-
-    @property
-    def display_factor(self) -> float:
-        """Scenario units (mm or deg) per SI unit."""
-        return 1.0 / units.position_factor(self.rotary)
-
-    @property
-    def display_unit(self) -> str:
-        return units.position_unit(self.rotary)
 
 
 @dataclass(frozen=True)
@@ -492,3 +419,8 @@ class Scenario:
 
     def axis(self, name: str) -> AxisConfig:
         return self.axes[AXES.index(name)]
+
+    @property
+    def drives(self) -> tuple[DriveConfig | None, ...]:
+        """Per axis the amplifier's own loops, or None (the MJCF's velocity-mode drive)."""
+        return tuple(a.drive for a in self.axes)

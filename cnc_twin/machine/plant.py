@@ -32,6 +32,7 @@ from cnc_twin.core.axes import (
     AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name, motor_joint_name,
 )
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.machine.amplifier import any_modelled, drive_amps, reset_amps, setup_amps
 
 PAD_FORCE_SENSOR = "pad_force"
 TOOL_POS_SENSOR = "tool_pos"
@@ -46,12 +47,20 @@ class ModelInfo:
     ----------
     travel : per axis ``(lo, hi)`` [m | rad], or ``None`` for an unlimited (continuous) joint.
     home : per axis position at the ``home`` keyframe [m | rad], shape ``(6,)``.
-    speed_per_volt : per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``.
+    speed_per_volt : per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``; NaN for a
+        current-mode drive, whose scaling is the amplifier's (the machine's parameter file).
+    current_mode : per axis, whether the MJCF's drive is a current-mode actuator (force from
+        ``ctrl``, lagged by the current loop) whose velocity loop the amplifier closes
+        (:mod:`cnc_twin.machine.amplifier`), rather than a velocity-mode one.
+    motor_per_axis : per axis, motor hinge rad per axis m | rad (1 / the drive's gear) where the
+        drive turns a motor hinge; 1 on the axis joint.
     """
 
     travel: tuple[tuple[float, float] | None, ...]
     home: tuple[float, ...]
     speed_per_volt: tuple[float, ...]
+    current_mode: tuple[bool, ...] = (False,) * 6
+    motor_per_axis: tuple[float, ...] = (1.0,) * 6
 
 
 _COMPILED: dict[tuple, mujoco.MjModel] = {}
@@ -107,9 +116,10 @@ def _require(model: mujoco.MjModel, path: Path) -> None:
         if not has(mujoco.mjtObj.mjOBJ_ACTUATOR, actuator_name(axis)):
             raise ScenarioError(path, "", f"MJCF lacks actuator '{actuator_name(axis)}' for axis {axis}")
         act = model.actuator(actuator_name(axis))
-        if not (act.biasprm[2] < 0 and act.gainprm[0] > 0):
+        if not (act.biasprm[2] < 0 and act.gainprm[0] > 0) and not _current_mode(model, act.id):
             raise ScenarioError(
-                path, "", f"actuator '{act.name}' is not a velocity-mode drive (need gainprm[0] > 0, biasprm[2] < 0)"
+                path, "", f"actuator '{act.name}' is neither a velocity-mode drive (gainprm[0] > 0, biasprm[2] < 0) "
+                          "nor a current-mode one (dyntype filterexact, gainprm[0] 1, no bias)"
             )
     for sensor in (PAD_FORCE_SENSOR, TOOL_POS_SENSOR):
         if not has(mujoco.mjtObj.mjOBJ_SENSOR, sensor):
@@ -177,17 +187,28 @@ def load_model_with_obstacles(path: Path, boxes) -> mujoco.MjModel:
     return spec.compile()
 
 
+def _current_mode(model: mujoco.MjModel, actuator: int) -> bool:
+    """Whether ``actuator`` is a current-mode drive: force = its lagged ``ctrl`` (the current
+    loop, ``dyntype="filterexact"``, gain 1, no bias)."""
+    return (model.actuator_dyntype[actuator] == mujoco.mjtDyn.mjDYN_FILTEREXACT
+            and model.actuator_gainprm[actuator, 0] == 1.0 and model.actuator_biastype[actuator] == 0)
+
+
 def model_info(model: mujoco.MjModel) -> ModelInfo:
     """Travel ranges, home positions and drive scaling of a checked model."""
     key = model.key(HOME_KEYFRAME)
-    travel, home, spv = [], [], []
+    travel, home, spv, current, ratio = [], [], [], [], []
     for axis in AXES:
         joint = model.joint(joint_name(axis))
         travel.append((float(joint.range[0]), float(joint.range[1])) if joint.limited[0] else None)
         home.append(float(key.qpos[joint.qposadr[0]]))
         act = model.actuator(actuator_name(axis))
-        spv.append(float(act.gainprm[0] / -act.biasprm[2]))
-    return ModelInfo(travel=tuple(travel), home=tuple(home), speed_per_volt=tuple(spv))
+        current.append(_current_mode(model, act.id))
+        spv.append(float("nan") if current[-1] else float(act.gainprm[0] / -act.biasprm[2]))
+        on_motor = model.actuator_trnid[act.id, 0] != joint.id
+        ratio.append(1.0 / float(act.gear[0]) if on_motor else 1.0)
+    return ModelInfo(travel=tuple(travel), home=tuple(home), speed_per_volt=tuple(spv), current_mode=tuple(current),
+                     motor_per_axis=tuple(ratio))
 
 
 
@@ -208,13 +229,21 @@ class Plant:
     ----------
     model : a model checked by :func:`load_model`; its ``opt.timestep`` is set to ``timestep``.
     timestep : physics step [s].
+    drives : per axis the amplifier's own loops (:class:`~cnc_twin.core.config.DriveConfig`) for a
+        current-mode drive of the MJCF, else None (the default: every drive velocity-mode).
     """
 
-    def __init__(self, model: mujoco.MjModel, *, timestep: float):
+    def __init__(self, model: mujoco.MjModel, *, timestep: float, drives=None):
         self.model = model
         self.model.opt.timestep = timestep
         self.data = mujoco.MjData(model)
         self.info = model_info(model)
+        drives = tuple(drives) if drives is not None else (None,) * len(AXES)
+        for axis, drive, current in zip(AXES, drives, self.info.current_mode):
+            if current != (drive is not None):
+                raise ScenarioError("<model>", f"axes.{axis}.drive",
+                                    "the MJCF's drive is current-mode: the parameter file must give the amplifier's "
+                                    "loops" if current else "the MJCF's drive is velocity-mode: it takes no drive loops")
         self.qpos_adr = np.array([model.joint(joint_name(a)).qposadr[0] for a in AXES], dtype=np.intp)
         """the axis joints' addresses in ``qpos`` (the table and head positions)"""
         self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
@@ -224,6 +253,18 @@ class Plant:
         """where each axis's encoder reads the machine (:data:`ENCODER_TAP`, shape ``(6,)``)"""
         self.encoders = np.zeros(len(AXES))
         """the encoders' positions [m | rad], shape ``(6,)``: :meth:`encoder_positions` fills it"""
+        self.amps = setup_amps(drives, self.encoder_taps, timestep)
+        """the amplifiers (:data:`~cnc_twin.machine.amplifier.AMP`, shape ``(6,)``)"""
+        self.amps_modelled = any_modelled(self.amps)
+        """whether any amplifier runs its loops here (then every physics step updates ``ctrl``)"""
+        for i, drive in enumerate(drives):
+            if drive is not None:  # the current loop's lag and the torque limit are the drive's
+                act = self.actuator_ids[i]
+                model.actuator_dynprm[act, 0] = 1.0 / (2.0 * np.pi * drive.current_bandwidth)
+                model.actuator_ctrlrange[act] = (-drive.force_limit, drive.force_limit)
+                model.actuator_forcerange[act] = (-drive.force_limit, drive.force_limit)
+        self.volts = np.zeros(len(AXES))
+        """the drives' command voltages [V], shape ``(6,)``: the DACs' outputs, held"""
         force = model.sensor(PAD_FORCE_SENSOR)
         # z of the force sensor, in the pad site frame (tool axis); see pad_force().
         self._force_z_adr = int(force.adr[0]) + 2
@@ -254,6 +295,8 @@ class Plant:
         """Put the machine at the ``home`` keyframe at rest, drives at 0 V."""
         mujoco.mj_resetDataKeyframe(self.model, self.data, self.model.key(HOME_KEYFRAME).id)
         self.data.ctrl[:] = 0.0
+        self.volts[:] = 0.0
+        reset_amps(self.amps)
         mujoco.mj_forward(self.model, self.data)
 
     @property
@@ -277,11 +320,19 @@ class Plant:
 
     def apply_volts(self, volts: list[float]) -> None:
         """Set the six drive command voltages [V] (held until the next call)."""
-        self._ctrl[: self._n_drives] = volts
+        self.volts[:] = volts
+        if not self.amps_modelled:  # velocity-mode drives: the voltage is MuJoCo's control
+            self._ctrl[: self._n_drives] = volts
 
     def step(self, n: int) -> None:
-        """Advance the physics ``n`` steps of ``timestep``."""
-        mujoco.mj_step(self.model, self.data, nstep=n)
+        """Advance the physics ``n`` steps of ``timestep`` (the amplifiers' loops before each)."""
+        if not self.amps_modelled:
+            mujoco.mj_step(self.model, self.data, nstep=n)
+            return
+        model, data, amps, volts, qvel, ctrl = self.model, self.data, self.amps, self.volts, self.data.qvel, self._ctrl
+        for _ in range(n):
+            drive_amps(amps, volts, qvel, ctrl)
+            mujoco.mj_step(model, data)
 
     def pad_force(self) -> float:
         """Load-cell force between head and pad along the tool axis [N], compression positive.
@@ -314,6 +365,7 @@ class Plant:
         model.actuator_gainprm[ids, 0] = 0.0
         model.actuator_biasprm[ids, 2] = 0.0
         self._ctrl[: self._n_drives] = 0.0
+        self.volts[:] = 0.0
         for axis, damping in BRAKES.items():
             tap = self.encoder_taps[axis]
             model.dof_damping[tap["dof_adr"]] = damping * tap["scale"] ** 2

@@ -44,7 +44,7 @@ from numba import njit
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import curve_stepper, feed_slew, force, servo, spindle, supervisor
 from cnc_twin.geometry import kinematics, span_eval, surface_path
-from cnc_twin.machine import plant
+from cnc_twin.machine import amplifier, plant
 from cnc_twin.motion import scurve, trapezoid
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
@@ -55,7 +55,7 @@ from cnc_twin.run import c_clock, servo_kernel
 purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file__, servo_kernel.__file__,
                        servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
                        c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
-                       spindle.__file__, scurve.__file__, trapezoid.__file__])
+                       spindle.__file__, scurve.__file__, trapezoid.__file__, amplifier.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise
@@ -224,8 +224,8 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
     interpolation time [ns] (feed, force, path, kinematics, setpoint: what ``DspTask`` times around
     ``next_period``).
     """
-    (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, taps,
-     positions, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
+    (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, qvel, taps,
+     positions, amps, volts, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row0, row_step) = servo_args
     ev, correct, sstate, sscratch = curve_args
     phases, times, v1 = profile
     timed, interp_ns, timespec = timing
@@ -382,7 +382,7 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
         _latch_setpoint(axes, setpoint, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
         servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, False, qpos,
-                               taps, positions, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row)
+                               qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force, row)
         last = row + tpp - 1
         for i in range(n):
             axis_state[i].prev_command = rec_command[last, i]

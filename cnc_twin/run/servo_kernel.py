@@ -10,9 +10,10 @@ the kernel and the task work on the same records (``servo.axes``, ``servo.load_c
 Per tick ``j`` of the period::
 
     positions = the encoders' positions from qpos (gather_encoders)
-    servo_tick(axes, fraction[j] or the step interpolator's point, positions) -> ctrl
+    servo_tick(axes, fraction[j] or the step interpolator's point, positions) -> volts
     force = read_load_cell(-sensordata[force_adr])
-    mj_step x substeps; record command, reading, DAC code, force at row t + j
+    (drive_amps(volts, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
+    force at row t + j
 
 Used for analog output with the drives enabled and no injected card faults (the fault injector
 changes the records between ticks from Python).
@@ -26,7 +27,7 @@ import numpy as np
 
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import adc, dac, encoder, pid, servo
-from cnc_twin.machine import mujoco_c, plant
+from cnc_twin.machine import amplifier, mujoco_c, plant
 
 
 def available() -> bool:
@@ -36,7 +37,7 @@ def available() -> bool:
 
 # the kernel calls MuJoCo through mujoco_c's bindings and the servo's blocks: recompile when they change
 purge_stale(__file__, [mujoco_c.__file__, servo.__file__, encoder.__file__, pid.__file__, dac.__file__,
-                       adc.__file__, plant.__file__])
+                       adc.__file__, plant.__file__, amplifier.__file__])
 
 if mujoco_c.IMPORT_ERROR is None:
     from numba import njit
@@ -45,23 +46,27 @@ if mujoco_c.IMPORT_ERROR is None:
     _servo_tick = servo.servo_tick
     _read_load_cell = servo.read_load_cell
     _gather_encoders = plant.gather_encoders
+    _drive_amps = amplifier.drive_amps
 
     @njit(cache=True, nogil=True)
     def run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands,
-                  qpos, taps, positions, ctrl, sensordata, force_adr, rec_command, rec_actual, rec_dac, rec_force,
-                  t0):  # pragma: no cover - compiled
+                  qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, rec_command, rec_actual,
+                  rec_dac, rec_force, t0):  # pragma: no cover - compiled
         """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`) and
         ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`, shape ``(1,)``) from recorder row
         ``t0``, each followed by ``substeps`` physics steps. The encoders read ``qpos`` where
-        ``taps`` (:data:`~cnc_twin.machine.plant.ENCODER_TAP`) say, into ``positions``."""
+        ``taps`` (:data:`~cnc_twin.machine.plant.ENCODER_TAP`) say, into ``positions``; the DACs
+        write ``volts``, which the amplifiers ``amps`` (:data:`~cnc_twin.machine.amplifier.AMP`)
+        turn into MuJoCo's ``ctrl`` before every physics step."""
         cell = load_cell[0]
         for j in range(fractions.shape[0]):
             row = t0 + j
             _gather_encoders(qpos, taps, positions)
             _servo_tick(axes, fractions[j], tick_commands[j], use_tick_commands, positions, rec_command[row],
-                        rec_actual[row], rec_dac[row], ctrl)
+                        rec_actual[row], rec_dac[row], volts)
             rec_force[row] = _read_load_cell(cell, -sensordata[force_adr])
             for _ in range(substeps):
+                _drive_amps(amps, volts, qvel, ctrl)
                 _mj_step(model_ptr, data_ptr)
 
 
@@ -82,10 +87,10 @@ class CompiledServo:
         self.substeps = substeps
         self.plant_args = (mujoco_c.address(plant.model), mujoco_c.address(plant.data), substeps)
         """MuJoCo's model and data pointers and the physics steps per tick: the kernel's first arguments"""
-        self.plant_arrays = (plant.data.qpos, plant.encoder_taps, plant.encoders, plant.data.ctrl,
-                             plant.data.sensordata, plant.force_sensor_adr)
-        """MuJoCo's qpos, the encoders' taps and positions, ctrl and sensordata, and the load
-        cell's address in sensordata"""
+        self.plant_arrays = (plant.data.qpos, plant.data.qvel, plant.encoder_taps, plant.encoders, plant.amps,
+                             plant.volts, plant.data.ctrl, plant.data.sensordata, plant.force_sensor_adr)
+        """MuJoCo's qpos and qvel, the encoders' taps and positions, the amplifiers and their
+        voltages, MuJoCo's ctrl and sensordata, and the load cell's address in sensordata"""
 
     def tick_args(self) -> tuple:
         """The kernel's arguments from the servo's records to the plant's arrays, for this period."""

@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from cnc_twin.core import units
 from cnc_twin.core.axes import AXES, is_rotary
-from cnc_twin.core.config import AxisConfig, Timing
+from cnc_twin.core.config import AxisConfig, DriveConfig, Notch, Timing
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.plant import ModelInfo
 from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict
@@ -58,6 +58,26 @@ class PulseSpec(Strict):
     ff_filter: float = Field(1.0, ge=0, description="feed-forward filter time constant [ms]")
 
 
+class NotchSpec(Strict):
+    """A notch filter on the drive's torque command (drive commissioning's "current setpoint filter")."""
+
+    frequency: float = Field(gt=1.0, le=2000.0, description="centre frequency [Hz]")
+    width: float = Field(gt=0.0, le=2000.0, description="-3 dB bandwidth [Hz]")
+    depth: float = Field(gt=0.0, le=60.0, description="attenuation at the centre [dB]")
+
+
+class DriveSpec(Strict):
+    """The servo amplifier's own loops, in motor terms as a drive's parameter list gives them, for
+    a machine whose MJCF drive is current-mode (models/polisher_compliant.xml)."""
+
+    speed_at_10v: float = Field(gt=0.0, le=20000.0, description="motor speed commanded by +10 V [rpm]")
+    kp_speed: float = Field(gt=0.0, le=1e3, description="velocity-loop proportional gain [N m s/rad at the motor]")
+    tn_speed: float = Field(0.0, ge=0.0, le=1000.0, description="velocity-loop integral time [ms]; 0 = P only")
+    current_bandwidth: float = Field(1000.0, gt=10.0, le=20000.0, description="current-loop bandwidth [Hz]")
+    torque_limit: float = Field(gt=0.0, le=1e4, description="peak torque [N m at the motor]")
+    notch_filters: list[NotchSpec] = Field([], max_length=2, description="on the torque command, at most two")
+
+
 class AxisSpec(Strict):
     """One axis: limits (mm or deg based), encoder, servo gains."""
 
@@ -67,6 +87,8 @@ class AxisSpec(Strict):
     encoder: EncoderSpec
     servo: ServoSpec
     pulse: PulseSpec = PulseSpec()
+    drive: DriveSpec | None = Field(None, description="the amplifier's own loops (a current-mode MJCF drive); "
+                                    "none: the MJCF's velocity-mode drive")
     following_error_limit: float = Field(0.0, ge=0, description="the supervisor's following-error limit [mm | deg]; 0 = off")
     soft_limits: list[float] | None = Field(None, min_length=2, max_length=2,
                                             description="[low, high] the supervisor keeps the axis within [mm | deg]; "
@@ -215,6 +237,7 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
     for i, axis in enumerate(AXES):
         a: AxisSpec = getattr(spec, axis)
         rotary = is_rotary(axis)
+        drive = _drive(axis, a, info, label)
         out.append(
             AxisConfig(
                 name=axis,
@@ -233,7 +256,8 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],
-                speed_per_volt=info.speed_per_volt[i],
+                speed_per_volt=drive.speed_per_volt if drive is not None else info.speed_per_volt[i],
+                drive=drive,
                 pulse_max_rate=a.pulse.max_rate * 1e3,
                 drive_position_gain=a.pulse.position_gain,
                 drive_velocity_ff=a.pulse.velocity_ff,
@@ -246,6 +270,35 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
         )
         _check_counter(out[-1], a.encoder.lines_per_rev, label)
     return tuple(out)
+
+
+def _drive(axis: str, a: AxisSpec, info: ModelInfo, label: Path) -> DriveConfig | None:
+    """The amplifier's loops in axis units, where the MJCF's drive is current-mode (they must be
+    given then, and only then); the motor's ratio to the axis from the encoder's screw and gear,
+    which must agree with the MJCF's drive gear."""
+    current = info.current_mode[AXES.index(axis)]
+    if (a.drive is not None) != current:
+        need = "gives a current-mode drive: give the amplifier's loops here" if current else \
+            "gives a velocity-mode drive (its loop is in the MJCF): remove this key"
+        raise ScenarioError(label, f"axes.{axis}.drive", f"the machine's MJCF {need}")
+    if a.drive is None:
+        return None
+    d, enc = a.drive, a.encoder
+    # motor rad per axis m (screw lead and gear) or per axis rad (the gear ratio)
+    ratio = enc.gear_ratio if is_rotary(axis) else 2.0 * math.pi * enc.gear_ratio / (enc.pitch * units.MM)
+    model_ratio = info.motor_per_axis[AXES.index(axis)]
+    if not math.isclose(ratio, model_ratio, rel_tol=1e-6):
+        raise ScenarioError(label, f"axes.{axis}.encoder", f"the encoder's screw and gear give {ratio:.6g} motor rad "
+                            f"per axis unit, the MJCF's drive gear {model_ratio:.6g}")
+    return DriveConfig(
+        speed_per_volt=d.speed_at_10v * 2.0 * math.pi / 60.0 / 10.0 / ratio,
+        kp=d.kp_speed * ratio ** 2,
+        tn=d.tn_speed * units.MS,
+        current_bandwidth=d.current_bandwidth,
+        force_limit=d.torque_limit * ratio,
+        notches=tuple(Notch(n.frequency, n.width, n.depth) for n in d.notch_filters),
+        motor_per_axis=ratio,
+    )
 
 
 COUNTER_MAX = 2**31 - 1

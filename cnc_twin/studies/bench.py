@@ -48,9 +48,10 @@ from cnc_twin.scenario.load import load_scenario
 from cnc_twin.run.twin import Twin
 
 
-def time_bare_steps(model_file: Path, *, timestep: float, steps: int) -> float:
-    """Wall time [s] of ``steps`` calls of ``mj_step`` on a fresh plant at home."""
-    plant = Plant(load_model(model_file), timestep=timestep)
+def time_bare_steps(model_file: Path, *, timestep: float, steps: int, drives=None) -> float:
+    """Wall time [s] of ``steps`` calls of ``mj_step`` on a fresh plant at home (``drives``: the
+    scenario's, :attr:`~cnc_twin.core.config.Scenario.drives`, for a machine with current-mode drives)."""
+    plant = Plant(load_model(model_file), timestep=timestep, drives=drives)
     model, data, mj_step = plant.model, plant.data, mujoco.mj_step
     start = time.perf_counter()
     for _ in range(steps):
@@ -122,7 +123,8 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         totals.append(total - wall)
         wall, total, _ = time_twin_run(scenario_file, planners)
         pooled.append(total - wall)
-        bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps))
+        bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps,
+                                          drives=scenario.drives))
         no_record.append(time_twin_run(scenario_file, record=False)[0])
         python_servo.append(time_twin_run(scenario_file, compiled=False)[0])
     planners.close()
@@ -167,7 +169,8 @@ def _replay_figures(scenario, trace, repeat: int, twin_s: float) -> dict[str, An
 
     model = run_model(scenario)
     timing = scenario.timing
-    replays = [time_replayed_steps(model, trace.dac, timestep=timing.physics_timestep, substeps=timing.substeps_per_tick)
+    replays = [time_replayed_steps(model, trace.dac, timestep=timing.physics_timestep, substeps=timing.substeps_per_tick,
+                                   drives=scenario.drives)
                for _ in range(max(1, repeat))]
     replay_s = min(r.seconds for r in replays)
     return {"replay_mj_step_s": replay_s, "ratio_twin_over_replay": twin_s / replay_s,

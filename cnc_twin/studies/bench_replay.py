@@ -45,28 +45,37 @@ class Replay:
     """the six axis joint positions after the last tick [m | rad]"""
 
 
-def time_replayed_steps(model: mujoco.MjModel, dac_codes: np.ndarray, *, timestep: float, substeps: int) -> Replay:
+def time_replayed_steps(model: mujoco.MjModel, dac_codes: np.ndarray, *, timestep: float, substeps: int,
+                        drives=None) -> Replay:
     """Step ``model`` from home, ``substeps`` physics steps of ``timestep`` per row of
-    ``dac_codes`` ((ticks, 6) DAC codes), each row's voltages on the drives for its tick."""
-    plant = Plant(model, timestep=timestep)
+    ``dac_codes`` ((ticks, 6) DAC codes), each row's voltages on the drives for its tick (through
+    the amplifiers' loops where ``drives``, the scenario's, give them)."""
+    plant = Plant(model, timestep=timestep, drives=drives)
     data = plant.data
     volts = np.asarray(dac_codes, dtype=np.float64) * VOLTS_PER_CODE
-    ctrl = data.ctrl
-    n = volts.shape[1]
-    mj_step = mujoco.mj_step
     contacts = 0
     start = time.perf_counter()
-    for row in volts:
-        ctrl[:n] = row
-        mj_step(model, data, nstep=substeps)
-        contacts += data.ncon
+    if plant.amps_modelled:
+        apply_volts, step = plant.apply_volts, plant.step
+        for row in volts:
+            apply_volts(row)
+            step(substeps)
+            contacts += data.ncon
+    else:
+        ctrl = data.ctrl
+        n = volts.shape[1]
+        mj_step = mujoco.mj_step
+        for row in volts:
+            ctrl[:n] = row
+            mj_step(model, data, nstep=substeps)
+            contacts += data.ncon
     elapsed = time.perf_counter() - start
     return Replay(elapsed, contacts / max(len(volts), 1), np.array(plant.axis_positions()))
 
 
 def contacts_at_rest(scenario: Scenario, *, steps: int = 200) -> float:
     """Mean contacts per step of the bare MJCF at home, drives at 0 V (the at-rest denominator)."""
-    plant = Plant(load_model(scenario.model_file), timestep=scenario.timing.physics_timestep)
+    plant = Plant(load_model(scenario.model_file), timestep=scenario.timing.physics_timestep, drives=scenario.drives)
     total = 0
     for _ in range(steps):
         mujoco.mj_step(plant.model, plant.data)

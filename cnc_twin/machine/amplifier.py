@@ -1,0 +1,143 @@
+"""Servo amplifiers with loops of their own: what a real drive does between the card's DAC and the
+motor, run at the physics rate.
+
+A compliant machine's MJCF gives each drive as a current-mode actuator on the motor hinge
+(``dyntype="filterexact"``: the current loop as a first-order lag, its time constant set from
+the bandwidth here; ``gear`` = lead / 2 pi or 1 / ratio, so forces are in axis units). The
+velocity loop, the notch filters and the torque limit are the amplifier's, computed before every
+physics step from the DAC voltage and the motor's speed::
+
+    w*     = speed_per_volt V                        # the analog input [m/s | rad/s at the axis]
+    e      = w* - w_motor                           # the motor's speed (its encoder), axis units
+    u      = kp e + I                               # PI
+    I     += kp e dt / tn    unless u is limited and e pushes further (anti-windup)
+    u      = notch_k(u) for each notch              # biquads, bilinear with prewarping
+    force  = clamp(u, +-force_limit)                # -> ctrl; MuJoCo lags it (the current loop)
+
+An axis whose drive is the MJCF's own velocity-mode actuator (a rigid machine's ideal velocity
+source) passes the voltage through: ``ctrl = V``.
+
+The state of all six is one :data:`AMP` record array; :func:`drive_amps` is its one algorithm,
+compiled with numba and called by :class:`~cnc_twin.machine.plant.Plant` from Python and by the
+compiled servo kernels on the same records. :func:`notch_coefficients` is also what the linear
+analysis (:mod:`cnc_twin.studies.linearize`) builds its notch filters from.
+
+=================  ======================  ==========================================  ===========
+field              unit                    meaning                                     written by
+=================  ======================  ==========================================  ===========
+modelled           -                       the drive's loops run here (else ctrl = V)  set up
+speed_per_volt     m/s/V | rad/s/V         the analog input's scaling                   set up
+kp                 N/(m/s) | N m/(rad/s)   velocity-loop gain                           set up
+ki_dt              N/m | N m/rad           kp dt / tn: the integral's gain per step     set up
+limit              N | N m                 the force limit                              set up
+dof_adr            -                       the motor hinge's dof (its speed)            set up
+scale              m/rad | rad/rad         motor to axis units (the drive's gear)       set up
+n_notches          -                       notch filters in use (0 .. 2)                set up
+notch              -                       per notch: b0, b1, b2, a1, a2                set up
+notch_state        -                       per notch: the biquad's two delays           :func:`amp_force`
+integral           N | N m                 the PI's integral                            :func:`amp_force`
+=================  ======================  ==========================================  ===========
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numba import njit
+
+MAX_NOTCHES = 2
+
+AMP = np.dtype([("modelled", np.bool_), ("speed_per_volt", np.float64), ("kp", np.float64), ("ki_dt", np.float64),
+                ("limit", np.float64), ("dof_adr", np.int64), ("scale", np.float64), ("n_notches", np.int64),
+                ("notch", np.float64, (MAX_NOTCHES, 5)), ("notch_state", np.float64, (MAX_NOTCHES, 2)),
+                ("integral", np.float64)])
+"""one amplifier's record: see the module docstring"""
+
+
+def notch_coefficients(frequency: float, width: float, depth: float, dt: float) -> tuple[float, ...]:
+    """``(b0, b1, b2, a1, a2)`` of a notch at ``frequency`` [Hz], ``width`` [Hz] (-3 dB), ``depth``
+    [dB] of attenuation at the centre, sampled at ``dt`` [s]:
+    ``H(s) = (s^2 + 2 zz w s + w^2) / (s^2 + 2 zp w s + w^2)``, ``zp = width / (2 frequency)``,
+    ``zz = zp 10^(-depth / 20)``, by the bilinear transform prewarped at the centre (so the notch
+    sits where it is set)."""
+    w = 2.0 * math.pi * frequency
+    zp = width / (2.0 * frequency)
+    zz = zp * 10.0 ** (-depth / 20.0)
+    k = w / math.tan(w * dt / 2.0)
+    a0 = k * k + 2.0 * zp * w * k + w * w
+    b0 = (k * k + 2.0 * zz * w * k + w * w) / a0
+    b1 = (2.0 * w * w - 2.0 * k * k) / a0
+    b2 = (k * k - 2.0 * zz * w * k + w * w) / a0
+    a1 = b1
+    a2 = (k * k - 2.0 * zp * w * k + w * w) / a0
+    return b0, b1, b2, a1, a2
+
+
+def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
+    """The six amplifiers' records: ``drives`` per axis a :class:`~cnc_twin.core.config.DriveConfig`
+    or None (the MJCF's velocity-mode drive: voltage passed through); ``taps`` the plant's
+    encoder taps (:data:`~cnc_twin.machine.plant.ENCODER_TAP`: the motor hinge's dof and gear);
+    ``dt`` the physics step [s]."""
+    amps = np.zeros(len(drives), AMP)
+    for i, drive in enumerate(drives):
+        if drive is None:
+            continue
+        a = amps[i]
+        a["modelled"] = True
+        a["speed_per_volt"], a["kp"], a["limit"] = drive.speed_per_volt, drive.kp, drive.force_limit
+        a["ki_dt"] = drive.kp * dt / drive.tn if drive.tn > 0.0 else 0.0
+        a["dof_adr"], a["scale"] = taps[i]["dof_adr"], taps[i]["scale"]
+        if len(drive.notches) > MAX_NOTCHES:
+            raise ValueError(f"at most {MAX_NOTCHES} notch filters per drive, got {len(drive.notches)}")
+        a["n_notches"] = len(drive.notches)
+        for n, notch in enumerate(drive.notches):
+            a["notch"][n] = notch_coefficients(notch.frequency, notch.width, notch.depth, dt)
+    return amps
+
+
+def reset_amps(amps: np.ndarray) -> None:
+    """The amplifiers as at power-on: no integral, the filters at rest."""
+    amps["integral"] = 0.0
+    amps["notch_state"] = 0.0
+
+
+@njit(cache=True)
+def amp_force(a, volts, speed):
+    """One amplifier's force command [N | N m at the axis] for the voltage ``volts`` [V] and the
+    motor's ``speed`` [m/s | rad/s at the axis]; advances ``a`` (an :data:`AMP` record) by one step."""
+    error = a.speed_per_volt * volts - speed
+    u = a.kp * error + a.integral
+    # anti-windup: the integral stops while the output is limited and the error pushes further
+    if not ((u > a.limit and error > 0.0) or (u < -a.limit and error < 0.0)):
+        a.integral += a.ki_dt * error
+    for n in range(a.n_notches):
+        c = a.notch[n]
+        s = a.notch_state[n]
+        y = c[0] * u + s[0]
+        s[0] = c[1] * u - c[3] * y + s[1]
+        s[1] = c[2] * u - c[4] * y
+        u = y
+    if u > a.limit:
+        return a.limit
+    if u < -a.limit:
+        return -a.limit
+    return u
+
+
+@njit(cache=True)
+def drive_amps(amps, volts, qvel, ctrl):
+    """Every amplifier for one physics step: ``ctrl`` (MuJoCo's, the drives first) from the DACs'
+    ``volts`` [V] and MuJoCo's ``qvel``; a drive that is not modelled passes its voltage."""
+    for i in range(amps.shape[0]):
+        a = amps[i]
+        if a.modelled:
+            ctrl[i] = amp_force(a, volts[i], qvel[a.dof_adr] * a.scale)
+        else:
+            ctrl[i] = volts[i]
+
+
+def any_modelled(amps: np.ndarray) -> bool:
+    """Whether any amplifier runs loops of its own (else ``ctrl`` is the voltages)."""
+    return bool(amps["modelled"].any())
