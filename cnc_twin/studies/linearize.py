@@ -2,17 +2,24 @@
 
 Plant, from the DAC voltage to encoder counts, discrete at the servo period ``Ts``::
 
-    MuJoCo at the home keyframe, Coulomb friction (frictionloss) removed (non-smooth), linearised
-    by finite differences (mujoco.mjd_transitionFD) over one physics step; the axis's position
-    and velocity and its drive's input picked out; ``n`` substeps per servo tick with the voltage
-    held (zero-order hold): Ad = A^n, Bd = sum_k A^k B; output y = counts_per_unit * q.
+    MuJoCo at the home keyframe, whole (every joint, tendon and actuator state), linearised by
+    finite differences (mujoco.mjd_transitionFD) over one physics step, with what is not smooth
+    left out: Coulomb friction (frictionloss), the joint limits, the harmonic drives' plasticity
+    (an elastic copy: below the yield the element is a linear spring; mjd_transitionFD's A is
+    wrong for a model with plastic state, MuJoCo 4.0.0). Every amplifier with loops of its own
+    (cnc_twin.machine.amplifier: velocity PI on the motor's speed, notch filters; the current
+    loop is MuJoCo's actuator state) is closed around it at the physics rate, the others' inputs
+    at 0 V; the axis's voltage held over the servo tick's ``n`` substeps (zero-order hold):
+    Ad = M^n, Bd = sum_k M^k N; output y = counts_per_unit x the encoder's position (the motor's
+    on a compliant machine, the axis joint's on a rigid one).
 
 Controller, from following error [counts] to volts, as the card computes it each tick (the
 encoder is read at the tick's start and the DAC written at once, so no extra delay)::
 
     C(z) = kp_c + ki_c Ts z / (z - 1) + kd_c / Ts (z - 1) / z,    gains in volts per count (pid.py)
 
-The open loop is ``L = C P``; the closed loop from command to position is ``L / (1 + L)``.
+The open loop is ``L = C P``; the closed loop from command to position is ``L / (1 + L)``. All
+in state space (a transfer function of this order is numerically useless).
 """
 
 from __future__ import annotations
@@ -23,35 +30,80 @@ import control
 import mujoco
 import numpy as np
 
-from cnc_twin.core.axes import AXES, actuator_name, joint_name
+from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import AxisConfig, Scenario
-from cnc_twin.core.axes import HOME_KEYFRAME
-from cnc_twin.machine.plant import load_model
+from cnc_twin.machine.plant import Plant, load_model
+
+
+def linear_plant(scenario: Scenario) -> Plant:
+    """The scenario's machine as it is linearised: an elastic copy (no plastic state), with
+    Coulomb friction and the joint limits off, at the home keyframe, at rest."""
+    load_model(scenario.model_file)  # the file's checks, with their clear errors
+    spec = mujoco.MjSpec.from_file(str(scenario.model_file))
+    for tendon in spec.tendons:
+        tendon.springyield = 0.0
+    plant = Plant(spec.compile(), timestep=scenario.timing.physics_timestep, drives=scenario.drives)
+    plant.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
+    plant.reset()
+    return plant
+
+
+def amplifier_ss(amp: np.void) -> control.StateSpace:
+    """One amplifier's loops (:data:`~cnc_twin.machine.amplifier.AMP`) from speed error [axis units]
+    to force command, discrete at the physics step: the PI (``u = kp e + I``, ``I += ki_dt e``)
+    and its notch biquads in series, as :func:`~cnc_twin.machine.amplifier.amp_force` runs them
+    (its limit left out)."""
+    out = control.ss([[1.0]], [[amp["ki_dt"]]], [[1.0]], [[amp["kp"]]], True)
+    for n in range(int(amp["n_notches"])):
+        b0, b1, b2, a1, a2 = amp["notch"][n]
+        notch = control.ss([[-a1, 1.0], [-a2, 0.0]], [[b1 - a1 * b0], [b2 - a2 * b0]], [[1.0, 0.0]], [[b0]], True)
+        out = control.series(out, notch)
+    return out
 
 
 def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
     """The axis plant from DAC volts to encoder counts, discrete at the servo period."""
     timing = scenario.timing
-    model = load_model(scenario.model_file)
-    model.opt.timestep = timing.physics_timestep
-    model.dof_frictionloss[:] = 0.0
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key(HOME_KEYFRAME).id)
-    mujoco.mj_forward(model, data)
+    plant = linear_plant(scenario)
+    model, data = plant.model, plant.data
     nv, na = model.nv, model.na
-    A = np.zeros((2 * nv + na, 2 * nv + na))
-    B = np.zeros((2 * nv + na, model.nu))
+    nx = 2 * nv + na
+    A = np.zeros((nx, nx))
+    B = np.zeros((nx, model.nu))
     mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
-    dof = model.joint(joint_name(axis)).dofadr[0]
-    states = [dof, nv + dof]
-    a = A[np.ix_(states, states)]
-    b = B[states, model.actuator(actuator_name(axis)).id][:, None]
-    ad, bd = np.eye(2), np.zeros((2, 1))
+    i_axis = AXES.index(axis)
+    # close every amplifier's velocity loop around MuJoCo's step: states [x, z_1 .. z_m]
+    loops = [(i, amplifier_ss(plant.amps[i])) for i in range(len(AXES)) if plant.amps[i]["modelled"]]
+    size = nx + sum(loop.nstates for _, loop in loops)
+    M, N = np.zeros((size, size)), np.zeros((size, 1))
+    M[:nx, :nx] = A
+    if not plant.amps[i_axis]["modelled"]:
+        N[:nx, 0] = B[:, plant.actuator_ids[i_axis]]  # a velocity-mode drive: the voltage is its control
+    at = nx
+    for i, loop in loops:
+        amp = plant.amps[i]
+        speed = np.zeros(nx)
+        speed[nv + amp["dof_adr"]] = amp["scale"]  # the motor's speed [axis units] from the state
+        Az, Bz, Cz, Dz = (np.asarray(m) for m in (loop.A, loop.B, loop.C, loop.D))
+        k, b = slice(at, at + loop.nstates), B[:, plant.actuator_ids[i]]
+        # u = Cz z + Dz e, e = spv V (this axis) - speed . x
+        M[:nx, :nx] -= np.outer(b, speed) * Dz[0, 0]
+        M[:nx, k] += np.outer(b, Cz[0])
+        M[k, :nx] -= np.outer(Bz[:, 0], speed)
+        M[k, k] = Az
+        if i == i_axis:
+            N[:nx, 0] += b * Dz[0, 0] * amp["speed_per_volt"]
+            N[k, 0] += Bz[:, 0] * amp["speed_per_volt"]
+        at += loop.nstates
+    ad, bd = np.eye(size), np.zeros((size, 1))
     for _ in range(timing.substeps_per_tick):  # voltage held over the servo tick
-        bd = a @ bd + b
-        ad = a @ ad
+        bd = M @ bd + N
+        ad = M @ ad
     cfg = scenario.axis(axis)
-    return control.ss(ad, bd, [[cfg.counts_per_unit, 0.0]], [[0.0]], dt=timing.servo_period)
+    c = np.zeros((1, size))
+    tap = plant.encoder_taps[i_axis]
+    c[0, tap["dof_adr"]] = cfg.counts_per_unit * tap["scale"]
+    return control.ss(ad, bd, c, [[0.0]], dt=timing.servo_period)
 
 
 def pid_controller(cfg: AxisConfig, servo_period: float, **gains: float) -> control.TransferFunction:
@@ -59,7 +111,7 @@ def pid_controller(cfg: AxisConfig, servo_period: float, **gains: float) -> cont
     g = 1.0 / (cfg.speed_per_volt * cfg.counts_per_unit)
     kp, ki, kd = (gains.get(name, getattr(cfg, name)) * g for name in ("kp", "ki", "kd"))
     z = control.tf([1.0, 0.0], [1.0], servo_period)
-    return kp + ki * servo_period * z / (z - 1) + kd / servo_period * (z - 1) / z
+    return control.ss(kp + ki * servo_period * z / (z - 1) + kd / servo_period * (z - 1) / z)
 
 
 @dataclass(frozen=True)
@@ -76,12 +128,30 @@ class LoopReport:
     settling_time_s: float
 
 
-def margins(loop: control.LTI, dt: float) -> tuple[float, float, float]:
-    """(gain margin [dB], phase margin [deg], gain crossover [rad/s]) of a discrete open loop,
-    from its frequency response on a dense grid up to Nyquist (phase unwrapped). The gain margin
-    is inf when the phase never reaches -180 deg below Nyquist."""
-    omega = np.logspace(-1, np.log10(np.pi / dt * 0.999), 20000)
-    resp = loop(np.exp(1j * omega * dt))
+def frequency_grid(dt: float, points: int = 20000) -> np.ndarray:
+    """The analysis's frequencies [rad/s]: 0.1 rad/s to just below Nyquist, log-spaced."""
+    return np.logspace(-1, np.log10(np.pi / dt * 0.999), points)
+
+
+def frequency_response(system: control.StateSpace, omega: np.ndarray, dt: float) -> np.ndarray:
+    """A discrete single-input single-output system's response at ``z = exp(j omega dt)``, by one
+    eigendecomposition of its A (a solve per frequency costs 100 times more at 40 states); a
+    direct evaluation where A's eigenvectors are too ill-conditioned for that."""
+    z = np.exp(1j * omega * dt)
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (system.A, system.B, system.C, system.D))
+    if A.shape[0] == 0:
+        return np.full(z.shape, D[0, 0], dtype=complex)
+    lam, V = np.linalg.eig(A)
+    if np.linalg.cond(V) > 1e12:
+        return np.asarray(system(z)).reshape(z.shape)
+    weights = (C[0] @ V) * np.linalg.solve(V, B[:, 0])
+    return weights @ (1.0 / (z[None, :] - lam[:, None])) + D[0, 0]
+
+
+def margins_of(resp: np.ndarray, omega: np.ndarray) -> tuple[float, float, float]:
+    """(gain margin [dB], phase margin [deg], gain crossover [rad/s]) of an open loop's frequency
+    response ``resp`` at ``omega`` [rad/s] (phase unwrapped). The gain margin is inf when the
+    phase never reaches -180 deg below Nyquist."""
     mag, phase = np.abs(resp), np.unwrap(np.angle(resp))
     cross = np.flatnonzero((mag[:-1] >= 1.0) & (mag[1:] < 1.0))
     if not cross.size:
@@ -94,31 +164,37 @@ def margins(loop: control.LTI, dt: float) -> tuple[float, float, float]:
     return gm_db, pm, wc
 
 
-def _bandwidth_hz(closed: control.LTI, dt: float) -> float:
-    """First frequency where the closed loop falls 3 dB below its DC gain [Hz] (up to Nyquist)."""
-    omega = np.logspace(-1, np.log10(np.pi / dt * 0.999), 4000)
-    mag = np.abs(closed(np.exp(1j * omega * dt)))
-    dc = abs(closed(1.0))
+def _bandwidth_hz(loop_response: np.ndarray, omega: np.ndarray) -> float:
+    """First frequency where the closed loop ``L / (1 + L)`` (from the open loop's response at
+    ``omega`` [rad/s]) falls 3 dB below its DC gain [Hz]; the grid's end if it never does."""
+    mag = np.abs(loop_response / (1.0 + loop_response))
+    dc = 1.0  # the plant integrates (speed -> position): a closed position loop's DC gain is 1
     below = np.flatnonzero(mag < dc / np.sqrt(2.0))
-    return float(omega[below[0]] / (2 * np.pi)) if below.size else float(np.pi / dt / (2 * np.pi))
+    return float(omega[below[0] if below.size else -1] / (2 * np.pi))
 
 
-def analyse(scenario: Scenario, axis: str, **gains: float) -> tuple[LoopReport, control.LTI, control.LTI]:
-    """Margins, bandwidth and step figures; returns (report, open loop, closed loop)."""
+def analyse(scenario: Scenario, axis: str, *, plant: control.StateSpace | None = None,
+            **gains: float) -> tuple[LoopReport, control.LTI, control.LTI]:
+    """Margins, bandwidth and step figures; returns (report, open loop, closed loop). ``plant``:
+    the axis's :func:`axis_plant`, when the caller has it already (it costs about 0.5 s)."""
     if axis not in AXES:
         raise ValueError(f"axis must be one of {' '.join(AXES)}, got {axis!r}")
     cfg = scenario.axis(axis)
-    plant = axis_plant(scenario, axis)
-    loop = pid_controller(cfg, scenario.timing.servo_period, **gains) * plant
+    dt = scenario.timing.servo_period
+    plant = axis_plant(scenario, axis) if plant is None else plant
+    pid = pid_controller(cfg, dt, **gains)
+    loop = control.series(pid, plant)
     closed = control.feedback(loop, 1)
-    gm_db, pm, wc = margins(loop, scenario.timing.servo_period)
-    info = control.step_info(closed)
+    omega = frequency_grid(dt)
+    response = frequency_response(pid, omega, dt) * frequency_response(plant, omega, dt)
+    gm_db, pm, wc = margins_of(response, omega)
+    info = control.step_info(closed, yfinal=1.0)  # type-1 loop (see _bandwidth_hz)
     report = LoopReport(
         axis=axis,
         gain_margin_db=gm_db,
         phase_margin_deg=pm,
         crossover_hz=wc / (2 * np.pi),
-        bandwidth_hz=_bandwidth_hz(closed, scenario.timing.servo_period),
+        bandwidth_hz=_bandwidth_hz(response, omega),
         rise_time_s=float(info["RiseTime"]),
         overshoot_pct=float(info["Overshoot"]),
         settling_time_s=float(info["SettlingTime"]),

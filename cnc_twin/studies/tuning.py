@@ -18,7 +18,9 @@ import numpy as np
 from cnc_twin.core import units
 from cnc_twin.core.config import Scenario
 from cnc_twin.dsp.dac import CODE_MAX, CODE_MIN
-from cnc_twin.studies.linearize import analyse, margins, pid_controller, axis_plant
+from cnc_twin.studies.linearize import (
+    analyse, axis_plant, frequency_grid, frequency_response, margins_of, pid_controller,
+)
 from cnc_twin.scenario.load import load_scenario
 from cnc_twin.run.twin import run_scenario
 
@@ -39,13 +41,14 @@ def candidates(scenario: Scenario, axis: str, *, phase_margin: float = 45.0, gai
                kp_range: tuple[float, float] = (5.0, 400.0)) -> list[Proposal]:
     """Every (kp, ki) on the search grid meeting both margins, highest crossover first."""
     cfg = scenario.axis(axis)
-    plant = axis_plant(scenario, axis)
     dt = scenario.timing.servo_period
+    omega = frequency_grid(dt)
+    plant = frequency_response(axis_plant(scenario, axis), omega, dt)  # once: only the PID changes
     out = []
     for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
         for ratio in KI_RATIOS:
             ki = ratio * kp * kp
-            gm, pm, wc = margins(pid_controller(cfg, dt, kp=kp, ki=ki) * plant, dt)
+            gm, pm, wc = margins_of(frequency_response(pid_controller(cfg, dt, kp=kp, ki=ki), omega, dt) * plant, omega)
             if pm >= phase_margin and gm >= gain_margin and np.isfinite(wc):
                 out.append(Proposal(float(kp), float(ki), pm, gm, wc / (2 * np.pi)))
     return sorted(out, key=lambda p: -p.crossover_hz)
@@ -122,12 +125,13 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
         raise ValueError(f"the {abs(step):g} {units.position_unit(scenario.axis(axis).rotary)} step with the "
                          f"current gains ends in a fault on the twin ({before['fault']}); choose a smaller --step")
     picks = [found[int(i)] for i in np.unique(np.linspace(0, len(found) - 1, min(tries, len(found))).round())]
+    plant = axis_plant(scenario, axis)
     qualified, fastest = [], None
     for cand in picks:
         twin = twin_step(scenario_file, axis, step=step, kp=cand.kp, ki=cand.ki)
         # better than the current gains, and behaving as its linear loop predicts (drive force
         # limits and DAC saturation are not in the linear model)
-        linear = analyse(scenario, axis, kp=cand.kp, ki=cand.ki)[0]
+        linear = analyse(scenario, axis, plant=plant, kp=cand.kp, ki=cand.ki)[0]
         if beats(twin, before) and twin["overshoot_pct"] <= linear.overshoot_pct + 10.0:
             qualified.append((cand, twin))
         if fastest is None or _settle_key(twin) < _settle_key(fastest[1]):
@@ -154,8 +158,9 @@ def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_mar
     lines = [f"axis {axis}: targets phase margin >= {phase_margin:g} deg, gain margin >= {gain_margin:g} dB",
              f"{'':18}{'kp [1/s]':>10}{'ki [1/s^2]':>12}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}"
              f"{'rise [ms]':>11}{'overshoot':>11}{'settle [ms]':>13}"]
+    plant = axis_plant(scenario, axis)
     for name, kp, ki, twin in rows:
-        lin = analyse(scenario, axis, kp=kp, ki=ki)[0]
+        lin = analyse(scenario, axis, plant=plant, kp=kp, ki=ki)[0]
         lines.append(f"{name:<18}{kp:>10.1f}{ki:>12.1f}{lin.phase_margin_deg:>10.1f}{lin.gain_margin_db:>9.1f}"
                      f"{lin.crossover_hz:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
                      f"{twin['settling_time_s'] * 1e3:>13.1f}")
