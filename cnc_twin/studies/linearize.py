@@ -61,10 +61,13 @@ def amplifier_ss(amp: np.void) -> control.StateSpace:
     return out
 
 
-def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
-    """The axis plant from DAC volts to encoder counts, discrete at the servo period."""
-    timing = scenario.timing
-    plant = linear_plant(scenario)
+def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(M, N, speed)`` of the linearised machine over one physics step, ``x' = M x + N u``, with
+    every amplifier's velocity loop closed (PI and notches as :func:`amplifier_ss`), the other
+    axes' inputs at 0 V; ``u`` is ``axis``'s voltage [V], or with ``force_input`` its force
+    command [N | N m at the axis] with that axis's own amplifier left open (what a drive's
+    commissioning measures: the mechanics as its motor sees them). ``speed``: the row that reads
+    the axis's motor speed [m/s | rad/s at the axis] from the state. ``plant``: :func:`linear_plant`."""
     model, data = plant.model, plant.data
     nv, na = model.nv, model.na
     nx = 2 * nv + na
@@ -72,13 +75,13 @@ def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
     B = np.zeros((nx, model.nu))
     mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
     i_axis = AXES.index(axis)
-    # close every amplifier's velocity loop around MuJoCo's step: states [x, z_1 .. z_m]
-    loops = [(i, amplifier_ss(plant.amps[i])) for i in range(len(AXES)) if plant.amps[i]["modelled"]]
+    loops = [(i, amplifier_ss(plant.amps[i])) for i in range(len(AXES))
+             if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
     size = nx + sum(loop.nstates for _, loop in loops)
     M, N = np.zeros((size, size)), np.zeros((size, 1))
     M[:nx, :nx] = A
-    if not plant.amps[i_axis]["modelled"]:
-        N[:nx, 0] = B[:, plant.actuator_ids[i_axis]]  # a velocity-mode drive: the voltage is its control
+    if force_input or not plant.amps[i_axis]["modelled"]:
+        N[:nx, 0] = B[:, plant.actuator_ids[i_axis]]  # the actuator's control itself
     at = nx
     for i, loop in loops:
         amp = plant.amps[i]
@@ -95,15 +98,34 @@ def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
             N[:nx, 0] += b * Dz[0, 0] * amp["speed_per_volt"]
             N[k, 0] += Bz[:, 0] * amp["speed_per_volt"]
         at += loop.nstates
-    ad, bd = np.eye(size), np.zeros((size, 1))
+    tap = plant.encoder_taps[i_axis]
+    speed = np.zeros(size)
+    speed[nv + tap["dof_adr"]] = tap["scale"]
+    return M, N, speed
+
+
+def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
+    """The axis plant from DAC volts to encoder counts, discrete at the servo period."""
+    timing = scenario.timing
+    plant = linear_plant(scenario)
+    M, N, _ = machine_loop(plant, axis)
+    ad, bd = np.eye(M.shape[0]), np.zeros((M.shape[0], 1))
     for _ in range(timing.substeps_per_tick):  # voltage held over the servo tick
         bd = M @ bd + N
         ad = M @ ad
     cfg = scenario.axis(axis)
-    c = np.zeros((1, size))
-    tap = plant.encoder_taps[i_axis]
+    c = np.zeros((1, M.shape[0]))
+    tap = plant.encoder_taps[AXES.index(axis)]
     c[0, tap["dof_adr"]] = cfg.counts_per_unit * tap["scale"]
     return control.ss(ad, bd, c, [[0.0]], dt=timing.servo_period)
+
+
+def mechanics(scenario: Scenario, axis: str) -> control.StateSpace:
+    """The axis's mechanics as its drive sees them: from the force command [N | N m at the axis]
+    to the motor's speed [m/s | rad/s at the axis], discrete at the physics step, the other
+    drives' loops closed (:func:`machine_loop` with ``force_input``)."""
+    M, N, speed = machine_loop(linear_plant(scenario), axis, force_input=True)
+    return control.ss(M, N, speed[None, :], [[0.0]], dt=scenario.timing.physics_timestep)
 
 
 def pid_controller(cfg: AxisConfig, servo_period: float, **gains: float) -> control.TransferFunction:
