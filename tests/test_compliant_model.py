@@ -231,3 +231,35 @@ def test_the_drive_loops_are_required_on_a_current_mode_machine_and_refused_on_a
         with pytest.raises(ScenarioError) as caught:
             load_scenario(path)
         assert caught.value.key_path.startswith("axes.X.drive"), caught.value
+
+
+def test_todays_gains_ring_on_motor_encoders_and_go_unstable_on_linear_scales(write_scenario):
+    """The gains tuned on the rigid machine (kp 400 1/s, ki 16000 1/s^2): on the compliant machine's
+    motor encoders X keeps 12.6 deg of phase margin (it rings), on linear scales it is unstable;
+    the supervisor then stops the machine on its following-error limit, drives off and at rest,
+    where gains within the mechanics' limits (kp 30 1/s) run the same program through."""
+    import yaml
+
+    from cnc_twin import run_scenario
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+    from cnc_twin.studies.linearize import analyse
+
+    on_motor = compliant_jog()
+    assert analyse(on_motor, "X")[0].phase_margin_deg < 20.0
+    raw = yaml.safe_load((scenarios_dir() / "jog_axes_compliant.yaml").read_text())
+    raw["program"] = {"type": "point_to_point", "moves": [{"X": 5.0, "feed": 600, "dwell": 0.5}], "settle": 0.3}
+    outcome = {}
+    for kp, ki in ((400.0, 16000.0), (30.0, 0.0)):
+        raw["axes"] = {"X": {"encoder": {"mount": "table"}, "following_error_limit": 0.1, "servo": {"kp": kp, "ki": ki}}}
+        scenario = load_scenario(write_scenario(raw, name=f"scales_{kp:g}.yaml"))
+        report = analyse(scenario, "X")[0]
+        result = run_scenario(scenario)
+        outcome[kp] = (report, result)
+    report, result = outcome[400.0]
+    assert report.gain_margin_db < 0.0  # unstable on the linear model too
+    assert result.status == "fault" and result.metrics["fault"]["code"] == "FOLLOWING_ERROR"
+    assert result.metrics["fault"]["stop"] == "disable" and result.metrics["fault"]["at_rest_s"] < 1.0
+    report, result = outcome[30.0]
+    assert report.gain_margin_db >= 6.0 and report.phase_margin_deg >= 40.0
+    assert result.status == "complete" and result.metrics["final_state"] == "FINISHED"

@@ -95,6 +95,9 @@ class AxisConfig:
     """the supervisor's following-error limit [m | rad]; 0 = not checked"""
     soft_limits: tuple[float, float] | None = None
     """the supervisor's soft limits [m | rad]; None = the hard travel only"""
+    encoder_mount: str = "motor"
+    """where the encoder reads the machine: ``motor`` (semi-closed loop) or ``table`` (a linear
+    scale, or a rotary axis's output: full-closed loop); one and the same on a rigid machine"""
     drive: DriveConfig | None = None
     """the amplifier's own loops where the machine's parameter file gives them (a current-mode
     drive in the MJCF); None: the MJCF's velocity-mode drive (an ideal velocity source)"""

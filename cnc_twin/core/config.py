@@ -424,3 +424,8 @@ class Scenario:
     def drives(self) -> tuple[DriveConfig | None, ...]:
         """Per axis the amplifier's own loops, or None (the MJCF's velocity-mode drive)."""
         return tuple(a.drive for a in self.axes)
+
+    @property
+    def encoder_mounts(self) -> tuple[str, ...]:
+        """Per axis where its encoder reads the machine: ``motor`` or ``table``."""
+        return tuple(a.encoder_mount for a in self.axes)

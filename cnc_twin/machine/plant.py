@@ -142,12 +142,16 @@ ENCODER_TAP = np.dtype([("qpos_adr", np.int64), ("dof_adr", np.int64), ("scale",
 screw, rad/rad at a harmonic drive; 1 on the axis joint]."""
 
 
-def encoder_taps(model: mujoco.MjModel) -> np.ndarray:
+def encoder_taps(model: mujoco.MjModel, mounts=None) -> np.ndarray:
     """Each axis's :data:`ENCODER_TAP`, shape ``(6,)``: on the motor hinge (scale: its drive's gear)
-    where the model has one, else on the axis joint (scale 1)."""
+    where the model has one and the axis's ``mounts`` entry is ``motor`` (the default), else on the
+    axis joint (scale 1: a linear scale on the table, an encoder on a rotary axis's output)."""
     taps = np.zeros(len(AXES), ENCODER_TAP)
+    mounts = mounts or ("motor",) * len(AXES)
     for i, axis in enumerate(AXES):
         motor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, motor_joint_name(axis))
+        if mounts[i] == "table":
+            motor = -1
         joint = motor if motor >= 0 else model.joint(joint_name(axis)).id
         taps[i]["qpos_adr"] = model.jnt_qposadr[joint]
         taps[i]["dof_adr"] = model.jnt_dofadr[joint]
@@ -231,9 +235,11 @@ class Plant:
     timestep : physics step [s].
     drives : per axis the amplifier's own loops (:class:`~cnc_twin.core.config.DriveConfig`) for a
         current-mode drive of the MJCF, else None (the default: every drive velocity-mode).
+    encoder_mounts : per axis ``motor`` or ``table``: where the card's encoder reads the machine
+        (the default: on the motors, where the model has them).
     """
 
-    def __init__(self, model: mujoco.MjModel, *, timestep: float, drives=None):
+    def __init__(self, model: mujoco.MjModel, *, timestep: float, drives=None, encoder_mounts=None):
         self.model = model
         self.model.opt.timestep = timestep
         self.data = mujoco.MjData(model)
@@ -249,11 +255,11 @@ class Plant:
         self.actuator_ids = np.array([model.actuator(actuator_name(a)).id for a in AXES], dtype=np.intp)
         if not np.array_equal(self.actuator_ids, np.arange(len(AXES))):
             raise ScenarioError("<model>", "", "drive actuators must be the first six actuators, in X Y Z A B C order")
-        self.encoder_taps = encoder_taps(model)
+        self.encoder_taps = encoder_taps(model, encoder_mounts)
         """where each axis's encoder reads the machine (:data:`ENCODER_TAP`, shape ``(6,)``)"""
         self.encoders = np.zeros(len(AXES))
         """the encoders' positions [m | rad], shape ``(6,)``: :meth:`encoder_positions` fills it"""
-        self.amps = setup_amps(drives, self.encoder_taps, timestep)
+        self.amps = setup_amps(drives, encoder_taps(model), timestep)  # the drive reads its motor's speed
         """the amplifiers (:data:`~cnc_twin.machine.amplifier.AMP`, shape ``(6,)``)"""
         self.amps_modelled = any_modelled(self.amps)
         """whether any amplifier runs its loops here (then every physics step updates ``ctrl``)"""

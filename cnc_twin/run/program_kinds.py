@@ -58,7 +58,8 @@ class ProgramKind:
         sizes [m]) added, and what comes with it."""
         sc = twin.scenario
         return PlantParts(Plant(load_model_with_obstacles(sc.model_file, obstacles),
-                                timestep=sc.timing.physics_timestep, drives=sc.drives))
+                                timestep=sc.timing.physics_timestep, drives=sc.drives,
+                                encoder_mounts=sc.encoder_mounts))
 
     def stop_time(self, program) -> float | None:
         """Time to stop from the programmed feed, jerk-limited [s]; None for programs without a
@@ -141,7 +142,7 @@ def _workpiece_plant(twin: Twin, obstacles: list, surface_def, preston, friction
 
     sc = twin.scenario
     surface, model, tiling, grid = workpiece(sc.model_file, surface_def, tile_size, obstacles, preston.grid_spacing)
-    plant = Plant(model, timestep=sc.timing.physics_timestep, drives=sc.drives)
+    plant = Plant(model, timestep=sc.timing.physics_timestep, drives=sc.drives, encoder_mounts=sc.encoder_mounts)
     removal = RemovalTracker(preston, friction, surface, plant.model, plant.data, sc.timing.interpolation_period,
                              compiled=twin.compiled, grid=grid)
     return PlantParts(plant, removal, tiling)

@@ -24,12 +24,24 @@ from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict
 
 
 class EncoderSpec(Strict):
-    """Quadrature encoder on the motor shaft (semi-closed loop)."""
+    """The axis's position feedback: a quadrature encoder on the motor shaft (semi-closed loop),
+    or a linear scale on the table / an encoder on a rotary axis's output (full-closed loop)."""
 
     lines_per_rev: int = Field(gt=0, le=2**24, description="encoder lines per motor revolution; the QEP counts 4 edges per line")
     gear_ratio: float = Field(1.0, gt=0, description="motor revolutions per screw (linear) or axis (rotary) revolution")
     pitch: float | None = Field(None, gt=0, description="ball-screw lead [mm per screw revolution]; linear axes only")
     index_offset: float = Field(0.0, description="where one of the index pulses (one per motor revolution) is [mm | deg]")
+    mount: Literal["motor", "table"] = Field("motor", description="motor: the encoder on the motor (semi-closed "
+                                             "loop); table: a linear scale on the table, or an encoder on a rotary "
+                                             "axis's output (full-closed loop); the same on a rigid machine")
+    resolution: float | None = Field(None, gt=0, le=1.0, description="a table-mounted encoder's resolution "
+                                     "[mm | deg per count]; default: the motor encoder's (lines, pitch, gear)")
+
+    @model_validator(mode="after")
+    def _resolution_only_on_the_table(self) -> "EncoderSpec":
+        if self.resolution is not None and self.mount != "table":
+            raise KeyedValueError(("resolution",), "a resolution is given for a table-mounted encoder (mount: table) only")
+        return self
 
 
 class ServoSpec(Strict):
@@ -219,6 +231,8 @@ def convert_timing(spec: TimingSpec, label: Path) -> Timing:
 
 
 def _counts_per_unit(axis: str, enc: EncoderSpec) -> float:
+    if enc.resolution is not None:
+        return 1.0 / (enc.resolution * units.position_factor(is_rotary(axis)))
     counts_per_motor_rev = 4.0 * enc.lines_per_rev
     if is_rotary(axis):
         return counts_per_motor_rev * enc.gear_ratio / (2.0 * math.pi)
@@ -258,6 +272,7 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
                 travel=info.travel[i],
                 speed_per_volt=drive.speed_per_volt if drive is not None else info.speed_per_volt[i],
                 drive=drive,
+                encoder_mount=a.encoder.mount,
                 pulse_max_rate=a.pulse.max_rate * 1e3,
                 drive_position_gain=a.pulse.position_gain,
                 drive_velocity_ff=a.pulse.velocity_ff,

@@ -42,7 +42,8 @@ def linear_plant(scenario: Scenario) -> Plant:
     spec = mujoco.MjSpec.from_file(str(scenario.model_file))
     for tendon in spec.tendons:
         tendon.springyield = 0.0
-    plant = Plant(spec.compile(), timestep=scenario.timing.physics_timestep, drives=scenario.drives)
+    plant = Plant(spec.compile(), timestep=scenario.timing.physics_timestep, drives=scenario.drives,
+                  encoder_mounts=scenario.encoder_mounts)
     plant.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
     plant.reset()
     return plant
