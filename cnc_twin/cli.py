@@ -351,11 +351,22 @@ def _tune(args: argparse.Namespace) -> int:
         raise ScenarioError(args.scenario, "", str(exc)) from None
     print(format_verdict(verdict, scenario, axis, phase_margin=args.phase_margin, gain_margin=args.gain_margin,
                          step=args.step))
+    mechanics = None
+    if cfg.drive is not None:  # a drive with loops of its own: its mechanics, measured as commissioning does
+        from cnc_twin.studies.commissioning import format_mechanics, measure_mechanics, model_mechanics
+
+        measured = measure_mechanics(scenario, axis)
+        mechanics = (measured, model_mechanics(scenario, axis, measured.frequency))
+        print(format_mechanics(axis, *mechanics))
     if args.out is not None:
         gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
         if verdict.proposal is not None:
             gains["proposed"] = {"kp": verdict.proposal.kp, "ki": verdict.proposal.ki}
         paths = save_plots(scenario, axis, args.out, gains)
+        if mechanics is not None:
+            from cnc_twin.studies.commissioning import save_mechanics_plot
+
+            paths.append(save_mechanics_plot(axis, *mechanics, args.out))
         print("plots: " + ", ".join(str(p) for p in paths))
     return EXIT_OK
 

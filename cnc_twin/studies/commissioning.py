@@ -208,3 +208,41 @@ def entered_rigid_body(scenario: Scenario, axis: str) -> RigidBody:
         viscous += float(model.dof_damping[mdof]) / gear ** 2
         coulomb += float(model.dof_frictionloss[mdof]) / gear
     return RigidBody(inertia, viscous, coulomb)
+
+
+def format_mechanics(axis: str, measured: FrequencyResponse, model: FrequencyResponse) -> str:
+    """One line: the resonance and antiresonance measured on the twin beside the model's."""
+    got, expected = resonances(measured), resonances(model)
+    return (f"axis {axis} mechanics (drive force -> motor speed), measured on the twin: resonance "
+            f"{got.resonance_hz:.1f} Hz, antiresonance {got.antiresonance_hz:.1f} Hz; linear model: "
+            f"{expected.resonance_hz:.1f} Hz, {expected.antiresonance_hz:.1f} Hz")
+
+
+def save_mechanics_plot(axis: str, measured: FrequencyResponse, model: FrequencyResponse, out_dir):
+    """The measured and the model's mechanics (|H| 2 pi f, the mass line taken out: the rigid
+    body is a flat line, the antiresonance a dip, the resonance a peak), both marked, as PNG."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, fr, style in (("measured on the twin", measured, "-"), ("linear model", model, "--")):
+        level = 20 * np.log10(np.abs(fr.response) * 2 * np.pi * fr.frequency)
+        line, = ax.semilogx(fr.frequency, level, style, label=name)
+        marks = resonances(fr)
+        for f in (marks.resonance_hz, marks.antiresonance_hz):
+            ax.axvline(f, color=line.get_color(), lw=0.6, ls=style)
+    ax.set_xlim(5, measured.frequency[-1])
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("|H| 2 pi f [dB]  (1 / inertia)")
+    ax.set_title(f"axis {axis}: force command -> motor speed (resonance, antiresonance marked)")
+    ax.legend()
+    path = out_dir / f"{axis}_mechanics.png"
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path

@@ -267,10 +267,12 @@ def save_plots(scenario: Scenario, axis: str, out_dir: Path, gains: dict[str, di
     paths = []
     fig_bode, (ax_mag, ax_phase) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     fig_step, ax_step = plt.subplots(figsize=(7, 4))
-    omega = np.logspace(-1, np.log10(np.pi / dt * 0.999), 2000)
+    omega = frequency_grid(dt, 2000)
+    plant_response = frequency_response(plant, omega, dt)
     for name, g in gains.items():
-        loop = pid_controller(cfg, dt, **g) * plant
-        resp = loop(np.exp(1j * omega * dt))
+        pid = pid_controller(cfg, dt, **g)
+        loop = control.series(pid, plant)
+        resp = frequency_response(pid, omega, dt) * plant_response
         hz = omega / (2 * np.pi)
         ax_mag.semilogx(hz, 20 * np.log10(np.abs(resp)), label=name)
         ax_phase.semilogx(hz, np.degrees(np.unwrap(np.angle(resp))), label=name)
