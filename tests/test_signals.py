@@ -40,6 +40,17 @@ def _start(folder: Path) -> subprocess.Popen:
                             start_new_session=True)
 
 
+def _wait_until_running(proc: subprocess.Popen, timeout: float = 120.0) -> None:
+    """Until the twin runs: the command's whiteboard segment exists (it is made as the run
+    starts, and the freeform run lasts seconds after it); the two moments whose outcome is
+    asserted are found this way rather than from a clean run's time, which a loaded machine
+    can stretch many times over."""
+    deadline = time.monotonic() + timeout
+    while not [n for n in leftover_segments() if n.startswith(f"cnc_twin_{proc.pid}_")]:
+        assert proc.poll() is None and time.monotonic() < deadline, "the run never started"
+        time.sleep(0.01)
+
+
 def _wait_until_started(proc: subprocess.Popen, timeout: float = 60.0) -> None:
     """Until the CLI has started: its first lines catch SIGINT and SIGTERM (cnc_twin/entry.py).
     Before that the interpreter itself is starting, and a signal there is the OS's business."""
@@ -123,6 +134,11 @@ def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
     t0 = time.monotonic()
     proc = _start(tmp_path / f"m{k}")
     _wait_until_started(proc)
+    if k == 0:  # the first moment: as soon as the command catches signals, long before any run
+        at = time.monotonic() - t0
+    elif k == MOMENTS // 2:  # the middle one: once the twin is running (its whiteboard exists)
+        _wait_until_running(proc)
+        at = time.monotonic() - t0 + 0.2
     time.sleep(max(0.0, t0 + at - time.monotonic()))
     sent = time.time()
     proc.send_signal(sig)
