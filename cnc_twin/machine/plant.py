@@ -134,7 +134,7 @@ BRAKES = {2: 1e7, 3: 1e6, 4: 1e6}
 the A/B motors of the tilting head. A brake is modelled as heavy viscous damping rather than
 frictionloss: MuJoCo's soft frictionloss lets a load below it creep at a rate independent of
 its size, while damping of 1e7 N s/m lets Z's 88 N of unbalance creep under 10 um/s. It acts
-where the encoder is read: on the motor hinge of a compliant machine (damping x gear^2 there)."""
+on the motor: its hinge on a compliant machine (damping x gear^2 there)."""
 
 ENCODER_TAP = np.dtype([("qpos_adr", np.int64), ("dof_adr", np.int64), ("scale", np.float64)])
 """Where one axis's encoder reads the machine: ``qpos_adr`` / ``dof_adr`` of the joint it sits on
@@ -259,7 +259,10 @@ class Plant:
         """where each axis's encoder reads the machine (:data:`ENCODER_TAP`, shape ``(6,)``)"""
         self.encoders = np.zeros(len(AXES))
         """the encoders' positions [m | rad], shape ``(6,)``: :meth:`encoder_positions` fills it"""
-        self.amps = setup_amps(drives, encoder_taps(model), timestep)  # the drive reads its motor's speed
+        self.motor_taps = encoder_taps(model)
+        """each axis's motor (its axis joint on a rigid machine): where its drive reads the speed and
+        its brake holds, whatever the card's encoder reads"""
+        self.amps = setup_amps(drives, self.motor_taps, timestep)
         """the amplifiers (:data:`~cnc_twin.machine.amplifier.AMP`, shape ``(6,)``)"""
         self.amps_modelled = any_modelled(self.amps)
         """whether any amplifier runs its loops here (then every physics step updates ``ctrl``)"""
@@ -373,7 +376,7 @@ class Plant:
         self._ctrl[: self._n_drives] = 0.0
         self.volts[:] = 0.0
         for axis, damping in BRAKES.items():
-            tap = self.encoder_taps[axis]
+            tap = self.motor_taps[axis]
             model.dof_damping[tap["dof_adr"]] = damping * tap["scale"] ** 2
 
     def scale_force_limit(self, axis: int, fraction: float) -> None:

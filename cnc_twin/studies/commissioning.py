@@ -71,7 +71,7 @@ def measure_mechanics(scenario: Scenario, axis: str, *, seconds: float = 4.0, am
     rng = np.random.default_rng(seed)
     r = amplitude * limit * np.repeat(np.where(rng.random(n // hold + 1) < 0.5, -1.0, 1.0), hold)[:n]
     u, w = np.empty(n), np.empty(n)
-    tap = plant.encoder_taps[i]
+    tap = plant.motor_taps[i]
     qvel, ctrl, act = data.qvel, data.ctrl, plant.actuator_ids[i]
     plant.apply_volts(volts)
     plant.step(lead_in)
@@ -163,7 +163,7 @@ def identify_rigid_body(scenario: Scenario, axis: str, *, seconds: float = 4.0, 
     timestep = scenario.timing.physics_timestep
     plant = Plant(load_model(scenario.model_file), timestep=timestep, drives=scenario.drives)
     data = plant.data
-    tap, act = plant.encoder_taps[i], plant.actuator_ids[i]
+    tap, act = plant.motor_taps[i], plant.actuator_ids[i]
     spv = scenario.axis(axis).speed_per_volt
     reach = sum(10.0 * speed / 2.0 * spv / (np.pi * f) for f in frequencies)  # the farthest it goes
     side = _direction(scenario, i, reach)
