@@ -216,10 +216,12 @@ def _leaked_shm(before: set[str], ours: set[int]) -> list[str]:
 def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[int]) -> None:
     """After a failure, nothing of this test stays: kill the sweep's processes (found by the
     marker) and remove what they leaked."""
+    marked = _marked(tag)
+    ours = ours | marked  # found before the kill: a dead worker's whiteboard is ours to remove too
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    for pid in _marked(tag):
+    for pid in marked:
         try:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
