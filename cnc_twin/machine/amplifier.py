@@ -77,8 +77,9 @@ def notch_coefficients(frequency: float, width: float, depth: float, dt: float) 
 
 def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
     """The six amplifiers' records: ``drives`` per axis a :class:`~cnc_twin.core.config.DriveConfig`
-    or None (the MJCF's velocity-mode drive: voltage passed through); ``taps`` the plant's
-    encoder taps (:data:`~cnc_twin.machine.plant.ENCODER_TAP`: the motor hinge's dof and gear);
+    or None (the MJCF's velocity-mode drive: voltage passed through); ``taps`` each axis's motor
+    (:attr:`~cnc_twin.machine.plant.Plant.motor_taps`, :data:`~cnc_twin.machine.plant.ENCODER_TAP`:
+    the motor hinge's dof and gear);
     ``dt`` the physics step [s]."""
     amps = np.zeros(len(drives), AMP)
     for i, drive in enumerate(drives):

@@ -24,7 +24,8 @@ import mujoco
 import numpy as np
 from scipy import signal
 
-from cnc_twin.core.axes import AXES
+from cnc_twin.core import units
+from cnc_twin.core.axes import AXES, actuator_name, joint_name, motor_joint_name
 from cnc_twin.core.config import Scenario
 from cnc_twin.machine.amplifier import drive_amps
 from cnc_twin.machine.plant import Plant, load_model
@@ -92,16 +93,11 @@ def measure_mechanics(scenario: Scenario, axis: str, *, seconds: float = 4.0, am
 
 def _direction(scenario: Scenario, i: int, distance: float) -> float:
     """+1 when the axis can travel ``distance`` [m | rad] up from home inside its soft limits (or
-    travel), -1 when down; ValueError when neither."""
-    axis = scenario.axes[i]
-    allowed = axis.allowed
-    if allowed is None:
-        return 1.0
-    for sign in (1.0, -1.0):
-        if allowed[0] <= scenario.home[i] + sign * distance <= allowed[1]:
-            return sign
-    raise ValueError(f"axis {axis.name}: the measurement's {distance:.3g} of travel does not fit its "
-                     f"{axis.allowed_name} either way from home; lower its speed or length")
+    travel), -1 when down (the tuner's :func:`~cnc_twin.studies.tuning.step_direction`); ValueError
+    when neither."""
+    from cnc_twin.studies.tuning import step_direction
+
+    return step_direction(scenario, i, distance / units.position_factor(scenario.axes[i].rotary))
 
 
 def model_mechanics(scenario: Scenario, axis: str, frequency: np.ndarray) -> FrequencyResponse:
@@ -197,13 +193,13 @@ def entered_rigid_body(scenario: Scenario, axis: str) -> RigidBody:
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    joint = model.joint(f"{axis.lower()}_joint")
+    joint = model.joint(joint_name(axis))
     dof = int(joint.dofadr[0])
     inertia, viscous, coulomb = float(full[dof, dof]), float(model.dof_damping[dof]), float(model.dof_frictionloss[dof])
-    motor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{axis.lower()}_motor")
+    motor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, motor_joint_name(axis))
     if motor >= 0:
         mdof = int(model.jnt_dofadr[motor])
-        gear = float(model.actuator(f"{axis.lower()}_drive").gear[0])
+        gear = float(model.actuator(actuator_name(axis)).gear[0])
         inertia += float(full[mdof, mdof]) / gear ** 2
         viscous += float(model.dof_damping[mdof]) / gear ** 2
         coulomb += float(model.dof_frictionloss[mdof]) / gear
