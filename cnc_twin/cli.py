@@ -197,8 +197,9 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     try:
         return _run_and_write(args, twin, bar, run_dir, recorder, staged, planners, guard)
     finally:
-        if staged is not None and staged.exists():  # not moved in: the run stopped with an error
-            staged.unlink()
+        if staged is not None:  # not moved in (still there): the run stopped with an error
+            recorder.close()  # first: a signal before the run began can find it still creating the file
+            staged.unlink(missing_ok=True)
 
 
 def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners,

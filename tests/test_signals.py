@@ -31,13 +31,13 @@ def _scenario() -> Path:
     return SCENARIO
 
 
-def _start(folder: Path) -> subprocess.Popen:
+def _start(folder: Path, env: dict[str, str] | None = None) -> subprocess.Popen:
     """`cnc-twin run` into ``folder/run``, in a session of its own (its process group is its pid)."""
     folder.mkdir(parents=True)
     scenario = _scenario()
     return subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(scenario), "--out", str(folder / "run")],
                             cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, env=env)
 
 
 def _wait_until_running(proc: subprocess.Popen, timeout: float = 120.0) -> None:
@@ -252,3 +252,54 @@ def test_a_signal_inside_importlibs_lock_callback_is_noted_and_stops_the_run_at_
         assert target.stopped == "SIGTERM"
     with pytest.raises(Interrupted):  # anywhere else before the run: the interruption itself
         SignalGuard()._handle(signal.SIGINT, sys._getframe())
+
+
+def test_a_signal_while_a_first_run_compiles_ends_it_at_once(tmp_path):
+    """Seen in CI: SIGINT during a fresh install's first run, while numba compiled the twin's
+    kernels (half a minute, minutes on a loaded machine), was only acted on after the compiling.
+    The run has not begun then: the signal ends the command at once, nothing written. An empty
+    numba cache (NUMBA_CACHE_DIR) makes this run a first one; the signal goes once the command
+    says it is compiling. Bound: 20 s, well under what the compiling alone takes (28 s idle)."""
+    before = set(leftover_segments())
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba_cache"))
+    proc = _start(tmp_path / "cold", env=env)
+    for line in proc.stderr:
+        if "compiling" in line:
+            break
+    else:
+        pytest.fail(f"the command never said it was compiling (exit {proc.wait()})")
+    proc.send_signal(signal.SIGINT)
+    sent = time.monotonic()
+    try:
+        proc.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()  # its group is reaped by _outcome below
+        pytest.fail("the command was still compiling 20 s after SIGINT")
+    finally:
+        took = time.monotonic() - sent
+        assert _outcome(proc, tmp_path / "cold", before) == "nothing"
+    assert proc.returncode == 130, (proc.returncode, took)
+
+
+def test_a_signal_before_a_twin_has_begun_is_the_interruption():
+    """Within :meth:`SignalGuard.stopping`, a target whose ``begun`` is still False (compiling,
+    starting its planner) is not asked to stop: the signal raises Interrupted. Once it has begun,
+    the signal asks it to stop and raises nothing."""
+    from cnc_twin.run.signals import Interrupted, SignalGuard
+
+    class Target:
+        begun = False
+        stopped = None
+
+        def request_stop(self, name):
+            self.stopped = name
+
+    target, guard = Target(), SignalGuard()
+    with pytest.raises(Interrupted), guard.stopping(target):
+        guard._handle(signal.SIGINT, sys._getframe())
+    assert target.stopped is None
+    target, guard = Target(), SignalGuard()
+    target.begun = True
+    with guard.stopping(target):
+        guard._handle(signal.SIGTERM, sys._getframe())
+    assert target.stopped == "SIGTERM"

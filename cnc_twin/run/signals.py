@@ -3,8 +3,9 @@
 :class:`SignalGuard` is installed when a command starts and decides what a signal does by the
 phase the command is in:
 
-- before the run begins (loading, compiling, starting the planner, building the workpiece): the
-  first signal raises :class:`Interrupted`; the ``finally`` blocks and context managers on the
+- before the run begins (loading, compiling, starting the planner, building the workpiece; for a
+  twin, until its clock starts, see :meth:`SignalGuard.stopping`): the first signal raises
+  :class:`Interrupted`; the ``finally`` blocks and context managers on the
   way out end the child processes and remove what was staged, so nothing is left;
 - while the twin runs (:meth:`SignalGuard.stopping`): the twin is asked to stop at its next
   period and the run goes on to be written, marked interrupted;
@@ -48,6 +49,7 @@ class SignalGuard:
         self.received: str | None = None
         self._previous: dict[int, object] = {}
         self._on_signal = self._raise
+        self._target = None  # the target of :meth:`stopping`, within its block
 
     def __enter__(self) -> "SignalGuard":
         for sig in SIGNALS:
@@ -75,12 +77,18 @@ class SignalGuard:
                 signal.signal(sig, signal.SIG_IGN)
 
     def _handle(self, signum: int, frame) -> None:
-        first = self.received is None
-        if first:
-            self.received = signal.Signals(signum).name
-        if first and not (self._on_signal == self._raise and _swallowed_here(frame)):
+        if self.received is not None:
+            return  # only noted: the first one is being handled
+        self.received = signal.Signals(signum).name
+        not_begun = self._target is not None and not getattr(self._target, "begun", True)
+        if self._on_signal == self._raise or not_begun:
+            if not _swallowed_here(frame):
+                self._raise(self.received)
+            elif not_begun:  # cannot raise here: the target stops as soon as it begins
+                self._target.request_stop(self.received)
+            # else only noted; the run that follows stops at once (:meth:`stopping`)
+        else:
             self._on_signal(self.received)
-        # else: only noted; the run that follows stops at once (:meth:`stopping`)
 
     def _raise(self, name: str) -> None:
         self._on_signal = _note  # clean-up on the way out is not cut short by a second signal
@@ -90,14 +98,19 @@ class SignalGuard:
     def stopping(self, target):
         """Within the block a signal asks ``target`` to stop: a twin (at its next period), or
         anything else with ``request_stop(name)`` (a sweep's stop). One that came before the
-        block stops it at once."""
+        block stops it at once.
+
+        A target with a ``begun`` attribute that is still False (a twin compiling its kernels and
+        starting its planner: nothing recorded yet) is not asked: the signal raises
+        :class:`Interrupted` as before the run, so a Ctrl-C during a first run's minute of
+        compiling ends the command at once instead of after it."""
         if self.received is not None:
             target.request_stop(self.received)
-        self._on_signal = target.request_stop
+        self._on_signal, self._target = target.request_stop, target
         try:
             yield
         finally:
-            self._on_signal = _note
+            self._on_signal, self._target = _note, None
 
     @contextmanager
     def deferred(self):

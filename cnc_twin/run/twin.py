@@ -114,6 +114,8 @@ class Twin:
             self.kernel = servo_kernel.CompiledServo(self.servo, self.plant, substeps=timing.substeps_per_tick)
         self.stop_reason: str | None = None
         """set (e.g. from a signal handler) to stop the run at the next period boundary"""
+        self.begun = False
+        """True once the clock runs (compiled, planner started): from then a stop keeps what was recorded"""
         self.plan_us = self.plan_blocks = 0
         self.observer = None
         self.port = self.process = None
@@ -176,6 +178,7 @@ class Twin:
             clock = Clock(self, dsp, planned, progress)
             # observers read the recorder during the run
             self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
+            self.begun = True
             wall_time, periods, self.late_periods, self.missed_ticks = clock.run()
             if dsp.planner_lost or dsp.fault == FaultCode.PLANNER_START:
                 reason = planner.failure()
