@@ -64,6 +64,8 @@ CASES = {
                        "32-bit position counter"),
     "seed beyond 64 bits": (_with(seed=2**70), "seed", "expected at most 18446744073709551615"),
     "chunk beyond the FIFO": (_with(whiteboard={"chunk": 10**9}), "whiteboard.chunk", "command FIFO"),
+    "feed that vanishes in m/s": (_with(program__moves=[{"X": 1, "feed": 5e-324}]), "program.moves[0].feed",
+                                  "expected at least 0.001"),
     "stall of days": (_with(faults=[{"type": "planner_stall", "at": 0.1, "duration": 1e9}]), "faults[0].duration", ""),
     "fault after the end": (_with(max_time=2.0, faults=[{"type": "planner_kill", "at": 5.0}]), "faults[0].at",
                             "after the run's end"),

@@ -107,7 +107,7 @@ def test_cli_runs_a_curve_and_reports_contour_error(tmp_path):
     ({"knots": [0, 0, 0, 0.5, 1, 1]}, "program.knots", "n + degree + 1"),
     ({"weights": [1, 1, 1, 1, 1, 1, 1, 1, -1]}, "program.weights", "> 0"),
     ({"control_points": [[40, 0, 20]] * 8 + [[900, 0, 20]]}, "program.control_points", "soft limits"),
-    ({"feed": -5}, "program.feed", "expected more than 0"),
+    ({"feed": -5}, "program.feed", "expected at least 0.001"),
     ({"tool_axis": {"A": 120}}, "program.tool_axis.A", "soft limits"),
     ({"tool_axis_curve": {"degree": 1, "control_points": [[0, 0, 1], [0.1, 0, 1]], "knots": [0, 0, 2, 2]}},
      "program.tool_axis_curve.knots", "parameter range"),

@@ -55,7 +55,7 @@ BAD = [
     ("wrong type", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": "ten"}]}},
      "program.moves[0].X", ", got 'ten'"),
     ("negative feed", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 1, "feed": -100}]}},
-     "program.moves[0].feed", "expected more than 0"),
+     "program.moves[0].feed", "expected at least 0.001"),
     ("beyond travel", {"name": "b", "program": {**GOOD_PROGRAM, "moves": [{"X": 10}, {"X": 900}]}},
      "program.moves[1].X", "outside the X soft limits -385..385 mm"),
     ("rates not divisible", {"name": "b", "timing": {"servo_period": 0.3}, "program": GOOD_PROGRAM},

@@ -29,7 +29,7 @@ from cnc_twin.geometry.contour import Arc, Line, check_contour, element_length, 
 from cnc_twin.legacy.quadrants import end_is_on_circle
 from cnc_twin.scenario.curve import NurbsCurveProgram
 from cnc_twin.scenario.curve import convert as convert_curve
-from cnc_twin.scenario.schema_base import DAY, KeyedValueError, PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, FEED_MIN, KeyedValueError, PathLimitsSpec, Strict
 from cnc_twin.scenario.validation import validate
 
 Method = Literal["nurbs", "point_by_point", "dda"]
@@ -65,13 +65,13 @@ class ContourProgramSpec(Strict):
     start: list[float] = Field(min_length=2, max_length=2, description="[x, y] of the first element's start [mm]")
     z: float = Field(description="tool-tip height in the workpiece frame [mm]")
     elements: list[ElementSpec] = Field(min_length=1)
-    feed: float = Field(gt=0, description="programmed feed [mm/min]")
+    feed: float = Field(ge=FEED_MIN, description="programmed feed [mm/min]")
     method: Method | list[Method] = Field(description="one method, or a list: one pass per method, in order")
     chord_tolerance: float = Field(0.001, gt=0, description="nurbs method [mm]")
     limits: PathLimitsSpec = PathLimitsSpec()
     dda_bits: int = Field(0, ge=0, le=30, description="DDA register length [bits]; 0 = the smallest that holds each element")
     C: float = Field(0.0, description="spindle angle held [deg]")
-    approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the moves to the start [mm/min]")
+    approach_feed: float | None = Field(None, ge=FEED_MIN, description="X/Y/Z speed cap of the moves to the start [mm/min]")
     dwell: float = Field(0.2, ge=0, le=DAY, description="pause at the start before each pass [s]")
     settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the last pass [s]")
 

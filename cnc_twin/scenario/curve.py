@@ -11,7 +11,7 @@ from pydantic import Field
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, AxisCurve, NurbsProgram, PathLimits
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, FEED_MIN, PathLimitsSpec, Strict
 
 
 class ToolAxisSpec(Strict):
@@ -39,13 +39,13 @@ class NurbsCurveProgram(Strict):
     control_points: list[list[float]] = Field(min_length=2, description="[[x, y, z], ...] [mm]")
     weights: list[float] | None = Field(None, description="one per control point, > 0; default all 1")
     knots: list[float] = Field(description="clamped knot vector, n + degree + 1 values")
-    feed: float = Field(gt=0, description="programmed feed [mm/min]")
+    feed: float = Field(ge=FEED_MIN, description="programmed feed [mm/min]")
     chord_tolerance: float = Field(0.001, gt=0, description="[mm]")
     limits: PathLimitsSpec = PathLimitsSpec()
     tool_axis: ToolAxisSpec = ToolAxisSpec()
     tool_axis_curve: AxisCurveSpec | None = Field(None, description="tool axis varying along the path (replaces tool_axis)")
     C: float = Field(0.0, description="spindle angle held along the curve [deg]")
-    approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
+    approach_feed: float | None = Field(None, ge=FEED_MIN, description="X/Y/Z speed cap of the move to the start [mm/min]")
     settle: float = Field(0.3, ge=0, le=DAY, description="dwell after the approach move, before the curve starts, "
                                                  "and time simulated after the curve [s]")
 

@@ -12,7 +12,7 @@ from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, Move, PointToPoint
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.plant import ModelInfo
-from cnc_twin.scenario.schema_base import DAY, Strict
+from cnc_twin.scenario.schema_base import DAY, FEED_MIN, Strict
 
 
 class MoveSpec(Strict):
@@ -24,7 +24,7 @@ class MoveSpec(Strict):
     A: float | None = Field(None, description="[deg]")
     B: float | None = Field(None, description="[deg]")
     C: float | None = Field(None, description="[deg]")
-    feed: float | None = Field(None, gt=0, description="cap on the tool's X/Y/Z path speed [mm/min]; default: rapid")
+    feed: float | None = Field(None, ge=FEED_MIN, description="cap on the tool's X/Y/Z path speed [mm/min]; default: rapid")
     dwell: float = Field(0.0, ge=0, le=DAY, description="pause after arriving [s]")
 
 

@@ -15,6 +15,9 @@ their own say so."""
 
 DAY = 86400.0
 """[s] the longest time a scenario may name (a dwell, a settle, a fault's moment, a run's cap)"""
+FEED_MIN = 1e-3
+"""[mm/min] the slowest feed a scenario may program, 1 um/min: a positive feed below it (say
+5e-324) would vanish in the conversion to m/s and reach the planner as zero"""
 
 
 class Strict(BaseModel):

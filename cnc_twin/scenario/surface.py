@@ -16,7 +16,7 @@ from pydantic import Field, model_validator
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig, ForceControl, PathLimits, Preston, SurfaceDef, SurfaceProgram
 from cnc_twin.core.errors import ScenarioError
-from cnc_twin.scenario.schema_base import DAY, KeyedValueError, PathLimitsSpec, Strict
+from cnc_twin.scenario.schema_base import DAY, FEED_MIN, KeyedValueError, PathLimitsSpec, Strict
 
 REACH_SAMPLES = 2000
 """poses checked per path section at load"""
@@ -93,7 +93,7 @@ class SurfacePolishProgram(Strict):
     type: Literal["surface_polish"]
     surface: SurfaceSpec
     path: PathSpec
-    feed: float = Field(gt=0, description="programmed feed [mm/min]")
+    feed: float = Field(ge=FEED_MIN, description="programmed feed [mm/min]")
     chord_tolerance: float = Field(0.001, gt=0, description="[mm]")
     limits: PathLimitsSpec = PathLimitsSpec()
     lead: float = Field(0.0, ge=-30, le=30, description="tool axis leaning towards the feed direction [deg]")
@@ -102,7 +102,7 @@ class SurfacePolishProgram(Strict):
     force: ForceSpec
     removal: RemovalSpec = RemovalSpec()
     friction: float | None = Field(None, gt=0, description="pad-workpiece sliding friction coefficient; default the model's")
-    approach_feed: float | None = Field(None, gt=0, description="X/Y/Z speed cap of the move to the start [mm/min]")
+    approach_feed: float | None = Field(None, ge=FEED_MIN, description="X/Y/Z speed cap of the move to the start [mm/min]")
     settle: float = Field(0.2, ge=0, le=DAY, description="time simulated after the program [s]")
 
 
