@@ -182,8 +182,10 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
+    # no progress bar (not a terminal): one line says when the run has begun (compiled, planner started)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
-                      stream=None if not args.quiet else _NullStream())
+                      stream=None if not args.quiet else _NullStream(),
+                      start_line=f"{scenario.name}: running ({scenario.timing.mode}) ...")
     # The recording goes to the run directory (staged beside it, moved in when the run is
     # written), or only to --rrd with --no-rrd; --rerun also shows it live in a viewer.
     staged = None
@@ -212,8 +214,6 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
             if not kernels_cached():
                 print("compiling the twin's kernels for this machine (once after installing, about 15 s) ...",
                       file=sys.stderr, flush=True)
-        if not args.quiet and not bar.enabled:  # no progress bar: say that the run started
-            print(f"{scenario.name}: running ({scenario.timing.mode}) ...", file=sys.stderr, flush=True)
         result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
     with guard.deferred():  # a signal now is noted: the run directory is written whole first
         _write(args, result, run_dir, recorder, staged)

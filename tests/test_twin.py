@@ -182,6 +182,7 @@ def test_the_progress_bar_ends_at_the_time_simulated():
     scenario = scenario_from_dict({"name": "p", "program": {"type": "point_to_point", "settle": 0.05,
                                                             "moves": [{"X": 5}, {"Y": 3}]}})
     result = run_scenario(scenario, progress=lambda done, total: calls.append((done, total)))
+    assert calls[0][0] == 0  # the first call: the run has begun
     done, total = calls[-1]
     assert done == total and done * scenario.timing.interpolation_period == pytest.approx(result.metrics["sim_time_s"],
                                                                                             abs=2e-3)
@@ -190,3 +191,8 @@ def test_the_progress_bar_ends_at_the_time_simulated():
     bar = ProgressBar("p", period=scenario.timing.interpolation_period, stream=stream)
     bar(done, total)
     assert f"{result.metrics['sim_time_s']:.2f} / {result.metrics['sim_time_s']:.2f} s sim" in stream.getvalue()
+    log = io.StringIO()  # not a terminal: the start line once, no bar
+    bar = ProgressBar("p", period=scenario.timing.interpolation_period, stream=log, start_line="p: running")
+    for call in calls:
+        bar(*call)
+    assert log.getvalue() == "p: running\n"

@@ -144,6 +144,8 @@ class Clock:
         room = recorder.room
         timed_out = False
         k = t = 0
+        if self.progress is not None:  # the run has begun: the bar at 0 (or its start line)
+            self.progress(0, self.expected_periods)
         wall_start = time.perf_counter()
         while True:
             if k >= self.max_periods:

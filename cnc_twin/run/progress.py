@@ -15,10 +15,14 @@ class ProgressBar:
     label : text in front of the bar.
     period : simulated seconds per unit of ``done`` (shows simulated time).
     stream : where to draw; defaults to stderr. Nothing is drawn unless it is a TTY.
+    start_line : printed (one line) at the first call when ``stream`` is not a TTY, instead of
+        the bar: the run has begun (a log, a pipe).
     """
 
-    def __init__(self, label: str, *, period: float, stream: TextIO | None = None, min_interval: float = 0.1):
+    def __init__(self, label: str, *, period: float, stream: TextIO | None = None, min_interval: float = 0.1,
+                 start_line: str | None = None):
         self.label = label
+        self.start_line = start_line
         self.period = period
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = bool(getattr(self.stream, "isatty", lambda: False)())
@@ -28,6 +32,10 @@ class ProgressBar:
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled:
+            if self.start_line is not None:
+                self.stream.write(self.start_line + "\n")
+                self.stream.flush()
+                self.start_line = None
             return
         now = time.monotonic()
         if done < total and now - self._last < self.min_interval:
