@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cnc_twin.dsp.servo import PERIOD_FIELDS
-from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES
+from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES
 from cnc_twin.trace.recorder import Recorder
 from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import load_scenario
@@ -50,11 +50,11 @@ def test_growing_keeps_every_row_and_the_period_signals_expand_per_tick():
 
 
 def test_raw_bytes_are_the_natural_widths():
-    assert TICK_BYTES == 92 and PERIOD_DTYPE.itemsize == 75
+    assert TICK_BYTES == 92 and PERIOD_DTYPE.itemsize == 75 and TOOL_BYTES == 48
     recorder = Recorder(10, TPP)
     _fill(recorder, 10)
     trace = recorder.trace(servo_period=0.00025, counts_per_unit=np.ones(6), copy=False)
-    assert trace.raw_nbytes() == 40 * 92 + 10 * 75 == trace.nbytes() == trace.held_nbytes()
+    assert trace.raw_nbytes() == 40 * 92 + 10 * (75 + 48) == trace.nbytes() == trace.held_nbytes()
 
 
 def test_a_short_run_copies_out_of_a_large_recorder():

@@ -32,10 +32,12 @@ from cnc_twin.core.axes import (
     AXES, HOME_KEYFRAME, SWITCH_HOME, SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS, actuator_name, joint_name, motor_joint_name,
 )
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.geometry.kinematics import PIVOT_BODY, TOOL_SITE
 from cnc_twin.machine.amplifier import any_modelled, drive_amps, reset_amps, setup_amps
 
 PAD_FORCE_SENSOR = "pad_force"
 TOOL_POS_SENSOR = "tool_pos"
+PAD_JOINT = "pad_joint"
 _SWITCH_SENSORS = (("home", SWITCH_HOME, 1.0), ("lim_pos", SWITCH_LIMIT_POS, 1.0), ("lim_neg", SWITCH_LIMIT_NEG, -1.0))
 
 
@@ -165,6 +167,29 @@ def gather_encoders(qpos, taps, out):
     the axes' :data:`ENCODER_TAP` records ``taps``."""
     for i in range(taps.shape[0]):
         out[i] = qpos[taps[i].qpos_adr] * taps[i].scale
+
+def tool_pose_ids(model: mujoco.MjModel) -> np.ndarray:
+    """What :func:`tool_pose` reads, shape ``(4,)`` int64: the tool site's id, the head pivot
+    body's id, the pad joint's id and its ``qpos`` address."""
+    pad = model.joint(PAD_JOINT)
+    return np.array([model.site(TOOL_SITE).id, model.body(PIVOT_BODY).id, pad.id, pad.qposadr[0]], dtype=np.int64)
+
+
+@njit(cache=True)
+def tool_pose(site_xpos, xpos, xaxis, qpos, ids, out):
+    """The tool's true pose into ``out`` (shape ``(6,)``) [m], world frame: the tool tip (the
+    pad face's centre with the pad undeflected: its slide along the pad joint's axis taken off)
+    and the head's pivot. Reads MuJoCo's kinematics (``site_xpos``, ``xpos``, ``xaxis``), which
+    must be of the current ``qpos`` (``mj_kinematics`` just before); ``ids``: :func:`tool_pose_ids`.
+
+    The machine's every joint is in it (the screws' and the harmonic drives' windup, the bridge's
+    rocking), so it is where the tool really is, not where the encoders say."""
+    site, body, pad, adr = ids[0], ids[1], ids[2], ids[3]
+    slide = qpos[adr]
+    for c in range(3):
+        out[c] = site_xpos[site, c] - xaxis[pad, c] * slide
+        out[3 + c] = xpos[body, c]
+
 
 OBSTACLE_PARK = (0.0, 0.0, -50.0)
 """where an obstacle waits until its time comes [m]: far below the table"""
@@ -298,6 +323,8 @@ class Plant:
         """the model's switches, one row each: axis, its ``SWITCH_*`` bit, the address in
         ``data.sensordata`` of the dog's coordinate, the side (+1, -1) (:func:`switch_bits`)"""
         self._inputs = np.zeros(self._n_drives, np.int64)
+        self.tool_ids = tool_pose_ids(model)
+        """what :func:`tool_pose` reads (:func:`tool_pose_ids`)"""
         self.reset()
 
     def reset(self) -> None:
@@ -326,6 +353,14 @@ class Plant:
         by the next call)."""
         gather_encoders(self._qpos, self.encoder_taps, self.encoders)
         return self.encoders
+
+    def sample_tool_pose(self, out: np.ndarray) -> None:
+        """The tool's true pose now into ``out`` (shape ``(6,)``) [m]: tip and pivot, world frame
+        (:func:`tool_pose`). Runs MuJoCo's kinematics for the current ``qpos``; the next physics
+        step computes them again, so the motion is the same with or without it."""
+        data = self.data
+        mujoco.mj_kinematics(self.model, data)
+        tool_pose(data.site_xpos, data.xpos, data.xaxis, self._qpos, self.tool_ids, out)
 
     def apply_volts(self, volts: list[float]) -> None:
         """Set the six drive command voltages [V] (held until the next call)."""

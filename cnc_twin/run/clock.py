@@ -119,6 +119,7 @@ class Clock:
         self._plant_calls = (plant.encoder_positions, plant.pad_force, plant.apply_volts, plant.step,
                              self.recorder.record_tick)
         """the plant's calls: the encoders' positions, the load cell, the drives, the physics; the recorder's"""
+        self._last_tick = self.ticks_per_period - 1
         self.late_periods = self.missed_ticks = 0
         # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
         # per compiled call, the removal map's updates included (lockstep only: real time paces
@@ -214,6 +215,7 @@ class Clock:
             tick_pulses, drive = servo.tick_pulses, twin.drives.update
             for j in range(self.ticks_per_period):
                 positions = encoders()
+                self.sample_tool(j, t)
                 apply_volts(drive(tick_pulses(j, positions, pad_force()), positions))
                 step(substeps)
                 record_tick(t, frame)
@@ -225,11 +227,18 @@ class Clock:
             twin.drives_off()  # at the first such period: the stop just disabled them
             tick = servo.tick_disabled
         for j in range(self.ticks_per_period):
+            self.sample_tool(j, t)
             apply_volts(tick(j, encoders(), pad_force()))
             step(substeps)
             record_tick(t, frame)
             t += 1
         return t
+
+    def sample_tool(self, j: int, t: int) -> None:
+        """At the period's last tick ``j`` (tick ``t`` of the run), before its physics: the tool's
+        true pose into the recorder (as the compiled servo records it)."""
+        if j == self._last_tick:
+            self.twin.plant.sample_tool_pose(self.recorder.tool_row(t))
 
     def hung_period(self, k: int, t: int) -> int:
         """One period with the card's task hung: no exchange, no servo interrupt. The DACs hold
@@ -240,8 +249,9 @@ class Clock:
         timing = sc.timing
         frame = servo.frame
         watchdog_ticks = round(sc.supervisor.watchdog / timing.servo_period) if sc.supervisor.watchdog > 0 else 0
-        for _ in range(timing.ticks_per_period):
+        for j in range(timing.ticks_per_period):
             plant.step(timing.substeps_per_tick)
+            self.sample_tool(j, t)  # as the encoders below: after the tick's physics
             if injector.hang_ticks:  # once it is over, the task runs again from the next period
                 injector.hang_ticks -= 1
                 self.missed_ticks += 1

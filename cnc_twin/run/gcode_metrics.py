@@ -34,6 +34,7 @@ class _PathTrace:
         self.period_signals = {"path_u": u, "path_ds": trace.period_signals["path_ds"][:stop],
                                "force_depth": trace.period_signals["force_depth"][:stop]}
         self.command, self.actual = trace.command[:stop], trace.actual[:stop]
+        self.tool = trace.tool[:stop // trace.ticks_per_period]
         self.counts_per_unit = trace.counts_per_unit
 
 
@@ -61,8 +62,9 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     out["chord_error_um"] = {"max": max(m["chord_error_um"]["max"] for _, m in measured),
                              "tolerance": measured[0][1]["chord_error_um"]["tolerance"]}
     out["feed_fluctuation"] = {"max": max(m["feed_fluctuation"]["max"] for _, m in measured)}
-    out["contour_error_um"] = {"max": max(m["contour_error_um"]["max"] for _, m in measured),
-                               "rms": float(np.sqrt(np.mean([m["contour_error_um"]["rms"] ** 2 for _, m in measured])))}
+    for key in ("contour_error_um", "encoder_contour_error_um"):
+        out[key] = {"max": max(m[key]["max"] for _, m in measured),
+                    "rms": float(np.sqrt(np.mean([m[key]["rms"] ** 2 for _, m in measured])))}
     peaks: dict[str, dict[str, float]] = {}
     for _, m in measured:
         for axis, values in m["axis_peaks"].items():

@@ -11,9 +11,13 @@ length commanded ``ds_k``; positions come from the commanded and encoder counts.
 - axis velocity / acceleration / jerk: finite differences of the commanded X/Y/Z per period,
   against each axis's limits (peak, limit, ratio); any ratio above :data:`LIMIT_TOLERANCE` is
   listed in ``limit_violations`` with the axis and the time;
-- contour error: distance of the actual tool tip (encoders, through the kinematics) from the
-  ideal curve, per period: nearest of dense curve samples (KD-tree), refined on the segment to its
-  neighbours.
+- contour error: distance of the tool tip from the ideal curve, per period: nearest of dense
+  curve samples, refined on the segment to its neighbours. ``contour_error_um``: the tool tip
+  where it really was (the trace's ``tip``: MuJoCo's kinematics of every joint, so the screws'
+  and gears' windup and the structure's modes are in it), the error the part gets;
+  ``encoder_contour_error_um``: the tip where the encoders put it (through the kinematics), the
+  error the card sees. On a rigid machine the two differ by the encoders' quantisation; on the
+  compliant one with encoders on the motors, by the drive train's windup.
 
 Everything is measured on the tool tip in the world frame: commanded and actual tips come from
 the axes through the forward kinematics, so a varying tool axis is measured the same way as a
@@ -71,12 +75,14 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     home = np.asarray(scenario.home)
     command_axes = trace.command[tpp - 1::tpp] / cpu + home
     actual_axes = trace.actual[tpp - 1::tpp] / cpu + home
+    true_tip = trace.tool[:len(actual_axes), :3].copy()  # sampled with the period's last tick, as the rows above
     depth = None
     if force_axis is not None:  # the force loop pushed X/Y/Z depth along -axis: put it back
         depth = trace.period_signals["force_depth"][tpp - 1::tpp]
         shift = depth[:, None] * np.asarray(force_axis)
         command_axes[:, :3] += shift
         actual_axes[:, :3] += shift
+        true_tip += shift
     head = HeadGeometry(pivot_home=prog.pivot_home, tool_offset=prog.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
     command, actual = head.forward(command_axes[:, :5])[0], head.forward(actual_axes[:, :5])[0]  # the tips
     out: dict[str, Any] = {"periods_on_curve": int(on.sum()), "length_mm": curve.arc_length() * 1e3}
@@ -133,8 +139,9 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
                                "jerk": float(np.abs(np.diff(da) / T).max()), "depth_range_mm":
                                [float(depth[seg].min() * 1e3), float(depth[seg].max() * 1e3)]}
     poly = curve.point(np.linspace(*curve.domain, 20001))
-    contour = point_to_polyline(actual[on], poly)
-    out["contour_error_um"] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}
+    for key, tips in (("contour_error_um", true_tip), ("encoder_contour_error_um", actual)):
+        contour = point_to_polyline(tips[on], poly)
+        out[key] = {"max": float(contour.max() * 1e6), "rms": float(np.sqrt(np.mean(contour**2)) * 1e6)}
     if interpolator_ns is not None and len(interpolator_ns):
         out["interpolator_us_per_period"] = {"median": float(np.median(interpolator_ns) / 1e3),
                                              "p99": float(np.percentile(interpolator_ns, 99) / 1e3)}

@@ -92,7 +92,8 @@ class PeriodBatch:
         """Compile the batch kernel (or load it from numba's cache) now, not in the timed run: a
         call of no periods with arguments of the run's types."""
         rec = self.recorder
-        servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0]), 0, 0)
+        servo_args = self._servo_args((rec.command[:0], rec.actual[:0], rec.dac[:0], rec.pad_force[:0], rec.tool[:0]),
+                                      0, 0)
         # no periods: nothing is read or written, only the argument types count
         run_periods(0, CURVE, 0, servo_args, self.feed, self._no_profile, self._no_curve, self._no_axis, self.move,
                     self.axis_state, self.check, self.supervision, self.process, self._force_args(), self._no_lines,
@@ -106,7 +107,7 @@ class PeriodBatch:
 
     def _servo_args(self, columns: tuple, row0: int, row_step: int) -> tuple:
         """``servo_args`` of :func:`run_periods`: the compiled servo's arguments, the recorder's
-        ``columns`` (command, actual, dac, pad_force) and the first row and rows per period."""
+        ``columns`` (command, actual, dac, pad_force, tool) and the first row and rows per period."""
         return (*self.kernel.tick_args(), *columns, row0, row_step)
 
     def _mode(self, k: int) -> int | None:
@@ -227,7 +228,7 @@ class PeriodBatch:
         axis_state["prev_command"] = frame[0:n]
         axis_state["prev_actual"] = frame[n:2 * n]
         self.check[0]["prev_force"] = frame[3 * n]
-        servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force), rec.row(t),
+        servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force, rec.tool), rec.row(t),
                                       0 if rec.scratch else servo.ticks_per_period)
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
         timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)

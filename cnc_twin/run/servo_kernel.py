@@ -47,20 +47,29 @@ if mujoco_c.IMPORT_ERROR is None:
     _read_load_cell = servo.read_load_cell
     _gather_encoders = plant.gather_encoders
     _drive_amps = amplifier.drive_amps
+    _mj_kinematics = mujoco_c.mj_kinematics
+    _tool_pose = plant.tool_pose
 
     @njit(cache=True, nogil=True)
     def run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands,
-                  qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, rec_command, rec_actual,
-                  rec_dac, rec_force, t0):  # pragma: no cover - compiled
+                  qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis,
+                  tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, t0):  # pragma: no cover - compiled
         """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`) and
         ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`, shape ``(1,)``) from recorder row
         ``t0``, each followed by ``substeps`` physics steps. The encoders read ``qpos`` where
         ``taps`` (:data:`~cnc_twin.machine.plant.ENCODER_TAP`) say, into ``positions``; the DACs
         write ``volts``, which the amplifiers ``amps`` (:data:`~cnc_twin.machine.amplifier.AMP`)
-        turn into MuJoCo's ``ctrl`` before every physics step."""
+        turn into MuJoCo's ``ctrl`` before every physics step. ``fractions`` are a whole period's
+        ticks: at the last, the tool's true pose goes into ``rec_tool`` row ``t0 // ticks``
+        (:func:`~cnc_twin.machine.plant.tool_pose`, after MuJoCo's kinematics; ``tool_ids``:
+        :func:`~cnc_twin.machine.plant.tool_pose_ids`)."""
         cell = load_cell[0]
-        for j in range(fractions.shape[0]):
+        n = fractions.shape[0]
+        for j in range(n):
             row = t0 + j
+            if j == n - 1:  # as the period's last tick samples its encoders
+                _mj_kinematics(model_ptr, data_ptr)
+                _tool_pose(site_xpos, xpos, xaxis, qpos, tool_ids, rec_tool[t0 // n])
             _gather_encoders(qpos, taps, positions)
             _servo_tick(axes, fractions[j], tick_commands[j], use_tick_commands, positions, rec_command[row],
                         rec_actual[row], rec_dac[row], volts)
@@ -87,10 +96,13 @@ class CompiledServo:
         self.substeps = substeps
         self.plant_args = (mujoco_c.address(plant.model), mujoco_c.address(plant.data), substeps)
         """MuJoCo's model and data pointers and the physics steps per tick: the kernel's first arguments"""
-        self.plant_arrays = (plant.data.qpos, plant.data.qvel, plant.encoder_taps, plant.encoders, plant.amps,
-                             plant.volts, plant.data.ctrl, plant.data.sensordata, plant.force_sensor_adr)
+        data = plant.data
+        self.plant_arrays = (data.qpos, data.qvel, plant.encoder_taps, plant.encoders, plant.amps, plant.volts,
+                             data.ctrl, data.sensordata, plant.force_sensor_adr, data.site_xpos, data.xpos, data.xaxis,
+                             plant.tool_ids)
         """MuJoCo's qpos and qvel, the encoders' taps and positions, the amplifiers and their
-        voltages, MuJoCo's ctrl and sensordata, and the load cell's address in sensordata"""
+        voltages, MuJoCo's ctrl and sensordata, the load cell's address in sensordata, and what
+        the tool's pose is read from (MuJoCo's site and body positions, joint axes; the ids)"""
 
     def tick_args(self) -> tuple:
         """The kernel's arguments from the servo's records to the plant's arrays, for this period."""
@@ -106,13 +118,14 @@ class CompiledServo:
         args = self.tick_args()
         run_ticks(*args[:5], self.servo.fractions[:0], *args[6:],
                   np.zeros((1, n)), np.zeros((1, n), dtype=np.int32), np.zeros((1, n), dtype=np.int16),
-                  np.zeros(1), 0)
+                  np.zeros(1), np.zeros((1, 6)), 0)
 
     def run_period(self, recorder, t: int) -> None:
         """One interpolation period from recorder row ``t``: the servo ticks, the physics, the
         rows. Afterwards the servo's ``frame`` holds the last tick's signals, as the Python path
         leaves it. The servo's setpoint must be latched (``ServoTask.begin_period``)."""
         row = recorder.row(t)
-        run_ticks(*self.tick_args(), recorder.command, recorder.actual, recorder.dac, recorder.pad_force, row)
+        run_ticks(*self.tick_args(), recorder.command, recorder.actual, recorder.dac, recorder.pad_force,
+                  recorder.tool, row)
         last = row + self.servo.ticks_per_period - 1
         self.servo.frame_from(recorder.command[last], recorder.pad_force[last])

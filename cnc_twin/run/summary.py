@@ -34,7 +34,8 @@ def summary_table(metrics: dict) -> str:
     if path and "contour_error_um" in path:
         lines.append(
             f"path: {path['length_mm']:.1f} mm, contour error max {path['contour_error_um']['max']:.2f} um "
-            f"rms {path['contour_error_um']['rms']:.2f} um, chord error max {path['chord_error_um']['max']:.3f} um, "
+            f"rms {path['contour_error_um']['rms']:.2f} um (by the encoders: max "
+            f"{path['encoder_contour_error_um']['max']:.2f} um), chord error max {path['chord_error_um']['max']:.3f} um, "
             f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
         )
     for v in (path or {}).get("limit_violations", []):

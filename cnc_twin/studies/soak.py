@@ -57,7 +57,7 @@ def _rss_bytes() -> int:
 
 def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=None) -> dict[str, Any]:
     """Run the soak; returns the figures (see the module docstring)."""
-    from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES
+    from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES
     from cnc_twin.scenario.load import scenario_from_dict
     from cnc_twin.run.twin import Twin
 
@@ -69,7 +69,7 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
         recorder = t.recorder
         periods = recorder.count // recorder.ticks_per_period
         samples.append((recorder.count * t.scenario.timing.servo_period, _rss_bytes(),
-                        recorder.count * TICK_BYTES + periods * PERIOD_DTYPE.itemsize))
+                        recorder.count * TICK_BYTES + periods * (PERIOD_DTYPE.itemsize + TOOL_BYTES)))
 
     result = twin.run(observer=observe, progress=progress)
     m, wb = result.metrics, result.metrics["whiteboard"]

@@ -33,6 +33,13 @@ column              unit    meaning
 ``mark``            -       number of the last Mark record executed (0 before any)
 ``events``          -       motion-chip events raised in the period: bits ``event << 4 axis``
                             (1 motion done, 2 home found, 4 + limit, 8 - limit; :mod:`cnc_twin.dsp.chip`)
+``tip_x`` ..        m       the machine's side, per period: the tool tip where it really is (pad face
+``tip_z``                   centre, pad undeflected), world frame, from MuJoCo's kinematics at the
+                            period's last tick (when ``actual`` sampled the encoders): every joint of
+                            the machine moves it, the screws' and gears' windup and the structure's
+                            modes too, which the encoders on the motors do not see
+``pivot_x`` ..      m       the head's pivot (A/B axes' crossing) likewise; tip and pivot give the
+``pivot_z``                 tool's true axis positions (:meth:`~cnc_twin.geometry.kinematics.HeadGeometry.axes_from_pose`)
 ==================  ======  ===========================================================
 """
 
@@ -49,6 +56,10 @@ INT8_PERIOD_FIELDS = ("state", "fault", "force_state")
 PERIOD_DTYPE = np.dtype([(name, np.float64 if name in FLOAT_PERIOD_FIELDS else
                           np.int8 if name in INT8_PERIOD_FIELDS else np.int32) for name in PERIOD_FIELDS])
 """one interpolation period's signals, packed, each at its natural width (75 bytes)"""
+TOOL_FIELDS = ("tip_x", "tip_y", "tip_z", "pivot_x", "pivot_y", "pivot_z")
+"""the tool's true pose recorded per period, float64 [m] (:attr:`~cnc_twin.trace.recorder.Recorder.tool`)"""
+TOOL_BYTES = len(TOOL_FIELDS) * 8
+"""one period's tool pose [bytes]"""
 TICK_BYTES = 6 * 8 + 6 * 4 + 6 * 2 + 8
 """one servo tick's signals: command float64 x6, actual int32 x6, DAC code int16 x6, force float64"""
 
@@ -56,5 +67,5 @@ UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "f
          "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
          "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",
          "path_u": "1", "path_ds": "m", "force_state": "1", "force_setpoint": "N", "force_depth": "m",
-         "feed_factor": "1", "mark": "1", "events": "1"}
+         "feed_factor": "1", "mark": "1", "events": "1", "tip": "m", "pivot": "m"}
 """the unit of each column (by its name, or the name's prefix before ``_<axis>``)"""

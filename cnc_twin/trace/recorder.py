@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.trace.layout import PERIOD_DTYPE
+from cnc_twin.trace.layout import PERIOD_DTYPE, TOOL_FIELDS
 from cnc_twin.trace.trace import Trace
 
 
@@ -27,6 +27,8 @@ class Recorder:
     command : (capacity, 6) float64 [counts]; actual : (capacity, 6) int32 [counts]
     dac : (capacity, 6) int16 [code]; pad_force : (capacity,) float64 [N]
     periods : (capacity / ticks_per_period,) structured array of :data:`PERIOD_DTYPE`
+    tool : (capacity / ticks_per_period, 6) float64 [m]: the tool's true pose at each period's
+    last tick (:data:`~cnc_twin.trace.layout.TOOL_FIELDS`), written by the plant's side
     count : ticks recorded so far
 
     ``scratch=True`` keeps one period only, rewritten every period (:meth:`row` maps every tick
@@ -48,6 +50,7 @@ class Recorder:
         self.dac = np.zeros((n, self.n_axes), dtype=np.int16)
         self.pad_force = np.zeros(n, dtype=np.float64)
         self.periods = np.zeros(n_periods, dtype=PERIOD_DTYPE)
+        self.tool = np.zeros((n_periods, len(TOOL_FIELDS)), dtype=np.float64)
 
     @property
     def capacity(self) -> int:
@@ -65,9 +68,9 @@ class Recorder:
 
     def grow(self) -> None:
         """Enlarge by half (at least 16 periods), keeping what was recorded."""
-        old = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        old = (self.command, self.actual, self.dac, self.pad_force, self.periods, self.tool)
         self._allocate(len(self.periods) + max(16, len(self.periods) // 2))
-        for new, kept in zip((self.command, self.actual, self.dac, self.pad_force, self.periods), old):
+        for new, kept in zip((self.command, self.actual, self.dac, self.pad_force, self.periods, self.tool), old):
             new[: len(kept)] = kept
 
     def record_tick(self, t: int, frame: list) -> None:
@@ -78,6 +81,10 @@ class Recorder:
         self.actual[t] = frame[n:2 * n]
         self.dac[t] = frame[2 * n:3 * n]
         self.pad_force[t] = frame[3 * n]
+
+    def tool_row(self, t: int) -> np.ndarray:
+        """The row of :attr:`tool` for the period of tick ``t`` (shape ``(6,)``, a view)."""
+        return self.tool[self.row(t) // self.ticks_per_period]
 
     def record_period(self, k: int, frame: list, first: int) -> None:
         """Period ``k``'s signals from ``frame[first:]`` (the per-period fields)."""
@@ -93,6 +100,7 @@ class Recorder:
         take = (lambda a, m: a[:m].copy()) if copy else (lambda a, m: a[:m])
         return Trace(command=take(self.command, n), actual=take(self.actual, n), dac=take(self.dac, n),
                      pad_force=take(self.pad_force, n), periods=take(self.periods, periods),
+                     tool=take(self.tool, periods),
                      servo_period=servo_period, ticks_per_period=self.ticks_per_period,
                      counts_per_unit=np.asarray(counts_per_unit, dtype=np.float64))
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.dsp.servo import PERIOD_FIELDS
-from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES
+from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES, TOOL_FIELDS
 
 
 class PeriodSignals(Mapping):
@@ -50,7 +50,8 @@ class Trace:
     Stored (see :data:`TICK_BYTES`, :data:`PERIOD_DTYPE`):
     command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 codes;
     pad_force : (n,) [N]; periods : per-period signals, structured, one row per period;
-    counts_per_unit : (6,) counts per m or rad, to convert counts to SI.
+    counts_per_unit : (6,) counts per m or rad, to convert counts to SI; tool : (periods, 6)
+    float64 [m], the tool's true pose per period (:data:`TOOL_FIELDS`: tip, pivot, world frame).
 
     Computed on access: ``time`` (n,) [s], ``period`` (n,) int64, ``following_error`` (n, 6)
     [counts], ``period_signals`` (per tick, see :class:`PeriodSignals`).
@@ -64,6 +65,7 @@ class Trace:
     servo_period: float
     ticks_per_period: int
     counts_per_unit: np.ndarray
+    tool: np.ndarray
 
     @property
     def time(self) -> np.ndarray:
@@ -102,20 +104,22 @@ class Trace:
                 cols[f"{prefix}_{axis}"] = array[:, i]
         cols["pad_force"] = self.pad_force
         cols.update(self.period_signals)
+        for j, name in enumerate(TOOL_FIELDS):  # per tick, as the per-period signals
+            cols[name] = np.repeat(self.tool[:, j], self.ticks_per_period)[: len(self)]
         return cols
 
     def nbytes(self) -> int:
         """Bytes the stored signals take (views count their part of the recorder's columns)."""
-        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods))
+        return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods, self.tool))
 
     def raw_nbytes(self) -> int:
-        """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick and one
-        :data:`PERIOD_DTYPE` per period."""
-        return len(self) * TICK_BYTES + len(self.periods) * PERIOD_DTYPE.itemsize
+        """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick, one
+        :data:`PERIOD_DTYPE` and :data:`TOOL_BYTES` per period."""
+        return len(self) * TICK_BYTES + len(self.periods) * (PERIOD_DTYPE.itemsize + TOOL_BYTES)
 
     def held_nbytes(self) -> int:
         """Bytes of memory the trace keeps alive (whole recorder columns when it holds views)."""
-        arrays = (self.command, self.actual, self.dac, self.pad_force, self.periods)
+        arrays = (self.command, self.actual, self.dac, self.pad_force, self.periods, self.tool)
         return sum((a.base if a.base is not None else a).nbytes for a in arrays)
 
 
