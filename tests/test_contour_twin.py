@@ -11,6 +11,7 @@ import pytest
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.geometry.contour import contour_distance
+from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.scenario.load import load_scenario, scenario_from_dict
 from cnc_twin.run.twin import run_scenario
 from cnc_twin.whiteboard.records import STEP_ARC, STEP_DDA, STEP_POINT_BY_POINT, StepContour
@@ -149,4 +150,12 @@ def test_contour_distance_agrees_with_the_metrics(three_ways):
     cpu = scenario.axes[0].counts_per_unit
     xy = trace.actual[ticks, :2] / cpu + np.array(scenario.home[:2])
     d = contour_distance(xy, scenario.program.elements) * 1e6
-    assert d.max() == pytest.approx(result.metrics["contour"]["passes"][0]["contour_error_um"]["max"])
+    first = result.metrics["contour"]["passes"][0]
+    assert d.max() == pytest.approx(first["encoder_contour_error_um"]["max"])
+    # the tool's true position (its recorded tip, the tool vertical): within the encoders' count of theirs
+    periods = np.flatnonzero(trace.periods["mark"][:len(trace.tool)] == 1)
+    head = HeadGeometry.from_model(result.model)
+    tip, pivot = trace.tool[periods, :3], trace.tool[periods, 3:]
+    true = contour_distance(head.axes_from_pose(tip, pivot - tip)[:, :2], scenario.program.elements) * 1e6
+    assert true.max() == pytest.approx(first["contour_error_um"]["max"])
+    assert abs(true.max() - d.max()) < 1e6 * np.sqrt(2) / cpu
