@@ -18,6 +18,7 @@ import numpy as np
 from cnc_twin.core import units
 from cnc_twin.core.config import Scenario
 from cnc_twin.dsp.dac import CODE_MAX, CODE_MIN
+from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.studies.linearize import (
     analyse, axis_plant, frequency_grid, frequency_response, margins_of, pid_controller,
 )
@@ -67,6 +68,10 @@ SETTLE_MARGIN = 0.10
 """a candidate must settle at least this fraction sooner than the current gains to count as faster
 (a step that saturates the DAC settles in nearly the same time whatever the gains: a few per cent
 there shows nothing about the loop)"""
+REFINE = 2
+"""measured candidates: after the spread picks, this many on each side of the best are tried too"""
+OVERSHOOT_MAX_PCT = 2.0
+"""[%] the most overshoot of the tool a candidate judged on the twin alone may show"""
 OVERSHOOT_SLACK_PCT = 0.5
 """[percentage points] overshoot a candidate may add over the current gains (the encoder's count
 makes a small step's overshoot jump by about this much)"""
@@ -108,14 +113,24 @@ def check_margins(phase_margin: float, gain_margin: float) -> None:
 
 
 def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float = 45.0,
-                      gain_margin: float = 6.0, step: float = 1.0, tries: int = 12) -> Verdict:
+                      gain_margin: float = 6.0, step: float = 1.0, tries: int = 12,
+                      measured: list[Proposal] | None = None, extra: dict[str, Any] | None = None) -> Verdict:
     """Candidates meeting the margins on the linear loop (``tries`` of them, spread over the list
     from the highest crossover down) are each run on the nonlinear twin; of those that
     :func:`beats` the current gains' own twin step and overshoot within 10 points of their linear
     loop's prediction, the one that settles soonest is proposed. When none qualifies the current
-    gains are kept: the tuner never recommends what it did not show to be better on the twin."""
+    gains are kept: the tuner never recommends what it did not show to be better on the twin.
+
+    ``measured``: candidates whose margins were read from the axis's measured response instead
+    (:func:`~cnc_twin.studies.drive_tuning.position_candidates`, highest crossover first); the
+    twin alone judges them then. ``extra``: scenario overrides the candidates' twin steps run with
+    (a proposed velocity loop), not the current gains' own step."""
     check_margins(phase_margin, gain_margin)
-    found = candidates(scenario, axis, phase_margin=phase_margin, gain_margin=gain_margin)
+    found = measured if measured is not None else candidates(scenario, axis, phase_margin=phase_margin,
+                                                             gain_margin=gain_margin)
+    if not found and measured is not None:
+        raise ValueError(f"no gains on the search grid meet {phase_margin:g} deg / {gain_margin:g} dB on {axis}'s "
+                         "measured response")
     if not found:
         best = max(candidates(scenario, axis, phase_margin=1e-9, gain_margin=1e-9), key=lambda p: p.phase_margin_deg)
         raise ValueError(f"no gains on the search grid meet {phase_margin:g} deg / {gain_margin:g} dB on {axis}; "
@@ -124,31 +139,52 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
     if before["fault"] is not None:
         raise ValueError(f"the {abs(step):g} {units.position_unit(scenario.axis(axis).rotary)} step with the "
                          f"current gains ends in a fault on the twin ({before['fault']}); choose a smaller --step")
-    picks = [found[int(i)] for i in np.unique(np.linspace(0, len(found) - 1, min(tries, len(found))).round())]
-    plant = axis_plant(scenario, axis)
-    qualified, fastest = [], None
-    for cand in picks:
-        twin = twin_step(scenario_file, axis, step=step, kp=cand.kp, ki=cand.ki)
+    picks = [int(i) for i in np.unique(np.linspace(0, len(found) - 1, min(tries, len(found))).round())]
+    plant = axis_plant(scenario, axis) if measured is None else None
+    qualified, fastest, tried = [], None, {}
+
+    def try_on_twin(index: int) -> None:
+        nonlocal fastest
+        cand = found[index]
+        twin = tried[index] = twin_step(scenario_file, axis, step=step, kp=cand.kp, ki=cand.ki, extra=extra)
         # better than the current gains, and behaving as its linear loop predicts (drive force
-        # limits and DAC saturation are not in the linear model)
-        linear = analyse(scenario, axis, plant=plant, kp=cand.kp, ki=cand.ki)[0]
-        if beats(twin, before) and twin["overshoot_pct"] <= linear.overshoot_pct + 10.0:
-            qualified.append((cand, twin))
+        # limits and DAC saturation are not in the linear model); measured candidates: the twin
+        # alone, with at most OVERSHOOT_MAX_PCT
+        if measured is not None:
+            behaves = twin["overshoot_pct"] <= OVERSHOOT_MAX_PCT
+        else:
+            behaves = twin["overshoot_pct"] <= analyse(scenario, axis, plant=plant, kp=cand.kp, ki=cand.ki)[0] \
+                .overshoot_pct + 10.0
+        if beats(twin, before) and behaves:
+            qualified.append((index, twin))
         if fastest is None or _settle_key(twin) < _settle_key(fastest[1]):
             fastest = (cand, twin)
+
+    for index in picks:
+        try_on_twin(index)
+    if qualified and measured is not None:  # the twin decides alone: look between the picks around the best
+        best = min(qualified, key=lambda pair: _settle_key(pair[1]))[0]
+        for index in range(max(0, best - REFINE), min(len(found), best + REFINE + 1)):
+            if index not in tried:
+                try_on_twin(index)
     if qualified:
-        cand, twin = min(qualified, key=lambda pair: _settle_key(pair[1]))
-        return Verdict(cand, before, twin, cand, len(picks), "settles sooner with no more overshoot on the twin")
-    return Verdict(None, before, fastest[1], fastest[0], len(picks),
-                   f"none of the {len(picks)} candidates tried settled sooner than the current gains without "
+        index, twin = min(qualified, key=lambda pair: _settle_key(pair[1]))
+        return Verdict(found[index], before, twin, found[index], len(tried),
+                       "settles sooner with no more overshoot on the twin")
+    return Verdict(None, before, fastest[1], fastest[0], len(tried),
+                   f"none of the {len(tried)} candidates tried settled sooner than the current gains without "
                    "more overshoot on the twin")
 
 
 def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_margin: float, gain_margin: float,
-                   step: float) -> str:
+                   step: float, margins: dict[str, tuple[float, float, float]] | None = None,
+                   drive_use: str = "") -> str:
     """The tuner's report: linear and twin figures of the current gains and of the proposed (or
     best tried) ones, a note when the step saturates the DAC, and the recommendation or the
-    reason for keeping the current gains."""
+    reason for keeping the current gains. ``margins``: per row (``before``, ``proposed`` /
+    ``best tried``) its (PM [deg], GM [dB], crossover [Hz]) on the measured response, instead
+    of the linear model's; ``drive_use``: the drive's part of the recommendation (``, drive:
+    {...}``)."""
     cfg = scenario.axis(axis)
     rows = [("before", cfg.kp, cfg.ki, verdict.before)]
     if verdict.best_candidate is not None:
@@ -158,14 +194,19 @@ def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_mar
     lines = [f"axis {axis}: targets phase margin >= {phase_margin:g} deg, gain margin >= {gain_margin:g} dB",
              f"{'':18}{'kp [1/s]':>10}{'ki [1/s^2]':>12}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}"
              f"{'rise [ms]':>11}{'overshoot':>11}{'settle [ms]':>13}"]
-    plant = axis_plant(scenario, axis)
+    plant = axis_plant(scenario, axis) if margins is None else None
     for name, kp, ki, twin in rows:
-        lin = analyse(scenario, axis, plant=plant, kp=kp, ki=ki)[0]
-        lines.append(f"{name:<18}{kp:>10.1f}{ki:>12.1f}{lin.phase_margin_deg:>10.1f}{lin.gain_margin_db:>9.1f}"
-                     f"{lin.crossover_hz:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
+        if margins is None:
+            lin = analyse(scenario, axis, plant=plant, kp=kp, ki=ki)[0]
+            pm, gm, fc = lin.phase_margin_deg, lin.gain_margin_db, lin.crossover_hz
+        else:
+            pm, gm, fc = margins[name]
+        lines.append(f"{name:<18}{kp:>10.1f}{ki:>12.1f}{pm:>10.1f}{gm:>9.1f}"
+                     f"{fc:>9.2f}{twin['rise_time_s'] * 1e3:>11.2f}{twin['overshoot_pct']:>10.1f}%"
                      f"{twin['settling_time_s'] * 1e3:>13.1f}")
-    lines.append(f"(step responses: the nonlinear twin, {abs(step):g} {unit} step, feed-forward off; "
-                 f"{verdict.tried} candidate(s) tried on it)")
+    where = "the measured response" if margins is not None else "the linear model"
+    lines.append(f"(margins: {where}; step responses: the tool on the nonlinear twin, {abs(step):g} {unit} step, "
+                 f"feed-forward off; {verdict.tried} candidate(s) tried on it)")
     saturated = verdict.before["saturated_ticks"] * scenario.timing.servo_period * 1e3
     if saturated > 0:
         lines.append(f"note: the {abs(step):g} {unit} step holds the DAC at full scale for {saturated:.2f} ms with "
@@ -174,7 +215,7 @@ def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_mar
         lines.append(f"keeping the current gains: {verdict.reason}")
     else:
         lines.append(f"to use: axes: {{{axis}: {{servo: {{kp: {verdict.proposal.kp:.4g}, "
-                     f"ki: {verdict.proposal.ki:.4g}}}}}}}  ({verdict.reason})")
+                     f"ki: {verdict.proposal.ki:.4g}}}{drive_use}}}}}  ({verdict.reason})")
     return "\n".join(lines)
 
 
@@ -199,8 +240,12 @@ def step_direction(scenario: Scenario, axis_index: int, step: float) -> float:
 
 
 def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | None = None,
-              ki: float | None = None, settle: float = 0.5) -> dict[str, Any]:
-    """Nonlinear twin response to a ``step`` (mm | deg) of ``axis`` from home; step figures.
+              ki: float | None = None, settle: float = 0.5, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Nonlinear twin response to a ``step`` (mm | deg) of ``axis`` from home; step figures of
+    where the tool really went (X..B: the trace's tool pose through the head's inverse
+    kinematics, per period; C: its encoder, per tick): on a compliant machine the table rings
+    where the motor's encoder does not, and that is what the part gets. ``extra``: more scenario
+    overrides (e.g. the drive's loops).
 
     The step goes the other way when home + ``step`` is outside the axis's soft limits (Z's home
     is at the top of its travel); the figures are of its size either way."""
@@ -215,7 +260,7 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
         overrides[f"servo.{axis}.kp"] = float(kp)
     if ki is not None:
         overrides[f"servo.{axis}.ki"] = float(ki)
-    scenario = load_scenario(scenario_file, overrides=overrides)
+    scenario = load_scenario(scenario_file, overrides={**overrides, **(extra or {})})
     result = run_scenario(scenario)
     trace = result.trace
     if result.status != "complete":  # a step the supervisor stopped says nothing of the loop
@@ -224,11 +269,18 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
                 "final_error_counts": np.nan, "saturated_ticks": 0, "scenario": scenario,
                 "fault": f"{fault.get('code', result.status)}: {fault.get('message', '')}".rstrip(": ")}
     sign = 1.0 if step > 0 else -1.0
-    command, actual = sign * trace.command[:, i], sign * trace.actual[:, i]
+    command, actual, time = sign * trace.command[:, i], sign * trace.actual[:, i], trace.time
+    if i < 5:  # where the tool went, at each period's last tick, in counts as the command
+        tpp = trace.ticks_per_period
+        head = HeadGeometry.from_model(result.model)
+        tip, pivot = trace.tool[:, :3], trace.tool[:, 3:]
+        true = head.axes_from_pose(tip, pivot - tip)[:, i]
+        n = min(len(true), len(command) // tpp)
+        command, time = command[tpp - 1::tpp][:n], time[tpp - 1::tpp][:n]
+        actual = sign * (true[:n] - scenario.home[i]) * trace.counts_per_unit[i]
     start = max(0, int(np.argmax(command != command[0])) - 1)
     final = float(command[-1])
-    figures = step_figures(actual[start:] - actual[start], trace.time[start:] - trace.time[start],
-                           final - float(actual[start]))
+    figures = step_figures(actual[start:] - actual[start], time[start:] - time[start], final - float(actual[start]))
     dac = trace.dac[:, i]
     saturated = int(np.count_nonzero((dac >= CODE_MAX) | (dac <= CODE_MIN)))
     return {**figures, "final_error_counts": float(final - actual[-1]), "saturated_ticks": saturated,

@@ -1,0 +1,254 @@
+"""Loops designed on an axis's measured mechanics, as drive commissioning designs them: the drive's
+velocity loop (PI and notch filter), then the card's position loop on top of it, each with its
+margins read from the measured response.
+
+The plant is the frequency response H(f) measured on the nonlinear twin (force command -> motor
+speed, :func:`~cnc_twin.studies.commissioning.measure_mechanics`). The controllers are known
+exactly (the drive's PI and notches as :func:`~cnc_twin.studies.linearize.amplifier_ss` runs
+them at the physics step; the card's PID at the servo period), so each loop is their product
+with H, and what the machine does decides (its resonances, the current loop's lag, the delays),
+not the linearised model:
+
+    velocity loop    L_v = C_v N H                       (C_v the PI, N the notches)
+    velocity closed  T_v = L_v / (1 + L_v)
+    position loop    L_p = C_p cpu spv T_v dt z / (z - 1) (C_p the card's PID [V/count], cpu counts
+                                                          per unit, spv the drive's speed per volt;
+                                                          dt z / (z - 1): MuJoCo's semi-implicit
+                                                          step from speed to position)
+
+(the servo period equals the physics step here; :func:`position_open_loop` refuses otherwise).
+
+Margins (:func:`loop_margins`) are taken over every crossing, as a measured response with a
+resonance inside the loop's band crosses 0 dB and -180 deg more than once: the phase margin is
+the least over the gain crossings, the gain margin the least over the phase crossings; only
+frequencies where the measurement is coherent count.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_twin.core.config import AxisConfig, DriveConfig, Notch
+from cnc_twin.machine.amplifier import AMP, notch_coefficients
+from cnc_twin.studies.commissioning import FrequencyResponse, resonances
+from cnc_twin.studies.linearize import amplifier_ss, frequency_response, pid_controller
+
+COHERENCE_MIN = 0.6
+"""frequencies whose measured coherence is below this are left out of the margins"""
+NOTCH_DEPTHS = (10.0, 20.0, 30.0)
+"""[dB] notch depths tried at the measured resonance"""
+NOTCH_WIDTHS = (0.25, 0.5)
+"""notch -3 dB widths tried, as fractions of the resonance frequency"""
+TN_CROSSOVERS = (4.0, 10.0)
+"""integral times tried besides the drive's own: these multiples of 1 / omega_c, the proportional
+loop's crossover (tn = 4 / omega_c: the integral's phase lag at the crossover is 14 deg)"""
+
+
+@dataclass(frozen=True)
+class Margins:
+    """A loop's margins over all its crossings: ``gain_margin_db`` (inf without a phase
+    crossing), ``phase_margin_deg``, and ``crossover_hz`` (the highest gain crossing: the
+    loop's bandwidth, about)."""
+
+    gain_margin_db: float
+    phase_margin_deg: float
+    crossover_hz: float
+
+
+def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | None = None) -> Margins:
+    """The :class:`Margins` of an open loop's response ``loop`` at ``frequency`` [Hz], using the
+    points where ``valid`` (default: all). No gain crossing: phase margin and crossover nan; still
+    above 0 dB at the last point: crossover inf (beyond the band)."""
+    if valid is not None:
+        loop, frequency = loop[valid], frequency[valid]
+    mag = np.abs(loop)
+    phase = np.degrees(np.angle(loop))  # (-180, 180]
+    up = mag >= 1.0
+    gain_x = np.flatnonzero(up[:-1] != up[1:])
+    # at each gain crossing the loop is on the unit circle: its phase margin is its angle from -1
+    pm = [180.0 - abs(phase[i]) for i in gain_x]
+    # a phase crossing of -180 deg (the imaginary part changes sign where the real part is
+    # negative) inside the unit circle: how much more gain would reach -1 (crossings outside it
+    # bound how much less gain the loop takes, a margin this tuner never spends)
+    im = loop.imag
+    phase_x = np.flatnonzero((np.sign(im[:-1]) != np.sign(im[1:])) & (loop.real[:-1] < 0.0)
+                             & (np.maximum(mag[:-1], mag[1:]) < 1.0))
+    gm = [-20.0 * np.log10(max(mag[i], mag[i + 1])) for i in phase_x]
+    # a loop still above 0 dB at the band's end crosses beyond what was measured: unknown there
+    crossover = float("inf") if up[-1] else float(frequency[gain_x[-1]]) if gain_x.size else float("nan")
+    return Margins(gain_margin_db=float(min(gm)) if gm else float("inf"),
+                   phase_margin_deg=float(min(pm)) if pm else float("nan"), crossover_hz=crossover)
+
+
+def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void:
+    a = np.zeros(1, AMP)[0]
+    a["modelled"] = True
+    a["kp"], a["ki_dt"] = kp, kp * dt / tn if tn > 0.0 else 0.0
+    a["n_notches"] = len(notches)
+    for n, notch in enumerate(notches):
+        a["notch"][n] = notch_coefficients(notch.frequency, notch.width, notch.depth, dt)
+    return a
+
+
+def velocity_open_loop(fr: FrequencyResponse, kp: float, tn: float, notches: tuple[Notch, ...],
+                       dt: float) -> np.ndarray:
+    """L_v at ``fr.frequency``: the drive's PI (``kp`` [N/(m/s) | N m/(rad/s) at the axis], ``tn``
+    [s]) and ``notches`` at the physics step ``dt`` [s], times the measured mechanics."""
+    controller = frequency_response(amplifier_ss(_amp(kp, tn, notches, dt)), 2.0 * np.pi * fr.frequency, dt)
+    return controller * fr.response
+
+
+def valid_band(fr: FrequencyResponse, dt: float, hold: int = 2) -> np.ndarray:
+    """Where the measurement counts: coherent, above 1 Hz, below the PRBS's band (1 / (2 hold dt))."""
+    return (fr.coherence >= COHERENCE_MIN) & (fr.frequency >= 1.0) & (fr.frequency <= 1.0 / (2.0 * hold * dt))
+
+
+@dataclass(frozen=True)
+class VelocityLoop:
+    """A drive's velocity loop (axis units) with its margins on the measured response."""
+
+    kp: float
+    """[N/(m/s) | N m/(rad/s) at the axis]"""
+    tn: float
+    """[s]"""
+    notches: tuple[Notch, ...]
+    margins: Margins
+
+
+CURRENT_LOOP_SHARE = 1 / 3
+"""a velocity loop's crossover stays below this share of the current loop's bandwidth (the
+commissioning rule of thumb: the inner loop three to five times faster). The twin's drive
+measures speed without noise, so nothing else would stop the search at the band's end"""
+
+
+def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 45.0,
+                          gain_margin: float = 8.0) -> VelocityLoop:
+    """The highest-crossover velocity loop meeting both margins on the measured response, its
+    crossover below :data:`CURRENT_LOOP_SHARE` of the current loop's bandwidth: kp on a log grid
+    (1/30 to 30 times the drive's), tn the drive's or from each kp's proportional crossover
+    (:data:`TN_CROSSOVERS`), with no notch or one at the measured resonance (depths
+    :data:`NOTCH_DEPTHS`, widths :data:`NOTCH_WIDTHS`); at equal crossover the one with fewer and
+    shallower notches. ValueError when none meets the margins."""
+    valid = valid_band(fr, dt)
+    highest = CURRENT_LOOP_SHARE * drive.current_bandwidth
+    resonance = resonances(fr).resonance_hz
+    settings: list[tuple[Notch, ...]] = [()] + [(Notch(resonance, width * resonance, depth),)
+                                                for depth in NOTCH_DEPTHS for width in NOTCH_WIDTHS]
+    best: VelocityLoop | None = None
+    for kp in np.logspace(np.log10(drive.kp / 30.0), np.log10(drive.kp * 30.0), 61):
+        for notches in settings:
+            proportional = loop_margins(velocity_open_loop(fr, kp, 0.0, notches, dt), fr.frequency, valid)
+            if not np.isfinite(proportional.crossover_hz):
+                continue
+            for tn in (drive.tn, *(c / (2.0 * np.pi * proportional.crossover_hz) for c in TN_CROSSOVERS)):
+                m = loop_margins(velocity_open_loop(fr, kp, tn, notches, dt), fr.frequency, valid)
+                if not (m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin
+                        and m.crossover_hz <= highest):
+                    continue
+                if best is None or m.crossover_hz > best.margins.crossover_hz * (1.0 + 1e-9):
+                    best = VelocityLoop(float(kp), float(tn), notches, m)
+    if best is None:
+        raise ValueError(f"no velocity loop on the grid meets {phase_margin:g} deg / {gain_margin:g} dB "
+                         "on the measured response")
+    return best
+
+
+def velocity_closed_loop(fr: FrequencyResponse, loop: VelocityLoop, dt: float) -> np.ndarray:
+    """T_v: the motor's speed per commanded speed, at ``fr.frequency``."""
+    open_loop = velocity_open_loop(fr, loop.kp, loop.tn, loop.notches, dt)
+    return open_loop / (1.0 + open_loop)
+
+
+def position_open_loop(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
+                       dt: float, **gains: float) -> np.ndarray:
+    """L_p at ``fr.frequency`` (see the module docstring): the card's PID (``cfg``'s gains, or
+    ``gains``: kp, ki, kd) on the measured mechanics inside ``velocity``."""
+    if not np.isclose(servo_period, dt):
+        raise ValueError("the position loop on the measured response needs the servo period equal to the physics step")
+    omega = 2.0 * np.pi * fr.frequency
+    z = np.exp(1j * omega * dt)
+    card = frequency_response(pid_controller(cfg, servo_period, **gains), omega, servo_period)  # [V/count]
+    spv = cfg.drive.speed_per_volt
+    return card * cfg.counts_per_unit * spv * velocity_closed_loop(fr, velocity, dt) * dt * z / (z - 1.0)
+
+
+KI_RATIOS = (0.0, 0.05, 0.1, 0.2)
+"""the card's ki = ratio kp^2 [1/s^2], as :data:`cnc_twin.studies.tuning.KI_RATIOS`"""
+
+
+@dataclass(frozen=True)
+class PositionLoop:
+    kp: float
+    """[1/s]"""
+    ki: float
+    """[1/s^2]"""
+    margins: Margins
+
+
+def position_candidates(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
+                        dt: float, *, phase_margin: float = 40.0, gain_margin: float = 6.0,
+                        kp_range: tuple[float, float] = (5.0, 400.0)) -> list[PositionLoop]:
+    """Every card (kp, ki) on the grid meeting both margins on the measured response, highest
+    crossover first."""
+    valid = valid_band(fr, dt)
+    out = []
+    for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
+        for ratio in KI_RATIOS:
+            ki = ratio * kp * kp
+            m = loop_margins(position_open_loop(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0),
+                             fr.frequency, valid)
+            if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin:
+                out.append(PositionLoop(float(kp), float(ki), m))
+    return sorted(out, key=lambda p: -p.margins.crossover_hz)
+
+
+def current_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float) -> VelocityLoop:
+    """The drive's own velocity loop, with its margins on the measured response."""
+    m = loop_margins(velocity_open_loop(fr, drive.kp, drive.tn, drive.notches, dt), fr.frequency, valid_band(fr, dt))
+    return VelocityLoop(drive.kp, drive.tn, drive.notches, m)
+
+
+def choose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 40.0,
+                         gain_margin: float = 6.0) -> tuple[VelocityLoop, VelocityLoop]:
+    """``(current, chosen)``: the drive's own velocity loop and the one to use, the
+    :func:`propose_velocity_loop` one when the current misses a margin or the proposal crosses
+    over at least 5 % higher; else the current one (the same object)."""
+    current = current_velocity_loop(fr, drive, dt)
+    try:
+        proposed = propose_velocity_loop(fr, drive, dt, phase_margin=phase_margin, gain_margin=gain_margin)
+    except ValueError:
+        return current, current
+    m = current.margins
+    meets = m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin and np.isfinite(m.crossover_hz)
+    if meets and not proposed.margins.crossover_hz > 1.05 * m.crossover_hz:
+        return current, current
+    return current, proposed
+
+
+def drive_settings(loop: VelocityLoop, drive: DriveConfig) -> dict:
+    """``loop`` as the parameter file's ``drive`` keys, in motor terms (kp_speed [N m s/rad], tn_speed
+    [ms], notch_filters)."""
+    return {"kp_speed": float(f"{loop.kp / drive.motor_per_axis ** 2:.4g}"), "tn_speed": float(f"{loop.tn * 1e3:.4g}"),
+            "notch_filters": [{"frequency": float(f"{n.frequency:.4g}"), "width": float(f"{n.width:.4g}"),
+                               "depth": float(f"{n.depth:.4g}")} for n in loop.notches]}
+
+
+def format_velocity_loops(axis: str, current: VelocityLoop, chosen: VelocityLoop, drive: DriveConfig) -> str:
+    """The velocity loops' table: the drive's and (when it differs) the proposed, with their margins
+    on the measured response."""
+    lines = [f"axis {axis} velocity loop (the drive's, on the measured response):",
+             f"{'':18}{'kp_speed':>10}{'tn [ms]':>9}{'PM [deg]':>10}{'GM [dB]':>9}{'fc [Hz]':>9}  notch filters"]
+    rows = [("before", current)] + ([("proposed", chosen)] if chosen is not current else [])
+    for name, loop in rows:
+        d = drive_settings(loop, drive)
+        notches = ", ".join(f"{n['frequency']:g} Hz / {n['width']:g} Hz wide / {n['depth']:g} dB"
+                            for n in d["notch_filters"]) or "none"
+        m = loop.margins
+        lines.append(f"{name:<18}{d['kp_speed']:>10.4g}{d['tn_speed']:>9.3g}{m.phase_margin_deg:>10.1f}"
+                     f"{m.gain_margin_db:>9.1f}{m.crossover_hz:>9.1f}  {notches}")
+    if chosen is current:
+        lines.append("keeping the drive's velocity loop: it meets the margins and no loop on the grid crosses over "
+                     "5 % higher")
+    return "\n".join(lines)

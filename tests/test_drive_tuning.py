@@ -1,0 +1,111 @@
+"""Loops designed on the measured mechanics (cnc_twin/studies/drive_tuning.py): margins against
+python-control's, the loops composed on a response against the full linearised machine's, and
+`cnc-twin tune` on the compliant machine landing where real ball-screw position loops are.
+
+References: python-control's ``stability_margins`` (an outside implementation of the margins);
+the linearised machine (:func:`~cnc_twin.studies.linearize.analyse`: the card's PID on MuJoCo's
+transition matrices with every drive's loops closed), a derivation independent of the
+composition from a frequency response; the achievable range of the issue's machine-dynamics
+reference (position loops of 30-70 1/s on ball-screw axes of this size).
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+import control
+import numpy as np
+import pytest
+
+from cnc_twin import load_scenario
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.studies import drive_tuning
+from cnc_twin.studies.commissioning import model_mechanics, measure_mechanics
+from cnc_twin.studies.linearize import analyse
+
+COMPLIANT = scenarios_dir() / "jog_axes_compliant.yaml"
+
+
+@pytest.fixture(scope="module")
+def compliant():
+    return load_scenario(COMPLIANT)
+
+
+def test_the_margins_are_python_controls_on_a_loop_that_crosses_once():
+    dt = 0.00025
+    # a mass and damper behind a one-sample delay
+    loop = control.sample_system(control.tf([2000.0], [1.0, 60.0, 0.0]), dt) * control.tf([1.0], [1.0, 0.0], dt)
+    f = np.linspace(0.01, 1999.0, 400000)
+    response = np.asarray(loop(np.exp(2j * np.pi * f * dt))).ravel()
+    ours = drive_tuning.loop_margins(response, f)
+    with warnings.catch_warnings():  # its note on which of its methods it used
+        warnings.simplefilter("ignore")
+        gm, pm, _, _, wgc, _ = control.stability_margins(loop)
+    assert ours.phase_margin_deg == pytest.approx(pm, abs=0.05)
+    assert ours.gain_margin_db == pytest.approx(20 * np.log10(gm), abs=0.05)
+    assert ours.crossover_hz == pytest.approx(wgc / (2 * np.pi), abs=0.01)
+
+
+def test_a_loop_above_0_db_at_the_bands_end_has_no_crossover_in_it():
+    f = np.linspace(1.0, 100.0, 100)
+    assert drive_tuning.loop_margins(10.0 / (1j * f / 200.0 + 1.0), f).crossover_hz == np.inf
+
+
+@pytest.mark.parametrize("axis", ["X", "A"])
+def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(compliant, axis):
+    """The card's PID on the drive's closed velocity loop on the mechanics' response (what the
+    tuner does with the measured one), here the linearised mechanics' response, gives the margins
+    the full linearised machine gives: within 0.5 deg, 0.05 dB and the grid's 0.25 Hz."""
+    cfg, dt = compliant.axis(axis), compliant.timing.physics_timestep
+    f = np.linspace(0.25, 2000.0, 8000)
+    mechanics = model_mechanics(compliant, axis, f)
+    velocity = drive_tuning.current_velocity_loop(mechanics, cfg.drive, dt)
+    for kp in (50.0, 150.0):
+        composed = drive_tuning.loop_margins(drive_tuning.position_open_loop(
+            mechanics, velocity, cfg, compliant.timing.servo_period, dt, kp=kp, ki=0.0, kd=0.0), f, f >= 1.0)
+        machine = analyse(compliant, axis, kp=kp, ki=0.0)[0]
+        assert composed.phase_margin_deg == pytest.approx(machine.phase_margin_deg, abs=0.5)
+        assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.05)
+        assert composed.crossover_hz == pytest.approx(machine.crossover_hz, abs=0.3)
+
+
+def test_the_velocity_loop_designed_on_the_measured_response_keeps_its_margins_on_the_model(compliant):
+    """Designed on the twin's measured response, the proposed velocity loop meets the margins
+    there, and on the linearised mechanics within 2 deg and 0.5 dB of what was measured."""
+    cfg, dt = compliant.axis("Y"), compliant.timing.physics_timestep
+    measured = measure_mechanics(compliant, "Y")
+    loop = drive_tuning.propose_velocity_loop(measured, cfg.drive, dt, phase_margin=40.0, gain_margin=6.0)
+    assert loop.margins.phase_margin_deg >= 40.0 and loop.margins.gain_margin_db >= 6.0
+    assert loop.margins.crossover_hz <= drive_tuning.CURRENT_LOOP_SHARE * cfg.drive.current_bandwidth
+    model = model_mechanics(compliant, "Y", measured.frequency)
+    on_model = drive_tuning.loop_margins(drive_tuning.velocity_open_loop(model, loop.kp, loop.tn, loop.notches, dt),
+                                         model.frequency, drive_tuning.valid_band(measured, dt))
+    assert on_model.phase_margin_deg == pytest.approx(loop.margins.phase_margin_deg, abs=2.0)
+    assert on_model.gain_margin_db == pytest.approx(loop.margins.gain_margin_db, abs=0.5)
+
+
+def _row(out: str, name: str) -> list[float]:
+    line = next(line for line in out.splitlines() if line.startswith(name))
+    return [float(x) for x in re.findall(r"[-\d.]+|inf|nan", line[len(name):])]
+
+
+def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are():
+    """X of the compliant machine, the tuner's default margins (45 deg, 6 dB): its position gain
+    within 30-70 1/s with those margins on the measured response, its tool step on the twin with
+    at most 2 % overshoot; today's kp 400 overshoots the tool by more than half the step. The
+    velocity loop it uses keeps 45 deg / 6 dB too. (With 40 deg it lands at 74 1/s, just above.)"""
+    from conftest import run_cli
+
+    code, out, err = run_cli("tune", COMPLIANT, "--axis", "X", "--step", "0.1")
+    assert code == 0, err
+    assert "velocity loop" in out and "to use: axes: {X: {servo: {kp: " in out, out
+    velocity = _row(out, "proposed") if out.count("\nproposed") == 2 else _row(out, "before")
+    assert velocity[2] >= 45.0 and velocity[3] >= 6.0, out  # PM, GM of the velocity loop used
+    position = [line for line in out.splitlines() if line.startswith("proposed")][-1]
+    kp, ki, pm, gm, fc, rise, overshoot, settle = (float(x) for x in re.findall(r"[-\d.]+|inf|nan", position[8:]))
+    assert 30.0 <= kp <= 70.0 and pm >= 45.0 and gm >= 6.0, out
+    assert overshoot <= 2.0 and np.isfinite(settle), out
+    before = [line for line in out.splitlines() if line.startswith("before")][-1]
+    assert float(re.findall(r"[-\d.]+", before[6:])[0]) == 400.0
+    assert float(re.findall(r"[-\d.]+", before[6:])[6]) > 50.0, out  # today's gains: the tool overshoots
