@@ -206,7 +206,6 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
 
 def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners,
                    guard: SignalGuard) -> int:
-    scenario = twin.scenario
     with guard.stopping(twin):
         if not args.quiet and twin.kernel is not None:
             from cnc_twin.run.period_kernel import kernels_cached
@@ -349,7 +348,10 @@ def _tune(args: argparse.Namespace) -> int:
               f"position loop on them (phase margin >= {args.phase_margin:g} deg, gain margin >= "
               f"{args.gain_margin:g} dB), each checked on the twin ...", file=sys.stderr, flush=True)
         try:
-            mechanics, verdict, report = _tune_on_measured(args, scenario, axis)
+            from cnc_twin.studies.measured_tuning import tune_on_measured
+
+            mechanics, verdict, report = tune_on_measured(args.scenario, scenario, axis, phase_margin=args.phase_margin,
+                                                          gain_margin=args.gain_margin, step=args.step)
         except ValueError as exc:
             raise ScenarioError(args.scenario, "", str(exc)) from None
         print(report)
@@ -374,50 +376,6 @@ def _tune(args: argparse.Namespace) -> int:
             paths.append(save_mechanics_plot(axis, *mechanics, args.out))
         print("plots: " + ", ".join(str(p) for p in paths))
     return EXIT_OK
-
-
-def _tune_on_measured(args: argparse.Namespace, scenario, axis: str):
-    """An axis with drive loops: its mechanics measured on the twin; the drive's velocity loop and
-    then the position loop designed on them, the position gains verified on the twin (the tool's
-    step; proportional only: the drive's PI holds constant loads). Returns ``((measured, model)
-    responses, verdict, report text)``."""
-    import yaml
-
-    from cnc_twin.studies import drive_tuning as dt_
-    from cnc_twin.studies.commissioning import format_mechanics, measure_mechanics, model_mechanics
-    from cnc_twin.studies.tuning import Proposal, format_verdict, verified_proposal
-
-    cfg, timing = scenario.axis(axis), scenario.timing
-    measured = measure_mechanics(scenario, axis)
-    mechanics = (measured, model_mechanics(scenario, axis, measured.frequency))
-    dt = timing.physics_timestep
-    current, velocity = dt_.choose_velocity_loop(measured, cfg.drive, dt, phase_margin=args.phase_margin,
-                                                 gain_margin=args.gain_margin)
-    found = dt_.position_candidates(measured, velocity, cfg, timing.servo_period, dt, phase_margin=args.phase_margin,
-                                    gain_margin=args.gain_margin)
-    settings = dt_.drive_settings(velocity, cfg.drive)
-    extra = None if velocity is current else {f"axes.{axis}.drive.{key}": value for key, value in settings.items()}
-    verdict = verified_proposal(args.scenario, scenario, axis, phase_margin=args.phase_margin,
-                                gain_margin=args.gain_margin, step=args.step, extra=extra,
-                                measured=[Proposal(c.kp, c.ki, c.margins.phase_margin_deg, c.margins.gain_margin_db,
-                                                   c.margins.crossover_hz) for c in found if c.ki == 0.0])
-
-    def on_measured(loop, kp, ki):
-        m = dt_.loop_margins(dt_.position_open_loop(measured, loop, cfg, timing.servo_period, dt, kp=kp, ki=ki,
-                                                    kd=cfg.kd), measured.frequency, dt_.valid_band(measured, dt))
-        return m.phase_margin_deg, m.gain_margin_db, m.crossover_hz
-
-    margins = {"before": on_measured(current, cfg.kp, cfg.ki)}
-    if verdict.best_candidate is not None:
-        name = "proposed" if verdict.proposal is not None else "best tried"
-        margins[name] = on_measured(velocity, verdict.best_candidate.kp, verdict.best_candidate.ki)
-    drive_use = "" if extra is None else ", drive: " + yaml.safe_dump(settings, default_flow_style=True,
-                                                                      sort_keys=False).strip()
-    report = "\n".join([format_mechanics(axis, *mechanics), dt_.format_velocity_loops(axis, current, velocity, cfg.drive),
-                        format_verdict(verdict, scenario, axis, phase_margin=args.phase_margin,
-                                       gain_margin=args.gain_margin, step=args.step, margins=margins,
-                                       drive_use=drive_use)])
-    return mechanics, verdict, report
 
 
 def params_of(params) -> list[str]:
