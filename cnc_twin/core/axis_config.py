@@ -43,6 +43,27 @@ class DriveConfig:
     """motor rad per axis m | rad (2 pi gear / lead; the ratio): converts back to motor terms"""
 
 
+COMP_MAX_POINTS = 256
+"""the longest pitch-error table a card holds (LinuxCNC's limit too)"""
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """The card's leadscrew compensation of an axis (:mod:`cnc_twin.dsp.compensation`), in
+    machine coordinates: a pitch-error table (LinuxCNC's COMP_FILE, empty: none) and backlash."""
+
+    nominal: tuple[float, ...] = ()
+    """the table's nominal positions [m | rad], increasing"""
+    forward: tuple[float, ...] = ()
+    """trim (nominal - position reached) going up at each [m | rad]"""
+    reverse: tuple[float, ...] = ()
+    """trim going down [m | rad]"""
+    backlash: float = 0.0
+    """[m | rad]"""
+    slew: float = 0.01
+    """the fastest the correction changes [m/s | rad/s]"""
+
+
 @dataclass(frozen=True)
 class AxisConfig:
     """One axis in SI. Positions in m (linear) or rad (rotary)."""
@@ -101,6 +122,8 @@ class AxisConfig:
     drive: DriveConfig | None = None
     """the amplifier's own loops where the machine's parameter file gives them (a current-mode
     drive in the MJCF); None: the MJCF's velocity-mode drive (an ideal velocity source)"""
+    compensation: Compensation | None = None
+    """the card's pitch-error table and backlash compensation; None: none"""
 
     @property
     def allowed(self) -> tuple[float, float] | None:

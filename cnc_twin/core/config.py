@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.core.axis_config import AxisConfig, DriveConfig, Notch  # noqa: F401  (part of this module's interface)
+from cnc_twin.core.axis_config import AxisConfig, Compensation, DriveConfig, Notch  # noqa: F401  (part of this module's interface)
 from cnc_twin.core.gcode_config import GcodeProgram
 
 

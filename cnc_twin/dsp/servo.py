@@ -45,15 +45,16 @@ from numba import njit
 
 from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import adc, dac, encoder, pid
+from cnc_twin.dsp import adc, compensation, dac, encoder, pid
 from cnc_twin.dsp.adc import ADC, adc_convert, setup_adc
+from cnc_twin.dsp.compensation import COMP, comp_correction, setup_comp
 from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
 from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
 from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
 from cnc_twin.dsp.step_output import StepGenerator
 
 # the functions below call the blocks' functions: recompile them when those change
-purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__])
+purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__])
 
 FRAME_FIELDS = ("command", "actual", "dac")
 """per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
@@ -63,7 +64,8 @@ PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchang
 """per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
-                 ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64)])
+                 ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64),
+                 ("comp", COMP)])
 """One axis's servo channel, the record the servo functions work on:
 
 =============  ==============  ===========================================  =========================
@@ -77,6 +79,7 @@ p_next         counts          the setpoint at the period's end             :fun
 velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
 encoder_fault  counts          added to the reading by injected faults      the fault injector
+comp           :data:`COMP`    pitch-error table and backlash               :func:`comp_correction`
 =============  ==============  ===========================================  =========================
 """
 
@@ -120,14 +123,16 @@ def servo_tick(axes, fraction, tick_command, use_tick_command, positions, comman
                volts_out):
     """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``): the fine
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
-    with ``use_tick_command``), QEP at ``positions`` [m | rad], PID+FF, DAC. Writes the command
-    [counts], the reading [counts], the DAC code and the output voltage [V] per axis into the
-    ``*_out`` arrays (shape ``(n,)`` each)."""
+    with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
+    correction added to the command (:func:`comp_correction`), PID+FF, DAC. Writes the command
+    [counts] (without the correction), the reading [counts], the DAC code and the output voltage
+    [V] per axis into the ``*_out`` arrays (shape ``(n,)`` each)."""
     for i in range(axes.shape[0]):
         a = axes[i]
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
-        volts_out[i] = dac_write(a.dac, pid_update(a.pid, command, actual, a.velocity, a.acceleration))
+        corrected = command + comp_correction(a.comp, command, a.velocity)
+        volts_out[i] = dac_write(a.dac, pid_update(a.pid, corrected, actual, a.velocity, a.acceleration))
         command_out[i] = command
         actual_out[i] = actual
         code_out[i] = a.dac.code
@@ -205,6 +210,12 @@ class ServoTask:
                       speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
+            comp = cfg.compensation
+            if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
+                cpu = cfg.counts_per_unit
+                setup_comp(channel["comp"], nominal=(np.asarray(comp.nominal) - p0) * cpu,
+                           forward=np.asarray(comp.forward) * cpu, reverse=np.asarray(comp.reverse) * cpu,
+                           backlash=comp.backlash * cpu, step=comp.slew * cpu * timing.servo_period)
         self.load_cell = np.zeros(1, LOAD_CELL)
         setup_adc(self.load_cell[0]["adc"], force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
         self.fractions = np.array([(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)])
@@ -278,7 +289,8 @@ class ServoTask:
         fine_commands(self.axes, self.fractions[j], self.tick_commands[j], self.use_tick_commands, self._command)
         pulses = [0] * n
         for i, (stepper, command) in enumerate(zip(self.steppers, self._command.tolist())):
-            pulses[i] = stepper.emit(command)
+            a = self.axes[i]
+            pulses[i] = stepper.emit(command + comp_correction(a["comp"], command, a["velocity"]))
             frame[i] = command
             frame[2 * n + i] = pulses[i]
         frame[3 * n] = read_load_cell(self.load_cell[0], pad_force)
@@ -316,8 +328,9 @@ class ServoTask:
         servo_tick(axes, self.fractions[0], self.tick_commands[0], False, np.zeros(n), self._command.copy(),
                    self._actual.copy(), self._code.copy(), self._volts.copy())
         read_encoders(axes, np.zeros(n), self._actual.copy())
-        if self.steppers:
-            fine_commands(axes, self.fractions[0], self.tick_commands[0], False, self._command.copy())
+        # the pulse output's too, whatever this run's output: a run of either kind finds all cached
+        fine_commands(axes, self.fractions[0], self.tick_commands[0], False, self._command.copy())
+        comp_correction(axes[0]["comp"], 0.0, 0.0)
         read_load_cell(cell[0], 0.0)
         disable_axes(axes)
 

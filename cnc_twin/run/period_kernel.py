@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import curve_stepper, feed_slew, force, servo, spindle, supervisor
+from cnc_twin.dsp import adc, compensation, curve_stepper, dac, encoder, feed_slew, force, pid, servo, spindle, supervisor
 from cnc_twin.geometry import kinematics, span_eval, surface_path
 from cnc_twin.machine import amplifier, plant
 from cnc_twin.motion import scurve, trapezoid
@@ -55,7 +55,8 @@ from cnc_twin.run import c_clock, servo_kernel
 purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file__, servo_kernel.__file__,
                        servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
                        c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
-                       spindle.__file__, scurve.__file__, trapezoid.__file__, amplifier.__file__])
+                       spindle.__file__, scurve.__file__, trapezoid.__file__, amplifier.__file__,
+                       encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise

@@ -194,7 +194,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
             raise too_large(model_path)
         model = load_model(model_path)
     info = model_info(model)
-    axes = convert_axes(spec.axes, info, label)
+    axes = convert_axes(spec.axes, info, label, folder)
     if spec.command_output == "pulse":
         check_pulse_rates(axes, label)
     program = convert_program(spec.program, axes, model, model_path, info, label, folder)

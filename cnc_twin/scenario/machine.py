@@ -20,6 +20,7 @@ from cnc_twin.core.axes import AXES, is_rotary
 from cnc_twin.core.config import AxisConfig, DriveConfig, Notch, Timing
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.plant import ModelInfo
+from cnc_twin.scenario.compensation import CompensationSpec, convert_compensation
 from cnc_twin.scenario.schema_base import DAY, KeyedValueError, Strict
 
 
@@ -101,6 +102,8 @@ class AxisSpec(Strict):
     pulse: PulseSpec = PulseSpec()
     drive: DriveSpec | None = Field(None, description="the amplifier's own loops (a current-mode MJCF drive); "
                                     "none: the MJCF's velocity-mode drive")
+    compensation: CompensationSpec | None = Field(None, description="the card's backlash and pitch-error "
+                                                                    "compensation (LinuxCNC's BACKLASH, COMP_FILE)")
     following_error_limit: float = Field(0.0, ge=0, description="the supervisor's following-error limit [mm | deg]; 0 = off")
     soft_limits: list[float] | None = Field(None, min_length=2, max_length=2,
                                             description="[low, high] the supervisor keeps the axis within [mm | deg]; "
@@ -246,7 +249,8 @@ def _index_period(axis: str, enc: EncoderSpec) -> float:
     return enc.pitch * units.MM / enc.gear_ratio
 
 
-def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConfig, ...]:
+def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | None = None) -> tuple[AxisConfig, ...]:
+    """The axes in SI; ``folder``: the scenario's, where a comp file is looked for first."""
     out = []
     for i, axis in enumerate(AXES):
         a: AxisSpec = getattr(spec, axis)
@@ -281,6 +285,7 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path) -> tuple[AxisConf
                 index_offset=a.encoder.index_offset * units.position_factor(rotary),
                 following_error_limit=a.following_error_limit * units.position_factor(rotary),
                 soft_limits=_soft_limits(axis, a, info.travel[i], label),
+                compensation=convert_compensation(a.compensation, axis, rotary, folder, label),
             )
         )
         _check_counter(out[-1], a.encoder.lines_per_rev, label)

@@ -3,6 +3,8 @@ and a test holds them to it, so the documented range cannot drift from the enfor
 
 from __future__ import annotations
 
+import typing
+
 import annotated_types
 from pydantic import BaseModel
 
@@ -31,6 +33,8 @@ def accepted_range(model: type[BaseModel], dotted_key: str) -> str:
     *path, name = dotted_key.split(".")
     for part in path:
         model = model.model_fields[part].annotation
+        # an optional section (``CompensationSpec | None``): the model in it
+        model = next((arg for arg in typing.get_args(model) if hasattr(arg, "model_fields")), model)
     field = model.model_fields[name]
     low, high = f"-{_number(LARGEST_VALUE)}", _number(LARGEST_VALUE)
     for bound in field.metadata:
