@@ -56,7 +56,8 @@ def test_a_loop_above_0_db_at_the_bands_end_has_no_crossover_in_it():
 def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(compliant, axis):
     """The card's PID on the drive's closed velocity loop on the mechanics' response (what the
     tuner does with the measured one), here the linearised mechanics' response, gives the margins
-    the full linearised machine gives: within 0.5 deg, 0.05 dB and the grid's 0.25 Hz."""
+    the full linearised machine gives: within 1 deg (the two frequency grids), 0.05 dB and the
+    grid's 0.25 Hz."""
     cfg, dt = compliant.axis(axis), compliant.timing.physics_timestep
     f = np.linspace(0.25, 2000.0, 8000)
     mechanics = model_mechanics(compliant, axis, f)
@@ -65,7 +66,7 @@ def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(com
         composed = drive_tuning.loop_margins(drive_tuning.position_open_loop(
             mechanics, velocity, cfg, compliant.timing.servo_period, dt, kp=kp, ki=0.0, kd=0.0), f, f >= 1.0)
         machine = analyse(compliant, axis, kp=kp, ki=0.0)[0]
-        assert composed.phase_margin_deg == pytest.approx(machine.phase_margin_deg, abs=0.5)
+        assert composed.phase_margin_deg == pytest.approx(machine.phase_margin_deg, abs=1.0)
         assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.05)
         assert composed.crossover_hz == pytest.approx(machine.crossover_hz, abs=0.3)
 
@@ -90,14 +91,21 @@ def _row(out: str, name: str) -> list[float]:
     return [float(x) for x in re.findall(r"[-\d.]+|inf|nan", line[len(name):])]
 
 
-def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are():
-    """X of the compliant machine, the tuner's default margins (45 deg, 6 dB): its position gain
-    within 30-70 1/s with those margins on the measured response, its tool step on the twin with
-    at most 2 % overshoot; today's kp 400 overshoots the tool by more than half the step. The
-    velocity loop it uses keeps 45 deg / 6 dB too. (With 40 deg it lands at 74 1/s, just above.)"""
+def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are(tmp_path):
+    """X of the compliant machine with the loops it had before it was tuned (the rigid machine's
+    kp 400 / ki 16000, the drive's first velocity loop), the tuner's default margins (45 deg,
+    6 dB): its position gain within 30-70 1/s with those margins on the measured response, its
+    tool step on the twin with at most 2 % overshoot; kp 400 overshoots the tool by more than half
+    the step. The velocity loop it uses keeps 45 deg / 6 dB too. (With 40 deg it lands at 74 1/s,
+    just above.)"""
+    import yaml
     from conftest import run_cli
 
-    code, out, err = run_cli("tune", COMPLIANT, "--axis", "X", "--step", "0.1")
+    raw = yaml.safe_load(COMPLIANT.read_text())
+    raw["axes"] = {"X": {"servo": {"kp": 400.0, "ki": 16000.0}, "drive": {"kp_speed": 1.14, "notch_filters": []}}}
+    untuned = tmp_path / "untuned.yaml"
+    untuned.write_text(yaml.safe_dump(raw))
+    code, out, err = run_cli("tune", untuned, "--axis", "X", "--step", "0.1")
     assert code == 0, err
     assert "velocity loop" in out and "to use: axes: {X: {servo: {kp: " in out, out
     velocity = _row(out, "proposed") if out.count("\nproposed") == 2 else _row(out, "before")

@@ -46,7 +46,7 @@ def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phas
         name = "proposed" if verdict.proposal is not None else "best tried"
         margins[name] = on_measured(velocity, verdict.best_candidate.kp, verdict.best_candidate.ki)
     drive_use = "" if extra is None else ", drive: " + yaml.safe_dump(settings, default_flow_style=True,
-                                                                      sort_keys=False).strip()
+                                                                      sort_keys=False, width=1 << 30).strip()
     report = "\n".join([format_mechanics(axis, *mechanics),
                         drive_tuning.format_velocity_loops(axis, current, velocity, cfg.drive),
                         format_verdict(verdict, scenario, axis, phase_margin=phase_margin, gain_margin=gain_margin,
