@@ -103,9 +103,19 @@ def test_adc_convert_and_the_load_cell(seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_latch_setpoint_servo_tick_and_read_encoders(seed):
+    from cnc_twin.dsp.compensation import MAX_POINTS, TABLE_ROWS, setup_comp
+
     rng = np.random.default_rng(seed)
-    compiled, interpreted = _twins(_axes(rng))
-    n = len(compiled)
+    axes = _axes(rng)
+    n = len(axes)
+    tables = np.zeros((n, TABLE_ROWS, MAX_POINTS))
+    for i in range(n):  # some axes with a pitch-error table and backlash (the leadscrew compensation)
+        if rng.random() < 0.6:
+            rows = int(rng.integers(2, MAX_POINTS + 1))
+            setup_comp(axes[i]["comp"], tables[i], nominal=np.cumsum(rng.uniform(1.0, 1e4, rows)) - 5e5,
+                       forward=rng.normal(0, 50, rows), reverse=rng.normal(0, 50, rows),
+                       backlash=rng.uniform(0, 20), step=rng.uniform(0.5, 50))
+    compiled, interpreted = _twins(axes)
     ticks = 4
     for _ in range(20):
         setpoint = rng.uniform(-1e6, 1e6, size=n)
@@ -124,8 +134,8 @@ def test_latch_setpoint_servo_tick_and_read_encoders(seed):
                 servo.read_encoders(compiled, positions, outs_c[1])
                 servo.read_encoders.py_func(interpreted, positions, outs_i[1])
             else:
-                servo.servo_tick(compiled, (j + 1) / ticks, tick_commands[j], use_ticks, positions, *outs_c)
-                servo.servo_tick.py_func(interpreted, (j + 1) / ticks, tick_commands[j], use_ticks, positions,
+                servo.servo_tick(compiled, tables, (j + 1) / ticks, tick_commands[j], use_ticks, positions, *outs_c)
+                servo.servo_tick.py_func(interpreted, tables, (j + 1) / ticks, tick_commands[j], use_ticks, positions,
                                          *outs_i)
             for a, b in zip(outs_c, outs_i):
                 _same(a, b)

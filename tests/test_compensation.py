@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cnc_twin.dsp.compensation import COMP, comp_correction, setup_comp
+from cnc_twin.dsp.compensation import COMP, MAX_POINTS, TABLE_ROWS, comp_correction, setup_comp
 from cnc_twin.scenario.resources import models_dir, scenarios_dir
 
 LEAD_ERROR = 50e-6
@@ -30,24 +30,24 @@ def test_the_correction_follows_the_table_by_direction_as_numpy_interpolates_it(
     rng = np.random.default_rng(3)
     nominal = np.cumsum(rng.uniform(100.0, 2000.0, 20))
     forward, reverse = rng.normal(0.0, 5.0, 20), rng.normal(0.0, 5.0, 20)
-    c = np.zeros(1, COMP)[0]
-    setup_comp(c, nominal=nominal, forward=forward, reverse=reverse, backlash=0.0, step=np.inf)
+    c, table = np.zeros(1, COMP)[0], np.zeros((TABLE_ROWS, MAX_POINTS))
+    setup_comp(c, table, nominal=nominal, forward=forward, reverse=reverse, backlash=0.0, step=np.inf)
     probes = rng.uniform(nominal[0] - 500.0, nominal[-1] + 500.0, 200)
     for x in probes:  # before any motion: the mean of the two columns
-        assert comp_correction(c, x, 0.0) == pytest.approx(0.5 * (np.interp(x, nominal, forward)
-                                                                 + np.interp(x, nominal, reverse)))
+        assert comp_correction(c, table, x, 0.0) == pytest.approx(0.5 * (np.interp(x, nominal, forward)
+                                                                        + np.interp(x, nominal, reverse)))
     for x in probes:
-        assert comp_correction(c, x, 1.0) == pytest.approx(np.interp(x, nominal, forward))
-        assert comp_correction(c, x, 0.0) == pytest.approx(np.interp(x, nominal, forward))  # standing: as it went
-        assert comp_correction(c, x, -3.0) == pytest.approx(np.interp(x, nominal, reverse))
+        assert comp_correction(c, table, x, 1.0) == pytest.approx(np.interp(x, nominal, forward))
+        assert comp_correction(c, table, x, 0.0) == pytest.approx(np.interp(x, nominal, forward))  # as it went
+        assert comp_correction(c, table, x, -3.0) == pytest.approx(np.interp(x, nominal, reverse))
 
 
 def test_backlash_is_half_each_way_and_the_correction_slews():
-    c = np.zeros(1, COMP)[0]
-    setup_comp(c, backlash=10.0, step=2.0)
-    assert comp_correction(c, 0.0, 0.0) == 0.0  # no direction yet
-    assert [comp_correction(c, 0.0, 1.0) for _ in range(4)] == [2.0, 4.0, 5.0, 5.0]
-    assert [comp_correction(c, 0.0, -1.0) for _ in range(6)] == [3.0, 1.0, -1.0, -3.0, -5.0, -5.0]
+    c, table = np.zeros(1, COMP)[0], np.zeros((TABLE_ROWS, MAX_POINTS))
+    setup_comp(c, table, backlash=10.0, step=2.0)
+    assert comp_correction(c, table, 0.0, 0.0) == 0.0  # no direction yet
+    assert [comp_correction(c, table, 0.0, 1.0) for _ in range(4)] == [2.0, 4.0, 5.0, 5.0]
+    assert [comp_correction(c, table, 0.0, -1.0) for _ in range(6)] == [3.0, 1.0, -1.0, -3.0, -5.0, -5.0]
 
 
 def _scenario_with(tmp_path, compensation, table: str | None = None):

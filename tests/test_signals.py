@@ -304,3 +304,34 @@ def test_a_signal_before_a_twin_has_begun_is_the_interruption():
     with guard.stopping(target):
         guard._handle(signal.SIGTERM, sys._getframe())
     assert target.stopped == "SIGTERM"
+
+
+def test_an_interruption_python_can_only_drop_is_not_printed_and_stops_the_twin(capsys):
+    """Seen in CI: SIGINT while numba compiled, inside llvmlite's object-cache callback (C calling
+    back into Python), where Python prints "Exception ignored ... Traceback" and drops the
+    exception. Under the guard nothing is printed, and a twin still compiling is asked to stop
+    (it stops at its first period: a whole run directory, marked interrupted). Reproduced with a
+    finaliser, which Python drops the same way (sys.unraisablehook)."""
+    import gc
+
+    from cnc_twin.run.signals import SignalGuard
+
+    class Target:
+        begun = False
+        stopped = None
+
+        def request_stop(self, name):
+            self.stopped = name
+
+    guard, target = SignalGuard(), Target()
+
+    class Finalised:
+        def __del__(self):
+            guard._handle(signal.SIGINT, sys._getframe())  # raises Interrupted inside __del__
+
+    with guard, guard.stopping(target):
+        Finalised()
+        gc.collect()
+    assert guard.received == "SIGINT" and target.stopped == "SIGINT"
+    assert capsys.readouterr().err == ""
+    assert sys.unraisablehook != guard._unraisable  # the hook before the guard is back

@@ -18,7 +18,7 @@ the positions reached going forward / in reverse with ``COMP_FILE_TYPE = 0``; th
 reader converts). The trace keeps the fine command itself, so its following error shows the
 correction the card added.
 
-:data:`COMP` is one axis's record; :func:`comp_correction` is the block (plain, compiled with numba
+:data:`COMP` is one axis's record, its table an array beside it; :func:`comp_correction` is the block (plain, compiled with numba
 from this source for every path that runs the servo).
 """
 
@@ -29,30 +29,30 @@ from numba import njit
 
 from cnc_twin.core.axis_config import COMP_MAX_POINTS as MAX_POINTS
 
-COMP = np.dtype([("points", np.int64), ("nominal", np.float64, (MAX_POINTS,)),
-                 ("forward", np.float64, (MAX_POINTS,)), ("reverse", np.float64, (MAX_POINTS,)),
-                 ("backlash", np.float64), ("step", np.float64), ("direction", np.float64),
-                 ("correction", np.float64)])
-"""One axis's compensation:
+COMP = np.dtype([("points", np.int64), ("backlash", np.float64), ("step", np.float64),
+                 ("direction", np.float64), ("correction", np.float64)])
+"""One axis's compensation; its table is an array of its own (:data:`TABLE_ROWS` x
+:data:`MAX_POINTS`, see :func:`setup_comp`), kept out of the record so the compiled servo's
+records stay small (a 6 KB record per axis doubled numba's compile time):
 
 ==========  ======  ===========================================================
 field       unit    meaning
 ==========  ======  ===========================================================
 points      -       table rows in use (0: no table)
-nominal     counts  the table's nominal positions, increasing (first ``points``)
-forward     counts  trim going up at each nominal position
-reverse     counts  trim going down
 backlash    counts  the backlash (0: none)
 step        counts  the most the correction changes in a tick
 direction   -       +1 / -1 / 0 (see the module docstring), state
 correction  counts  the correction applied last tick, state
 ==========  ======  ===========================================================
 """
+TABLE_ROWS = 3
+"""a table's rows: nominal positions [counts] (increasing), forward trims, reverse trims [counts]"""
 
 
-def setup_comp(c, *, nominal=(), forward=(), reverse=(), backlash: float = 0.0, step: float = np.inf) -> None:
-    """Fill ``c`` (a :data:`COMP` record) in counts and clear its state. ValueError for a table
-    longer than :data:`MAX_POINTS`, of unequal columns, or whose nominal positions do not increase."""
+def setup_comp(c, table, *, nominal=(), forward=(), reverse=(), backlash: float = 0.0, step: float = np.inf) -> None:
+    """Fill ``c`` (a :data:`COMP` record) and ``table`` (shape ``(TABLE_ROWS, MAX_POINTS)``) in
+    counts and clear the state. ValueError for a table longer than :data:`MAX_POINTS`, of unequal
+    columns, or whose nominal positions do not increase."""
     nominal, forward, reverse = (np.asarray(v, dtype=np.float64) for v in (nominal, forward, reverse))
     if not len(nominal) == len(forward) == len(reverse):
         raise ValueError("the table's columns differ in length")
@@ -61,9 +61,9 @@ def setup_comp(c, *, nominal=(), forward=(), reverse=(), backlash: float = 0.0, 
     if len(nominal) > 1 and not np.all(np.diff(nominal) > 0):
         raise ValueError("the nominal positions must increase")
     c["points"] = len(nominal)
-    for name, values in (("nominal", nominal), ("forward", forward), ("reverse", reverse)):
-        c[name][:] = 0.0
-        c[name][:len(values)] = values
+    table[:] = 0.0
+    for row, values in enumerate((nominal, forward, reverse)):
+        table[row, :len(values)] = values
     c["backlash"], c["step"] = backlash, step
     reset_comp(c)
 
@@ -75,11 +75,9 @@ def reset_comp(c) -> None:
 
 
 @njit(cache=True)
-def table_trim(c, position, column):
-    """The table's trim at ``position`` [counts] from ``column`` (``c.forward`` or
-    ``c.reverse``): linear between rows, held beyond the ends."""
-    n = c.points
-    nominal = c.nominal
+def table_trim(nominal, column, n, position):
+    """The trim at ``position`` [counts] from ``column`` against ``nominal`` (their first ``n``
+    entries): linear between rows, held beyond the ends."""
     if position <= nominal[0]:
         return column[0]
     if position >= nominal[n - 1]:
@@ -96,23 +94,25 @@ def table_trim(c, position, column):
 
 
 @njit(cache=True)
-def comp_correction(c, command, velocity):
+def comp_correction(c, table, command, velocity):
     """The correction [counts] to add to ``command`` [counts] this tick, ``velocity`` the period's
-    commanded velocity [counts/s] (its sign is the direction); advances ``c`` (a :data:`COMP`)."""
-    if c.points == 0 and c.backlash == 0.0:
+    commanded velocity [counts/s] (its sign is the direction); advances ``c`` (a :data:`COMP`);
+    ``table``: its rows (:data:`TABLE_ROWS`, see :func:`setup_comp`)."""
+    n = c.points
+    if n == 0 and c.backlash == 0.0:
         return 0.0
     if velocity > 0.0:
         c.direction = 1.0
     elif velocity < 0.0:
         c.direction = -1.0
     target = 0.5 * c.backlash * c.direction
-    if c.points > 0:
+    if n > 0:
         if c.direction > 0.0:
-            target += table_trim(c, command, c.forward)
+            target += table_trim(table[0], table[1], n, command)
         elif c.direction < 0.0:
-            target += table_trim(c, command, c.reverse)
+            target += table_trim(table[0], table[2], n, command)
         else:
-            target += 0.5 * (table_trim(c, command, c.forward) + table_trim(c, command, c.reverse))
+            target += 0.5 * (table_trim(table[0], table[1], n, command) + table_trim(table[0], table[2], n, command))
     change = target - c.correction
     if change > c.step:
         change = c.step

@@ -47,7 +47,7 @@ from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import adc, compensation, dac, encoder, pid
 from cnc_twin.dsp.adc import ADC, adc_convert, setup_adc
-from cnc_twin.dsp.compensation import COMP, comp_correction, setup_comp
+from cnc_twin.dsp.compensation import COMP, MAX_POINTS, TABLE_ROWS, comp_correction, setup_comp
 from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
 from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
 from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
@@ -79,7 +79,7 @@ p_next         counts          the setpoint at the period's end             :fun
 velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
 encoder_fault  counts          added to the reading by injected faults      the fault injector
-comp           :data:`COMP`    pitch-error table and backlash               :func:`comp_correction`
+comp           :data:`COMP`    backlash and the pitch-error table's state   :func:`comp_correction`
 =============  ==============  ===========================================  =========================
 """
 
@@ -119,9 +119,10 @@ def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
 
 
 @njit(cache=True)
-def servo_tick(axes, fraction, tick_command, use_tick_command, positions, command_out, actual_out, code_out,
-               volts_out):
-    """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``): the fine
+def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, positions, command_out, actual_out,
+               code_out, volts_out):
+    """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``; their pitch-error
+    tables ``comp_tables``, shape ``(n, TABLE_ROWS, MAX_POINTS)``): the fine
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
     with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
     correction added to the command (:func:`comp_correction`), PID+FF, DAC. Writes the command
@@ -131,7 +132,7 @@ def servo_tick(axes, fraction, tick_command, use_tick_command, positions, comman
         a = axes[i]
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
-        corrected = command + comp_correction(a.comp, command, a.velocity)
+        corrected = command + comp_correction(a.comp, comp_tables[i], command, a.velocity)
         volts_out[i] = dac_write(a.dac, pid_update(a.pid, corrected, actual, a.velocity, a.acceleration))
         command_out[i] = command
         actual_out[i] = actual
@@ -202,6 +203,8 @@ class ServoTask:
         self.inv_period = 1.0 / timing.interpolation_period
         """1 / the interpolation period [1/s]"""
         self.axes = np.zeros(n, AXIS)
+        self.comp_tables = np.zeros((n, TABLE_ROWS, MAX_POINTS))
+        """each axis's pitch-error table [counts] (:func:`~cnc_twin.dsp.compensation.setup_comp`)"""
         for i, (cfg, p0) in enumerate(zip(axes, power_on)):
             channel = self.axes[i]
             setup_encoder(channel["qep"], cfg.counts_per_unit, p0)
@@ -213,7 +216,7 @@ class ServoTask:
             comp = cfg.compensation
             if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
                 cpu = cfg.counts_per_unit
-                setup_comp(channel["comp"], nominal=(np.asarray(comp.nominal) - p0) * cpu,
+                setup_comp(channel["comp"], self.comp_tables[i], nominal=(np.asarray(comp.nominal) - p0) * cpu,
                            forward=np.asarray(comp.forward) * cpu, reverse=np.asarray(comp.reverse) * cpu,
                            backlash=comp.backlash * cpu, step=comp.slew * cpu * timing.servo_period)
         self.load_cell = np.zeros(1, LOAD_CELL)
@@ -273,8 +276,8 @@ class ServoTask:
         """
         if self.fault_hook is not None:
             self.fault_hook()
-        servo_tick(self.axes, self.fractions[j], self.tick_commands[j], self.use_tick_commands, positions,
-                   self._command, self._actual, self._code, self._volts)
+        servo_tick(self.axes, self.comp_tables, self.fractions[j], self.tick_commands[j], self.use_tick_commands,
+                   positions, self._command, self._actual, self._code, self._volts)
         n, frame = self.n_axes, self.frame
         frame[0:n] = self._command.tolist()
         frame[n:2 * n] = self._actual.tolist()
@@ -290,7 +293,7 @@ class ServoTask:
         pulses = [0] * n
         for i, (stepper, command) in enumerate(zip(self.steppers, self._command.tolist())):
             a = self.axes[i]
-            pulses[i] = stepper.emit(command + comp_correction(a["comp"], command, a["velocity"]))
+            pulses[i] = stepper.emit(command + comp_correction(a["comp"], self.comp_tables[i], command, a["velocity"]))
             frame[i] = command
             frame[2 * n + i] = pulses[i]
         frame[3 * n] = read_load_cell(self.load_cell[0], pad_force)
@@ -325,12 +328,12 @@ class ServoTask:
         the timed run: each called once on copies of the records, with the run's argument types."""
         n, axes, cell = self.n_axes, self.axes.copy(), self.load_cell.copy()
         latch_setpoint(axes, np.zeros(n), self.inv_period)
-        servo_tick(axes, self.fractions[0], self.tick_commands[0], False, np.zeros(n), self._command.copy(),
-                   self._actual.copy(), self._code.copy(), self._volts.copy())
+        servo_tick(axes, self.comp_tables.copy(), self.fractions[0], self.tick_commands[0], False, np.zeros(n),
+                   self._command.copy(), self._actual.copy(), self._code.copy(), self._volts.copy())
         read_encoders(axes, np.zeros(n), self._actual.copy())
         # the pulse output's too, whatever this run's output: a run of either kind finds all cached
         fine_commands(axes, self.fractions[0], self.tick_commands[0], False, self._command.copy())
-        comp_correction(axes[0]["comp"], 0.0, 0.0)
+        comp_correction(axes[0]["comp"], self.comp_tables[0].copy(), 0.0, 0.0)
         read_load_cell(cell[0], 0.0)
         disable_axes(axes)
 

@@ -225,9 +225,9 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
     interpolation time [ns] (feed, force, path, kinematics, setpoint: what ``DspTask`` times around
     ``next_period``).
     """
-    (model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands, qpos, qvel, taps,
-     positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command, rec_actual,
-     rec_dac, rec_force, rec_tool, row0, row_step) = servo_args
+    (model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands, use_tick_commands, qpos,
+     qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command,
+     rec_actual, rec_dac, rec_force, rec_tool, row0, row_step) = servo_args
     ev, correct, sstate, sscratch = curve_args
     phases, times, v1 = profile
     timed, interp_ns, timespec = timing
@@ -383,9 +383,9 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
             axis_state[i].held = held[i]
         _latch_setpoint(axes, setpoint, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
-        servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, False, qpos,
-                               qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis,
-                               tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, row)
+        servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
+                               False, qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos,
+                               xpos, xaxis, tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, row)
         last = row + tpp - 1
         for i in range(n):
             axis_state[i].prev_command = rec_command[last, i]

@@ -51,11 +51,12 @@ if mujoco_c.IMPORT_ERROR is None:
     _tool_pose = plant.tool_pose
 
     @njit(cache=True, nogil=True)
-    def run_ticks(model_ptr, data_ptr, substeps, axes, load_cell, fractions, tick_commands, use_tick_commands,
-                  qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis,
+    def run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
+                  use_tick_commands, qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis,
                   tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, t0):  # pragma: no cover - compiled
-        """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`) and
-        ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`, shape ``(1,)``) from recorder row
+        """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`; their
+        pitch-error tables ``comp_tables``) and ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`,
+        shape ``(1,)``) from recorder row
         ``t0``, each followed by ``substeps`` physics steps. The encoders read ``qpos`` where
         ``taps`` (:data:`~cnc_twin.machine.plant.ENCODER_TAP`) say, into ``positions``; the DACs
         write ``volts``, which the amplifiers ``amps`` (:data:`~cnc_twin.machine.amplifier.AMP`)
@@ -71,7 +72,7 @@ if mujoco_c.IMPORT_ERROR is None:
                 _mj_kinematics(model_ptr, data_ptr)
                 _tool_pose(site_xpos, xpos, xaxis, qpos, tool_ids, rec_tool[t0 // n])
             _gather_encoders(qpos, taps, positions)
-            _servo_tick(axes, fractions[j], tick_commands[j], use_tick_commands, positions, rec_command[row],
+            _servo_tick(axes, comp_tables, fractions[j], tick_commands[j], use_tick_commands, positions, rec_command[row],
                         rec_actual[row], rec_dac[row], volts)
             rec_force[row] = _read_load_cell(cell, -sensordata[force_adr])
             for _ in range(substeps):
@@ -107,7 +108,7 @@ class CompiledServo:
     def tick_args(self) -> tuple:
         """The kernel's arguments from the servo's records to the plant's arrays, for this period."""
         servo = self.servo
-        return (*self.plant_args, servo.axes, servo.load_cell, servo.fractions, servo.tick_commands,
+        return (*self.plant_args, servo.axes, servo.comp_tables, servo.load_cell, servo.fractions, servo.tick_commands,
                 servo.use_tick_commands, *self.plant_arrays)
 
     def warm_up(self) -> None:
@@ -116,7 +117,7 @@ class CompiledServo:
         ``Twin.run`` calls it while the planner process starts."""
         n = self.servo.n_axes
         args = self.tick_args()
-        run_ticks(*args[:5], self.servo.fractions[:0], *args[6:],
+        run_ticks(*args[:6], self.servo.fractions[:0], *args[7:],
                   np.zeros((1, n)), np.zeros((1, n), dtype=np.int32), np.zeros((1, n), dtype=np.int16),
                   np.zeros(1), np.zeros((1, 6)), 0)
 

@@ -13,12 +13,16 @@ phase the command is in:
   the writing completes, then the command ends with the signal's exit code.
 
 After the first signal every further one is only noted, so a second Ctrl-C cannot cut the
-clean-up short. Exit codes: 130 for SIGINT, 143 for SIGTERM (128 + the signal number).
+clean-up short. Where the raised :class:`Interrupted` lands in code whose exceptions Python only
+prints and drops (a C library calling back into Python, as llvmlite does while numba compiles; a
+finaliser), the guard's ``sys.unraisablehook`` keeps it off the terminal and asks the target of
+:meth:`SignalGuard.stopping` to stop instead. Exit codes: 130 for SIGINT, 143 for SIGTERM (128 + the signal number).
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -48,15 +52,19 @@ class SignalGuard:
         self.restore = restore
         self.received: str | None = None
         self._previous: dict[int, object] = {}
+        self._previous_unraisable = sys.unraisablehook
         self._on_signal = self._raise
         self._target = None  # the target of :meth:`stopping`, within its block
 
     def __enter__(self) -> "SignalGuard":
         for sig in SIGNALS:
             self._previous[sig] = signal.signal(sig, self._handle)
+        self._previous_unraisable = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
+        sys.unraisablehook = self._previous_unraisable
         self._restore()
         if exc_type is not None and issubclass(exc_type, ImportError) and self.received is not None \
                 and interruption_in(exc) is None:
@@ -89,6 +97,19 @@ class SignalGuard:
             # else only noted; the run that follows stops at once (:meth:`stopping`)
         else:
             self._on_signal(self.received)
+
+    def _unraisable(self, report) -> None:
+        """``sys.unraisablehook`` while the guard is in place: an :class:`Interrupted` raised where
+        Python can only print and drop it (a C library's callback into Python, as llvmlite's object
+        cache during numba's compiling, a finaliser) is not printed as "Exception ignored ...
+        Traceback"; the signal stays noted, and the target of :meth:`stopping` (a twin still
+        compiling) is asked to stop, which it does at its first period. Anything else goes to
+        the hook that was in place."""
+        if isinstance(report.exc_value, Interrupted):
+            if self._target is not None:
+                self._target.request_stop(report.exc_value.name)
+            return
+        self._previous_unraisable(report)
 
     def _raise(self, name: str) -> None:
         self._on_signal = _note  # clean-up on the way out is not cut short by a second signal
