@@ -335,3 +335,20 @@ def test_an_interruption_python_can_only_drop_is_not_printed_and_stops_the_twin(
     assert guard.received == "SIGINT" and target.stopped == "SIGINT"
     assert capsys.readouterr().err == ""
     assert sys.unraisablehook != guard._unraisable  # the hook before the guard is back
+
+
+def test_an_error_after_the_signal_is_the_interruption():
+    """Seen in CI: the dropped interruption had cut numba's object-code callback short, and numba
+    then failed to cache the function ("no compiled object yet"). An error that comes after the
+    signal, without it in its chain, ends the command as the interruption (one line, 130), not
+    as a traceback; before any signal the error is the error."""
+    from cnc_twin.run.signals import Interrupted, SignalGuard
+
+    with pytest.raises(RuntimeError):
+        with SignalGuard():
+            raise RuntimeError("no signal: a bug is a bug")
+    guard = SignalGuard()
+    with pytest.raises(Interrupted):
+        with guard:
+            guard.received = "SIGINT"  # as _handle notes it where it cannot raise
+            raise RuntimeError("no compiled object yet")

@@ -66,11 +66,13 @@ class SignalGuard:
     def __exit__(self, exc_type, exc, tb) -> bool:
         sys.unraisablehook = self._previous_unraisable
         self._restore()
-        if exc_type is not None and issubclass(exc_type, ImportError) and self.received is not None \
+        if exc_type is not None and issubclass(exc_type, Exception) and self.received is not None \
                 and interruption_in(exc) is None:
-            # the signal came while an extension module initialised (numpy's C core, mujoco...):
-            # the import failed with an error of its own that may not carry the interruption
-            # (numpy's "Importing the numpy C-extensions failed" after PyCapsule_Import lost it)
+            # an error after the signal, that does not carry the interruption: the signal's doing
+            # (an extension module's import failing with an error of its own, as numpy's
+            # "Importing the numpy C-extensions failed" after PyCapsule_Import lost it; numba's
+            # compiler failing to cache a function whose object-code callback the signal cut
+            # short, "no compiled object yet"): the command was asked to stop, and stops so
             raise Interrupted(self.received) from None
         return False
 
