@@ -23,6 +23,18 @@ SCENARIO = scenarios_dir() / "freeform_polish.yaml"
 MOMENTS = 10
 
 
+class StopTarget:
+    """What :meth:`SignalGuard.stopping` stops, recording the request: a twin that has ``begun``
+    (its clock runs) or not yet (compiling, starting its planner)."""
+
+    def __init__(self, *, begun: bool = True):
+        self.begun = begun
+        self.stopped = None
+
+    def request_stop(self, name):
+        self.stopped = name
+
+
 def _scenario() -> Path:
     """The freeform polishing run, whole: every stage a polishing run goes through (workpiece solid,
     MJCF, planner, seek, force loop, turns, removal map, recording, writing). Its 46 s simulated
@@ -239,16 +251,10 @@ def test_a_signal_inside_importlibs_lock_callback_is_noted_and_stops_the_run_at_
          namespace)
     frame = namespace["cb"]()  # a frame as importlib's callback has it
 
-    class Target:
-        stopped = None
-
-        def request_stop(self, name):
-            self.stopped = name
-
     guard = SignalGuard()
     guard._handle(signal.SIGTERM, frame)  # no Interrupted raised
     assert guard.received == "SIGTERM"
-    target = Target()
+    target = StopTarget()
     with guard.stopping(target):
         assert target.stopped == "SIGTERM"
     with pytest.raises(Interrupted):  # anywhere else before the run: the interruption itself
@@ -288,19 +294,11 @@ def test_a_signal_before_a_twin_has_begun_is_the_interruption():
     the signal asks it to stop and raises nothing."""
     from cnc_twin.run.signals import Interrupted, SignalGuard
 
-    class Target:
-        begun = False
-        stopped = None
-
-        def request_stop(self, name):
-            self.stopped = name
-
-    target, guard = Target(), SignalGuard()
+    target, guard = StopTarget(begun=False), SignalGuard()
     with pytest.raises(Interrupted), guard.stopping(target):
         guard._handle(signal.SIGINT, sys._getframe())
     assert target.stopped is None
-    target, guard = Target(), SignalGuard()
-    target.begun = True
+    target, guard = StopTarget(begun=True), SignalGuard()
     with guard.stopping(target):
         guard._handle(signal.SIGTERM, sys._getframe())
     assert target.stopped == "SIGTERM"
@@ -316,14 +314,7 @@ def test_an_interruption_python_can_only_drop_is_not_printed_and_stops_the_twin(
 
     from cnc_twin.run.signals import SignalGuard
 
-    class Target:
-        begun = False
-        stopped = None
-
-        def request_stop(self, name):
-            self.stopped = name
-
-    guard, target = SignalGuard(), Target()
+    guard, target = SignalGuard(), StopTarget(begun=False)
 
     class Finalised:
         def __del__(self):

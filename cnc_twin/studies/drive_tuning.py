@@ -34,6 +34,7 @@ from cnc_twin.core.config import AxisConfig, DriveConfig, Notch
 from cnc_twin.machine.amplifier import AMP, notch_coefficients
 from cnc_twin.studies.commissioning import FrequencyResponse, resonances
 from cnc_twin.studies.linearize import amplifier_ss, frequency_response, pid_controller
+from cnc_twin.studies.tuning import gain_grid
 
 COHERENCE_MIN = 0.6
 """frequencies whose measured coherence is below this are left out of the margins"""
@@ -174,10 +175,6 @@ def position_open_loop(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisC
     return card * cfg.counts_per_unit * spv * velocity_closed_loop(fr, velocity, dt) * dt * z / (z - 1.0)
 
 
-KI_RATIOS = (0.0, 0.05, 0.1, 0.2)
-"""the card's ki = ratio kp^2 [1/s^2], as :data:`cnc_twin.studies.tuning.KI_RATIOS`"""
-
-
 @dataclass(frozen=True)
 class PositionLoop:
     kp: float
@@ -190,17 +187,15 @@ class PositionLoop:
 def position_candidates(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
                         dt: float, *, phase_margin: float = 40.0, gain_margin: float = 6.0,
                         kp_range: tuple[float, float] = (5.0, 400.0)) -> list[PositionLoop]:
-    """Every card (kp, ki) on the grid meeting both margins on the measured response, highest
-    crossover first."""
+    """Every card (kp, ki) on the tuner's grid (:func:`~cnc_twin.studies.tuning.gain_grid`) meeting
+    both margins on the measured response, highest crossover first."""
     valid = valid_band(fr, dt)
     out = []
-    for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
-        for ratio in KI_RATIOS:
-            ki = ratio * kp * kp
-            m = loop_margins(position_open_loop(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0),
-                             fr.frequency, valid)
-            if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin:
-                out.append(PositionLoop(float(kp), float(ki), m))
+    for kp, ki in gain_grid(kp_range):
+        m = loop_margins(position_open_loop(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0),
+                         fr.frequency, valid)
+        if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin:
+            out.append(PositionLoop(float(kp), float(ki), m))
     return sorted(out, key=lambda p: -p.margins.crossover_hz)
 
 

@@ -29,6 +29,14 @@ KI_RATIOS = (0.0, 0.05, 0.1, 0.2)
 """ki = ratio * kp^2 [1/s^2]: integral zero at ratio * kp"""
 
 
+def gain_grid(kp_range: tuple[float, float]):
+    """The position-loop search grid: ``(kp [1/s], ki [1/s^2])``, kp on 40 log-spaced values over
+    ``kp_range``, each with ki = ratio kp^2 for the ratios :data:`KI_RATIOS`."""
+    for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
+        for ratio in KI_RATIOS:
+            yield float(kp), float(ratio * kp * kp)
+
+
 @dataclass(frozen=True)
 class Proposal:
     kp: float
@@ -46,12 +54,10 @@ def candidates(scenario: Scenario, axis: str, *, phase_margin: float = 45.0, gai
     omega = frequency_grid(dt)
     plant = frequency_response(axis_plant(scenario, axis), omega, dt)  # once: only the PID changes
     out = []
-    for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
-        for ratio in KI_RATIOS:
-            ki = ratio * kp * kp
-            gm, pm, wc = margins_of(frequency_response(pid_controller(cfg, dt, kp=kp, ki=ki), omega, dt) * plant, omega)
-            if pm >= phase_margin and gm >= gain_margin and np.isfinite(wc):
-                out.append(Proposal(float(kp), float(ki), pm, gm, wc / (2 * np.pi)))
+    for kp, ki in gain_grid(kp_range):
+        gm, pm, wc = margins_of(frequency_response(pid_controller(cfg, dt, kp=kp, ki=ki), omega, dt) * plant, omega)
+        if pm >= phase_margin and gm >= gain_margin and np.isfinite(wc):
+            out.append(Proposal(float(kp), float(ki), pm, gm, wc / (2 * np.pi)))
     return sorted(out, key=lambda p: -p.crossover_hz)
 
 
