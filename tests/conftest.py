@@ -115,20 +115,28 @@ def pytest_xdist_auto_num_workers(config):
     return len(os.sched_getaffinity(0)) + 1
 
 
+HEAVIEST_FIRST = ("test_signals.py", "test_polish_batch.py", "test_examples.py", "test_rerun_stream.py",
+                  "test_sweep.py", "test_polish_twin.py", "test_sweep_interrupt.py", "test_linearize.py",
+                  "test_docs.py", "test_cam_raster.py", "test_twin.py", "test_hostile_inputs.py",
+                  "test_scenario.py", "test_whiteboard.py", "test_gcode_twin.py", "test_fault_catalog.py")
+"""The modules that take the workers longest (--durations, 2026-11-26: 130 down to 30 s each of the
+suite's 1200 worker-seconds), costliest first."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """The costliest modules first, the rest in their own order after them: xdist's loadscope hands
+    out modules in this order, and a long module handed out last keeps one worker busy after the
+    others ran dry (longest-first scheduling)."""
+    rank = {name: place for place, name in enumerate(HEAVIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 def pytest_configure(config):
     """With workers (xdist), the controller has numba compile the twin's kernels once before the
     workers start, when a fresh install has none cached: otherwise every worker compiles them at
     once (about 15 s of CPU each, on the same cores)."""
     if getattr(config, "workerinput", None) is not None or not config.getoption("numprocesses", None):
         return
-    from cnc_twin.run.period_kernel import kernels_cached
+    from cnc_twin.studies.kernel_warmup import warm_kernels
 
-    if kernels_cached():
-        return
-    from cnc_twin.run.twin import run_scenario
-    from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.scenario.resources import scenarios_dir
-
-    # the point and curve kernels, and the polishing ones (force loop, removal map)
-    for name in ("jog_axes.yaml", "nurbs_circle.yaml", "flat_plate_polish.yaml"):
-        run_scenario(load_scenario(scenarios_dir() / name, overrides={"max_time": 0.5}))
+    warm_kernels()
