@@ -1,14 +1,20 @@
 """Run every bundled published curve at 2400 and 6000 mm/min and interpolation periods of 1, 0.5
 and 0.25 ms, and print README's table: each limit checked from the trace, not from the planner.
 
-    python scripts/published_curves.py [--feeds 2400,6000] [--periods 1,0.5,0.25] [--json OUT]
+    python scripts/published_curves.py [--feeds 2400,6000] [--periods 1,0.5,0.25]
+                                       [--machines rigid,compliant] [--json OUT]
+
+Each curve runs on each machine named (MACHINES: the rigid reference machine, and the compliant
+one with its two-mass axes, bridge mode and drive loops, at the gains its parameter file holds),
+so the table shows what the mechanics cost the same program.
 
 Per run (lockstep, compiled twin):
 - chord error [um] and feed fluctuation, from the trace (``metrics.path``);
 - the largest commanded axis velocity / acceleration / jerk over its limit, computed here by
   finite differences of the commanded positions in the trace, period by period over the whole
   curve part of the run (``path_u >= 0``), feed holds and window joins included;
-- contour error max / RMS [um] (actual tool tip from the encoders against the curve);
+- contour error max / RMS [um]: where the tool really was (MuJoCo's tool site, period by period)
+  against the curve;
 - the real-time factor, and the card's longest wait for the planner's answer [ms] (the longest
   exchange latency: in lockstep the card waits for every answer);
 - after the table, this machine's own floor for that wait: two bare processes ping-ponging a
@@ -25,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_twin import load_scenario, run_scenario
+from cnc_twin.scenario.machine import BUNDLED_MACHINES
 from cnc_twin.scenario.resources import scenarios_dir
 
 
@@ -52,12 +59,16 @@ def trace_axis_ratios(result) -> tuple[float, float, float, str]:
     return ratios[0], ratios[1], ratios[2], worst[1]
 
 
-def run_one(file: Path, feed: float, period_ms: float) -> dict:
+MACHINES = BUNDLED_MACHINES
+
+
+def run_one(file: Path, feed: float, period_ms: float, machine: str = "rigid") -> dict:
     overrides = {"planner.feed": feed, "timing.interpolation_period": period_ms,
-                 "timing.servo_period": min(0.25, period_ms), "timing.physics_timestep": min(0.25, period_ms)}
+                 "timing.servo_period": min(0.25, period_ms), "timing.physics_timestep": min(0.25, period_ms),
+                 **MACHINES[machine]}
     result = run_scenario(load_scenario(file, overrides=overrides))
     m = result.metrics
-    row = {"curve": file.stem, "feed": feed, "period_ms": period_ms, "status": m["status"],
+    row = {"curve": file.stem, "machine": machine, "feed": feed, "period_ms": period_ms, "status": m["status"],
            "fault": (m.get("fault") or {}).get("message")}
     path = m.get("path")
     if path is not None and result.status == "complete":
@@ -75,15 +86,15 @@ def run_one(file: Path, feed: float, period_ms: float) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| curve | feed mm/min | period ms | status | chord um (tol 1) | feed fluct. | v / a / j over limit "
-            "(worst) | contour max / rms um | RTF | longest wait ms |")
-    out = [head, "|" + " --- |" * 10]
+    head = ("| curve | machine | feed mm/min | period ms | status | chord um (tol 1) | feed fluct. | v / a / j over "
+            "limit (worst) | contour max / rms um | RTF | longest wait ms |")
+    out = [head, "|" + " --- |" * 11]
     for r in rows:
+        start = f"| {r['curve']} | {r['machine']} | {r['feed']:g} | {r['period_ms']:g} |"
         if "chord_um" not in r:
-            out.append(f"| {r['curve']} | {r['feed']:g} | {r['period_ms']:g} | {r['status']}: {r['fault']} |"
-                       + " |" * 6)
+            out.append(f"{start} {r['status']}: {r['fault']} |" + " |" * 6)
             continue
-        out.append(f"| {r['curve']} | {r['feed']:g} | {r['period_ms']:g} | {r['status']} | {r['chord_um']:.3f} | "
+        out.append(f"{start} {r['status']} | {r['chord_um']:.3f} | "
                    f"{r['feed_fluctuation']:.1e} | {r['velocity_ratio']:.2f} / {r['acceleration_ratio']:.2f} / "
                    f"{r['jerk_ratio']:.2f} ({r['worst']}) | {r['contour_max_um']:.1f} / {r['contour_rms_um']:.1f} | "
                    f"{r['real_time_factor']:.1f} | {r['longest_wait_ms']:.1f} |")
@@ -127,15 +138,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("scenarios", nargs="*", type=Path)
     parser.add_argument("--feeds", default="2400,6000")
     parser.add_argument("--periods", default="1,0.5,0.25")
+    parser.add_argument("--machines", default="rigid,compliant", help=f"of {', '.join(MACHINES)}")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
+    machines = args.machines.split(",")
+    unknown = [m for m in machines if m not in MACHINES]
+    if unknown:
+        parser.error(f"--machines: {', '.join(unknown)} unknown; the machines are {', '.join(MACHINES)}")
     files = args.scenarios or sorted((scenarios_dir() / "published").glob("*.yaml"))
     rows = []
     for file in files:
         for feed in (float(x) for x in args.feeds.split(",")):
             for period in (float(x) for x in args.periods.split(",")):
-                rows.append(run_one(file, feed, period))
-                print(table(rows[-1:]).splitlines()[-1], flush=True)
+                for machine in machines:
+                    rows.append(run_one(file, feed, period, machine))
+                    print(table(rows[-1:]).splitlines()[-1], flush=True)
     print()
     print(table(rows))
     floor = wake_up_floor()

@@ -328,6 +328,41 @@ def test_an_interruption_python_can_only_drop_is_not_printed_and_stops_the_twin(
     assert sys.unraisablehook != guard._unraisable  # the hook before the guard is back
 
 
+def test_the_debris_of_an_interruption_is_not_printed_after_the_guard(capsys):
+    """Seen in CI (newest llvmlite): SIGINT while numba compiled left an llvmlite object half built,
+    and its finaliser failed with AttributeError as the process ended, after the guard: Python
+    printed "Exception ignored ... Traceback" below the command's one line. A guard whose process
+    ends next (restore=False) keeps its hook after an interruption, and the hook drops what
+    follows a signal; without a signal, an error in a finaliser is still reported."""
+    import gc
+
+    from cnc_twin.run.signals import SignalGuard
+
+    class Broken:
+        def __del__(self):
+            raise AttributeError("half built")
+
+    before, reported = sys.unraisablehook, []
+    try:
+        sys.unraisablehook = lambda report: reported.append(str(report.exc_value))  # as Python's prints
+        quiet = SignalGuard(restore=False)
+        with pytest.raises(BaseException):  # the interruption
+            with quiet:
+                quiet._handle(signal.SIGINT, sys._getframe())
+        Broken()
+        gc.collect()
+        assert reported == [] and capsys.readouterr().err == ""
+        sys.unraisablehook = lambda report: reported.append(str(report.exc_value))
+        with SignalGuard(restore=False):
+            Broken()
+            gc.collect()
+        assert reported == ["half built"]  # no signal: reported to the hook that was in place
+    finally:
+        sys.unraisablehook = before
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def test_an_error_after_the_signal_is_the_interruption():
     """Seen in CI: the dropped interruption had cut numba's object-code callback short, and numba
     then failed to cache the function ("no compiled object yet"). An error that comes after the

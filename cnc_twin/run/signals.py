@@ -64,7 +64,11 @@ class SignalGuard:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        sys.unraisablehook = self._previous_unraisable
+        if self.restore or self.received is None:
+            sys.unraisablehook = self._previous_unraisable
+        # else the process ends next, interrupted: the guard's hook stays, for the finalisers of
+        # what the signal left half built (seen in CI: llvmlite's ObjectRef.__del__ failing with
+        # AttributeError at exit, the interruption having cut its construction short)
         self._restore()
         if exc_type is not None and issubclass(exc_type, Exception) and self.received is not None \
                 and interruption_in(exc) is None:
@@ -105,11 +109,15 @@ class SignalGuard:
         Python can only print and drop it (a C library's callback into Python, as llvmlite's object
         cache during numba's compiling, a finaliser) is not printed as "Exception ignored ...
         Traceback"; the signal stays noted, and the target of :meth:`stopping` (a twin still
-        compiling) is asked to stop, which it does at its first period. Anything else goes to
-        the hook that was in place."""
+        compiling) is asked to stop, which it does at its first period. After a signal anything
+        else dropped so is the interruption's debris (a finaliser of an object it left half
+        built) and is not printed either; before any signal it goes to the hook that was in
+        place."""
         if isinstance(report.exc_value, Interrupted):
             if self._target is not None:
                 self._target.request_stop(report.exc_value.name)
+            return
+        if self.received is not None:
             return
         self._previous_unraisable(report)
 

@@ -1,0 +1,56 @@
+"""The bundled machines by name: `cnc-twin run SCENARIO --machine rigid|compliant` runs the same
+scenario on either (BUNDLED_MACHINES), and the run directory keeps which one it ran on."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import yaml
+
+from cnc_twin.cli import build_parser
+from cnc_twin.scenario.machine import BUNDLED_MACHINES
+from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.trace.parquet import read_trace
+
+from conftest import run_cli
+
+
+def _run_choices() -> list[str]:
+    run = next(a for a in build_parser()._subparsers._group_actions[0].choices["run"]._actions
+               if a.dest == "machine")
+    return list(run.choices)
+
+
+def test_the_cli_offers_every_bundled_machine():
+    assert _run_choices() == list(BUNDLED_MACHINES)
+
+
+def test_a_scenario_run_on_the_compliant_machine_is_that_machines_own_scenario(tmp_path):
+    """jog_axes with --machine compliant gives jog_axes_compliant's trace bit for bit (the same moves
+    on the compliant machine's model and parameter file), and its run directory's scenario.yaml
+    names that machine, so the run can be repeated from it."""
+    code, _, err = run_cli("run", scenarios_dir() / "jog_axes.yaml", "--machine", "compliant", "--quiet",
+                           "--no-rrd", "--out", tmp_path / "switched")
+    assert code == 0, err
+    code, _, err = run_cli("run", scenarios_dir() / "jog_axes_compliant.yaml", "--quiet", "--no-rrd",
+                           "--out", tmp_path / "own")
+    assert code == 0, err
+    switched = read_trace(tmp_path / "switched" / "trace.parquet")
+    own = read_trace(tmp_path / "own" / "trace.parquet")
+    assert switched.keys() == own.keys()
+    for column in own:
+        assert np.array_equal(switched[column], own[column]), column
+    kept = yaml.safe_load((tmp_path / "switched" / "scenario.yaml").read_text())
+    assert kept["machine"] == {"model": "scene_compliant.xml", "parameters": "polisher_compliant.yaml"}
+    assert json.loads((tmp_path / "switched" / "metrics.json").read_text())["status"] == "complete"
+
+
+def test_an_unknown_machine_is_refused_in_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "cnc_twin", "run", str(scenarios_dir() / "jog_axes.yaml"),
+                           "--machine", "stiff", "--out", str(tmp_path / "run")], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and proc.stdout == "" and len(proc.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
