@@ -21,7 +21,7 @@ from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
-from cnc_twin.scenario.resources import default_scenario
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--rerun", action="store_true", help="show the run in a spawned rerun viewer as it runs")
     run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
     run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
-    run.add_argument("--machine", choices=["rigid", "compliant"], default=None,
+    run.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
                      help="run on this bundled machine instead of the one the scenario names (its model and "
                           "parameter file; the scenario's own axes: keys still apply)")
 
@@ -180,8 +180,6 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     # where the run will be written is checked before anything runs: a run's work is never lost
     # to a folder that cannot be written
     check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
-    from cnc_twin.scenario.machine import BUNDLED_MACHINES
-
     overrides = BUNDLED_MACHINES[args.machine] if args.machine is not None else None
     scenario = load_scenario(args.scenario or default_scenario(), overrides=overrides)
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)

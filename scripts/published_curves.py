@@ -4,7 +4,7 @@ and 0.25 ms, and print README's table: each limit checked from the trace, not fr
     python scripts/published_curves.py [--feeds 2400,6000] [--periods 1,0.5,0.25]
                                        [--machines rigid,compliant] [--json OUT]
 
-Each curve runs on each machine named (MACHINES: the rigid reference machine, and the compliant
+Each curve runs on each machine named (BUNDLED_MACHINES: the rigid reference machine, and the compliant
 one with its two-mass axes, bridge mode and drive loops, at the gains its parameter file holds),
 so the table shows what the mechanics cost the same program.
 
@@ -31,8 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.scenario.machine import BUNDLED_MACHINES
-from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
 
 
 def trace_axis_ratios(result) -> tuple[float, float, float, str]:
@@ -59,13 +58,10 @@ def trace_axis_ratios(result) -> tuple[float, float, float, str]:
     return ratios[0], ratios[1], ratios[2], worst[1]
 
 
-MACHINES = BUNDLED_MACHINES
-
-
 def run_one(file: Path, feed: float, period_ms: float, machine: str = "rigid") -> dict:
     overrides = {"planner.feed": feed, "timing.interpolation_period": period_ms,
                  "timing.servo_period": min(0.25, period_ms), "timing.physics_timestep": min(0.25, period_ms),
-                 **MACHINES[machine]}
+                 **BUNDLED_MACHINES[machine]}
     result = run_scenario(load_scenario(file, overrides=overrides))
     m = result.metrics
     row = {"curve": file.stem, "machine": machine, "feed": feed, "period_ms": period_ms, "status": m["status"],
@@ -138,13 +134,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("scenarios", nargs="*", type=Path)
     parser.add_argument("--feeds", default="2400,6000")
     parser.add_argument("--periods", default="1,0.5,0.25")
-    parser.add_argument("--machines", default="rigid,compliant", help=f"of {', '.join(MACHINES)}")
+    parser.add_argument("--machines", default="rigid,compliant", help=f"of {', '.join(BUNDLED_MACHINES)}")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     machines = args.machines.split(",")
-    unknown = [m for m in machines if m not in MACHINES]
+    unknown = [m for m in machines if m not in BUNDLED_MACHINES]
     if unknown:
-        parser.error(f"--machines: {', '.join(unknown)} unknown; the machines are {', '.join(MACHINES)}")
+        parser.error(f"--machines: {', '.join(unknown)} unknown; the machines are {', '.join(BUNDLED_MACHINES)}")
     files = args.scenarios or sorted((scenarios_dir() / "published").glob("*.yaml"))
     rows = []
     for file in files:

@@ -11,8 +11,7 @@ import numpy as np
 import yaml
 
 from cnc_twin.cli import build_parser
-from cnc_twin.scenario.machine import BUNDLED_MACHINES
-from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
 from cnc_twin.trace.parquet import read_trace
 
 from conftest import run_cli

@@ -173,15 +173,6 @@ class MachineRef(Strict):
     parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
 
 
-BUNDLED_MACHINES = {
-    "rigid": {"machine.model": "scene.xml", "machine.parameters": "polisher.yaml"},
-    "compliant": {"machine.model": "scene_compliant.xml", "machine.parameters": "polisher_compliant.yaml"},
-}
-"""The bundled machines by name, each as the scenario overrides that select it: ``rigid`` (every axis
-one rigid joint, the drives ideal velocity sources) and ``compliant`` (two-mass feed axes, harmonic
-drives, the bridge's rocking mode, drives with their own loops; models/polisher_compliant.xml).
-``cnc-twin run --machine NAME`` runs a scenario on either, so the two can be compared."""
-
 HEARTBEAT_DEFAULT_MS = {"realtime": 1000.0, "lockstep": 10000.0}
 
 
