@@ -143,7 +143,19 @@ def _run(args: argparse.Namespace) -> int:
         return _run_guarded(args, guard)
 
 
+def _check_destinations(args: argparse.Namespace) -> None:
+    """Where the run and its recording will be written, checked before any process starts or
+    anything runs: a run's work is never lost to a folder that cannot be written, and a mistyped
+    path costs a fraction of a second, not a run's start."""
+    if args.rrd is not None and not args.rrd.parent.is_dir():
+        raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
+    check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
+    if args.out is not None and args.out.exists():
+        raise ScenarioError(args.out, "", "run directory already exists; choose another --out")
+
+
 def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
+    _check_destinations(args)
     from cnc_twin.planner.launch import PlannerPool
 
     # The planner process and the recording process start first: their start-up (0.2 - 0.6 s,
@@ -175,11 +187,6 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.run.twin import Twin
 
-    if args.rrd is not None and not args.rrd.parent.is_dir():
-        raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
-    # where the run will be written is checked before anything runs: a run's work is never lost
-    # to a folder that cannot be written
-    check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
     overrides = BUNDLED_MACHINES[args.machine] if args.machine is not None else None
     scenario = load_scenario(args.scenario or default_scenario(), overrides=overrides)
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)

@@ -6,7 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import Plant
 from cnc_twin.scenario.resources import models_dir
 
 # every machine and scene; the work cell alone (workcell.xml, included by the scenes) has no machine

@@ -14,7 +14,7 @@ from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.surface import NurbsSurface
 from cnc_twin.geometry.surface_path import SurfacePath, tool_axes
 from cnc_twin.planner.toolpath import ToolpathError, raster, spiral
-from cnc_twin.machine.plant import load_model
+from cnc_twin.machine.model_file import load_model
 from cnc_twin.scenario.resources import resolve_model_file
 from cnc_twin.whiteboard.codec import decode, encode
 from cnc_twin.whiteboard.records import ForceControlRecord, SurfaceCurve, SurfaceGeometry

@@ -91,7 +91,7 @@ def test_the_reference_path_serves_what_the_kernel_does_not(name):
 
 
 def test_compiled_kinematics_replay_matches_the_python_loop():
-    from cnc_twin.machine.plant import load_model
+    from cnc_twin.machine.model_file import load_model
     from cnc_twin.view.rerun_export import _Kinematics
 
     scenario = load_scenario(scenarios_dir() / "nurbs_tilted.yaml")

@@ -49,19 +49,13 @@ from cnc_twin.dsp import adc, compensation, dac, encoder, pid
 from cnc_twin.dsp.adc import ADC, adc_convert, setup_adc
 from cnc_twin.dsp.compensation import COMP, MAX_POINTS, TABLE_ROWS, comp_correction, setup_comp
 from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
+from cnc_twin.dsp.frame import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
 from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
 from cnc_twin.dsp.step_output import StepGenerator
 
 # the functions below call the blocks' functions: recompile them when those change
 purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__])
-
-FRAME_FIELDS = ("command", "actual", "dac")
-"""per-axis groups in :attr:`ServoTask.frame`, each 6 wide, followed by one force value"""
-PERIOD_FIELDS = ("state", "fault", "fifo_fill", "feed_override", "missed_exchanges", "records_rejected",
-                 "last_seq_executed", "path_u", "path_ds", "force_state", "force_setpoint", "force_depth",
-                 "feed_factor", "mark", "events")
-"""per-period values after the force in :attr:`ServoTask.frame`, written once per period"""
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
                  ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64),

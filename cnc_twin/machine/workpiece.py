@@ -107,7 +107,7 @@ def _hull_gap(vertices: np.ndarray, top: np.ndarray) -> float:
 def build_model(model_file: Path, surface: NurbsSurface, *, tile_size: float, label: Path | str = "<model>",
                 edit=None) -> tuple[mujoco.MjModel, Tiling]:
     """The scene with the surface as its workpiece, compiled; ``edit(spec)``, if given, may add
-    more to the spec before it compiles (e.g. :func:`cnc_twin.machine.plant.add_obstacles`).
+    more to the spec before it compiles (e.g. :func:`cnc_twin.machine.model_file.add_obstacles`).
 
     Raises
     ------

@@ -30,7 +30,8 @@ import numpy as np
 from cnc_twin.core.config import (
     ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
 )
-from cnc_twin.machine.plant import Plant, load_model_with_obstacles
+from cnc_twin.machine.model_file import load_model_with_obstacles
+from cnc_twin.machine.plant import Plant
 
 if TYPE_CHECKING:  # the twin hands itself to the hooks; typing only, no import at run time
     from cnc_twin.dsp.task import DspTask

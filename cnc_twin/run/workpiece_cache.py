@@ -22,7 +22,7 @@ from pathlib import Path
 import mujoco
 
 from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
-from cnc_twin.machine.plant import add_obstacles, folder_state
+from cnc_twin.machine.model_file import add_obstacles, folder_state
 from cnc_twin.machine.workpiece import Tiling, build_model
 from cnc_twin.polishing.polish import removal_grid
 

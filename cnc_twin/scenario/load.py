@@ -25,7 +25,8 @@ from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import ForceSensorConfig, PlannerConfig, Scenario, WhiteboardConfig
 from cnc_twin.core.errors import ScenarioError, format_key_path
-from cnc_twin.machine.plant import load_model, model_info
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import model_info
 from cnc_twin.scenario import chip, contour, curve, gcode, points, surface
 from cnc_twin.scenario.chip import MotionChipProgramSpec
 from cnc_twin.scenario.contour import ContourProgramSpec

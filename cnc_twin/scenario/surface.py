@@ -109,7 +109,7 @@ class SurfacePolishProgram(Strict):
 def convert(spec: SurfacePolishProgram, axes: tuple[AxisConfig, ...], model_file: Path, label: Path) -> SurfaceProgram:
     """Validate the surface and the path, check every pose, and convert to SI."""
     from cnc_twin.geometry.kinematics import HeadGeometry
-    from cnc_twin.machine.plant import load_model
+    from cnc_twin.machine.model_file import load_model
     from cnc_twin.planner import toolpath
     from cnc_twin.machine.workpiece import pad_radius
 

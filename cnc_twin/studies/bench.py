@@ -43,7 +43,8 @@ from typing import Any
 import mujoco
 
 from cnc_twin.planner.launch import PlannerPool
-from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import Plant
 from cnc_twin.scenario.load import load_scenario
 from cnc_twin.run.twin import Twin
 

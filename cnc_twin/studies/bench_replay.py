@@ -22,7 +22,8 @@ import numpy as np
 
 from cnc_twin.core.config import Scenario
 from cnc_twin.dsp.dac import CODE_MAX
-from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import Plant
 
 VOLTS_PER_CODE = 10.0 / (CODE_MAX + 1)
 """[V] the card's DAC step at its +/-10 V range (:mod:`cnc_twin.dsp.dac`)"""

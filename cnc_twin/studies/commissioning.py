@@ -28,7 +28,8 @@ from cnc_twin.core import units
 from cnc_twin.core.axes import AXES, actuator_name, joint_name, motor_joint_name
 from cnc_twin.core.config import Scenario
 from cnc_twin.machine.amplifier import drive_amps
-from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import Plant
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,8 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import AxisConfig, Scenario
-from cnc_twin.machine.plant import Plant, load_model
+from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.plant import Plant
 
 
 def linear_plant(scenario: Scenario) -> Plant:

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnc_twin.dsp.servo import PERIOD_FIELDS
+from cnc_twin.dsp.frame import PERIOD_FIELDS
 
 FLOAT_PERIOD_FIELDS = ("feed_override", "path_u", "path_ds", "force_setpoint", "force_depth", "feed_factor")
 """per-period fields kept as float64 (the others are integers)"""

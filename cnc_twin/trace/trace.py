@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.dsp.servo import PERIOD_FIELDS
+from cnc_twin.dsp.frame import PERIOD_FIELDS
 from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES, TOOL_FIELDS
 
 

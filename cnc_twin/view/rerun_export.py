@@ -43,7 +43,7 @@ import rerun.blueprint as rrb
 from cnc_twin.core.axes import AXES, joint_name
 from cnc_twin.core.config import Scenario
 from cnc_twin.core.axes import HOME_KEYFRAME
-from cnc_twin.machine.plant import load_model
+from cnc_twin.machine.model_file import load_model
 from cnc_twin.trace.trace import PeriodSamples, Trace
 from cnc_twin.whiteboard.status import DspState
 
