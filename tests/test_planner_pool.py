@@ -133,10 +133,12 @@ def test_a_pooled_planner_replays_a_surface_plan_for_other_gains_with_the_same_t
         moved.run(planners=pool)
     fresh = Twin(gains)
     _same(replay, fresh.run())
-    # another path in the same warm process is planned, not replayed (about ten times the work;
-    # a fresh process's figure also holds its first imports). Wall-clock figures: loose bounds,
-    # the replay itself is checked in tests/test_nurbs.py
-    assert replayed.plan_us < moved.plan_us < fresh.plan_us
+    # another path in the same warm process is planned, not replayed: hundreds of times the work
+    # (a replay takes milliseconds, planning about a second). Wall-clock figures, so only that wide
+    # gap is asserted (a fresh process's planning against a warm one's is not: with its modules
+    # precompiled it came out faster on a loaded machine); the replay itself is checked in
+    # tests/test_nurbs.py
+    assert replayed.plan_us < moved.plan_us and replayed.plan_us < fresh.plan_us
 
 
 @pytest.mark.parametrize("name", ["nurbs_circle", "gcode_3plus2"])
