@@ -21,13 +21,16 @@ from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
-from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, input_path
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_FAULT = 3
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
+EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
+"""the reader of stdout went away (``cnc-twin gcode part.ngc --canon | head``): the status a C
+tool killed by SIGPIPE ends with"""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,7 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="run a scenario and write a run directory")
-    run.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
+    run.add_argument("scenario", nargs="?", type=input_path,
+                     help="scenario YAML or NC program (.ngc): a path, or a bundled one by name (cnc-twin list); "
+                          "default: jog_axes")
     run.add_argument("--out", type=Path, default=None,
                      help="run directory to create (default: runs/<name>-<UTC time>)")
     run.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
@@ -55,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "parameter file; the scenario's own axes: keys still apply)")
 
     sweep = sub.add_parser("sweep", help="run a scenario over a grid (or random set) of overrides")
-    sweep.add_argument("scenario", type=Path)
+    sweep.add_argument("scenario", type=input_path, help="scenario: a path, or a bundled one by name")
     sweep.add_argument("--param", action="append", required=True,
                        help="PATH=start:stop:step | PATH=a,b,c | PATH=value (repeatable), e.g. servo.X.kp=20:80:20")
     sweep.add_argument("--random", type=int, default=None, help="draw N random cases within the ranges instead")
@@ -68,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_sum)")
 
     tune = sub.add_parser("tune", help="propose an axis's PID gains from its linear loop and check them")
-    tune.add_argument("scenario", type=Path)
+    tune.add_argument("scenario", type=input_path, help="scenario: a path, or a bundled one by name")
     tune.add_argument("--axis", required=True, choices=list("XYZABC"))
     tune.add_argument("--phase-margin", type=float, default=45.0, help="[deg]")
     tune.add_argument("--gain-margin", type=float, default=6.0, help="[dB]")
@@ -81,18 +86,21 @@ def build_parser() -> argparse.ArgumentParser:
                       help="serve the run to a browser on this machine instead (no display needed)")
     view.add_argument("--port", type=int, default=9090, help="--web: the web viewer's port on 127.0.0.1")
 
+    sub.add_parser("list", help="list the bundled scenarios and NC programs, which run by name from anywhere")
+
     validate = sub.add_parser("validate", help="check scenario files without running them")
-    validate.add_argument("scenarios", nargs="+", type=Path)
+    validate.add_argument("scenarios", nargs="+", type=input_path, help="scenarios: paths, or bundled ones by name")
 
     gcode = sub.add_parser("gcode", help="read an NC program as LinuxCNC reads it and list what it makes")
-    gcode.add_argument("program", type=Path, help="RS274/NGC program (.ngc)")
+    gcode.add_argument("program", type=input_path, help="RS274/NGC program (.ngc): a path, or a bundled one by name")
     gcode.add_argument("--canon", action="store_true",
                        help="print the canonical machine calls in the text form of LinuxCNC's rs274 -g")
     gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: none)")
     gcode.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
 
     bench = sub.add_parser("bench", help="twin wall time against bare MuJoCo stepping, in one process")
-    bench.add_argument("scenario", nargs="?", type=Path, help="scenario YAML (default: bundled jog_axes.yaml)")
+    bench.add_argument("scenario", nargs="?", type=input_path,
+                       help="scenario: a path, or a bundled one by name (default: jog_axes)")
     bench.add_argument("--repeat", type=int, default=3, help="measurements of each side; the best counts")
     bench.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
     bench.add_argument("--no-whiteboard", action="store_true",
@@ -104,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
-                "gcode": _gcode}
+                "gcode": _gcode, "list": _list}
     if args.whole_process and args.command not in ("run", "sweep"):
         # The program's start handlers (cnc_twin/entry.py) end it at once; from here Ctrl-C is a
         # KeyboardInterrupt and SIGTERM ends these commands as Ctrl-C does: through the runs'
@@ -134,6 +142,28 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # What the reader took is what it wanted: end quietly, not with a traceback. Python's own
+        # flush of stdout at exit would raise again, so stdout goes nowhere from here.
+        if args.whole_process:
+            with open(os.devnull, "w") as devnull:
+                os.dup2(devnull.fileno(), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+
+
+def _list(args: argparse.Namespace) -> int:
+    """The bundled scenarios and programs, a name and its description per line."""
+    from cnc_twin.scenario.catalogue import bundled_inputs
+
+    entries = bundled_inputs()
+    width = max(len(entry.name) for entry in entries)
+    for kind in ("scenario", "program"):
+        print(f"{kind}s (cnc-twin run NAME):" if kind == "scenario" else f"\n{kind}s (cnc-twin run NAME.ngc):")
+        for entry in entries:
+            if entry.kind == kind:
+                first = entry.description.split(". ", 1)[0]  # its first sentence: one line each
+                print(f"  {entry.name:<{width}}  {first}".rstrip())
+    return EXIT_OK
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -652,6 +652,24 @@ def test_canon_lists_the_calls_in_rs274_s_text_form(tmp_path):
     assert (code, out, err) == (0, SMALL_CANON, "")
 
 
+def test_a_reader_that_stops_early_ends_the_listing_quietly():
+    """``cnc-twin gcode part.ngc --canon | head``: the pipe closes after the lines the reader
+    wanted; the command ends as a tool killed by SIGPIPE would (128 + 13), no traceback."""
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    program = Path(__file__).resolve().parent.parent / "programs" / "cam_raster.ngc"  # 4419 lines: > a pipe's buffer
+    proc = subprocess.Popen([sys.executable, "-m", "cnc_twin", "gcode", str(program), "--canon"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 128 + signal.SIGPIPE, err
+    assert first.strip() and err == b""
+
+
 def test_the_summary_counts_the_moves(tmp_path):
     path = _write(tmp_path, "small.ngc", SMALL)
     code, out, err = run_cli("gcode", path)

@@ -66,6 +66,8 @@ def test_freeform_scenario_through_the_cli(tmp_path):
     assert force["tracking"]["rms_error_pct"] <= 2.0
     assert force["first_contact"]["overshoot_pct"] <= 20.0
     assert metrics["polish"]["tile_hull_gap_mm"] < 1e-3  # a convex face: one exact hull
+    # Preston's closed form assumes a flat face: on this curved one it is not given at all
+    assert "preston_by_hand_mm3" not in metrics["polish"]["removal"] and "Preston" not in proc.stdout
     removal = np.load(out / "removal.npz")
     assert removal["depth"].max() > 0 and (out / "removal.png").stat().st_size > 1000
 

@@ -175,3 +175,16 @@ def test_validate_checks_every_file_and_reports_each_bad_one(tmp_path):
     assert errors[0].startswith(f"error: {bad_a}: program") and errors[1].startswith(f"error: {bad_b}: program.moves[0].feed")
     assert errors[2] == "2 of 3 scenarios refused" and len(errors) == 3
     assert proc.stdout.startswith(f"{good}: ok (jog_axes")
+
+
+def test_a_scenario_with_several_problems_names_where_the_others_are(write_scenario, capsys):
+    """One line still, the first problem in full, the others' key paths after it: one fix-and-retry
+    round finds them all."""
+    from cnc_twin.cli import main
+
+    path = write_scenario({"name": "many", "program": {"type": "point_to_point", "moves": [
+        {"X": 1, "feed": -5}, {"X": 2, "feed": -6}, {"Y": 1, "feed": -7}]}})
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    _assert_one_line_error(2, "", err, path, "program.moves[0].feed")
+    assert "program.moves[1].feed" in err and "program.moves[2].feed" in err

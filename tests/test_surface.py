@@ -278,3 +278,14 @@ def test_validation_messages_say_what_was_found():
         NurbsSurface(**{**FREEFORM, "control_net": NET[..., :2]})
     with pytest.raises(NurbsError, match="10 knots, got 9"):
         NurbsSurface(**{**FREEFORM, "knots_v": [1, 1, 1, 1, 1.3, 2.5, 2.5, 2.5, 2.5]})
+
+
+def test_a_control_net_is_planar_on_any_plane_and_not_off_it():
+    from cnc_twin.geometry.surface import control_net_is_planar
+
+    u, v = np.meshgrid(np.linspace(-0.1, 0.1, 4), np.linspace(-0.05, 0.05, 3), indexing="ij")
+    tilted = np.stack([u, v, 0.3 * u - 0.2 * v + 0.07], axis=-1)  # a tilted plane, off the origin
+    assert control_net_is_planar(tilted)
+    domed = tilted.copy()
+    domed[1, 1, 2] += 1e-6  # one point a micron off the plane
+    assert not control_net_is_planar(domed)

@@ -66,6 +66,20 @@ def _orient_up(n: np.ndarray) -> np.ndarray:
     return np.where(n[:, 2:3] < -_FLAT_Z, -n, n)
 
 
+PLANAR_TOLERANCE = 1e-9
+"""[m] how far from their best-fitting plane control points may lie for a surface to count as flat"""
+
+
+def control_net_is_planar(control_net, tolerance: float = PLANAR_TOLERANCE) -> bool:
+    """Whether a NURBS surface with this control net (shape ``(nu, nv, 3)`` [m]) is a piece of a
+    plane: every control point within ``tolerance`` [m] of the points' best-fitting plane (the
+    surface lies in its control points' convex hull, whatever the weights)."""
+    points = np.asarray(control_net, dtype=np.float64).reshape(-1, 3)
+    centred = points - points.mean(axis=0)
+    normal = np.linalg.svd(centred)[2][-1]  # the direction the points spread least along
+    return bool(np.max(np.abs(centred @ normal)) <= tolerance)
+
+
 class NurbsSurface:
     """A clamped tensor-product NURBS surface in 3-D.
 

@@ -161,14 +161,19 @@ class SurfaceKind(_PathKind):
         return _workpiece_plant(twin, obstacles, prog.surface, prog.preston, prog.friction, prog.surface_tile_size)
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
+        from cnc_twin.geometry.surface import control_net_is_planar
         from cnc_twin.polishing.polish import force_metrics, polished_band, preston_by_hand, removal_metrics
 
         prog, removal = twin.scenario.program, twin.removal
         band = polished_band(prog, removal.uv, removal.scales)
+        figures = removal_metrics(removal, wall_time, band)
+        if control_net_is_planar(prog.surface.control_net):
+            # the closed form holds on a flat face only (uniform pressure under the pad): on a
+            # curved one it would be a second, wrong figure beside the map's
+            figures["preston_by_hand_mm3"] = preston_by_hand(trace, prog.preston, prog.spindle_speed) * 1e9
         return {"polish": {
             "force": force_metrics(trace, prog.force.setpoint),
-            "removal": {**removal_metrics(removal, wall_time, band),
-                        "preston_by_hand_mm3": preston_by_hand(trace, prog.preston, prog.spindle_speed) * 1e9},
+            "removal": figures,
             "collision_tiles": list(twin.tiling.tiles),
             "tile_hull_gap_mm": twin.tiling.hull_gap * 1e3,
             "path_length_mm": prog.path_length * 1e3,

@@ -18,7 +18,7 @@ def summary_table(metrics: dict) -> str:
         final = metrics["final_following_error"][axis]
         unit = fe["unit"]
         lines.append(
-            f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{final['value']:>10.4f} {unit:<3}"
+            f"{axis:<5}{fe['max']:>10.4f} {unit:<3}{fe['rms']:>10.4f} {unit:<3}{fixed(final['value'], 4):>10} {unit:<3}"
             f"{limited[axis]:>9d}"
         )
     wb = metrics.get("whiteboard")
@@ -55,6 +55,12 @@ def summary_table(metrics: dict) -> str:
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
     return "\n".join(lines)
+
+
+def fixed(value: float, digits: int) -> str:
+    """``value`` with ``digits`` decimals, a value that rounds to zero shown as 0 (not ``-0.0000``:
+    the sign of something too small to show is noise, not a direction)."""
+    return f"{round(value, digits) + 0.0:.{digits}f}"
 
 
 def polish_line(polish: dict) -> str:

@@ -37,6 +37,31 @@ def scenarios_dir() -> Path:
     return _bundled_dir("scenarios")
 
 
+def programs_dir() -> Path:
+    """Directory holding the bundled NC programs."""
+    return _bundled_dir("programs")
+
+
+BUNDLED_SUFFIXES = (".yaml", ".ngc")
+"""what a bundled input's name may leave off: a scenario's, a program's"""
+
+
+def input_path(text: str) -> Path:
+    """A scenario or NC program named on the command line: the file, where one exists at that path;
+    else, for a bare name (no folder in it), the bundled scenario or program of that name, with or
+    without its suffix (``nurbs_circle``, ``nurbs_circle.yaml``, ``cam_raster.ngc``,
+    ``published/farfalla``); else the path as given, whose loading then says it does not exist.
+    A file of the name in the current folder comes first."""
+    path = Path(text)
+    if path.exists() or path.is_absolute() or text.startswith("."):
+        return path
+    for folder in (scenarios_dir(), programs_dir()):
+        for candidate in (folder / text, *(folder / (text + suffix) for suffix in BUNDLED_SUFFIXES)):
+            if candidate.is_file():
+                return candidate
+    return path
+
+
 def default_scenario() -> Path:
     """The scenario ``cnc-twin run`` runs when no file is given."""
     return scenarios_dir() / "jog_axes.yaml"

@@ -39,6 +39,10 @@ def validate(model_cls: type[BaseModel], data: Any, label: Path, prefix: tuple =
         raise first_error(exc, label, prefix, model_cls) from None
 
 
+MORE_NAMED = 3
+"""the further problems of one scenario whose places the error line names"""
+
+
 def first_error(exc: ValidationError, label: Path, prefix: tuple, model_cls: type[BaseModel] | None = None
                 ) -> ScenarioError:
     errors = exc.errors(include_url=False)
@@ -68,7 +72,11 @@ def first_error(exc: ValidationError, label: Path, prefix: tuple, model_cls: typ
         message = f"{text[0].lower()}{text[1:]}, got {_SHORT.repr(err['input'])}"
     more = len(errors) - 1
     if more:
-        message += f" (and {more} more problem{'s' if more > 1 else ''})"
+        # where the others are, so one fix-and-retry finds them all (the first is said in full)
+        places = [format_key_path(prefix + tuple(part for part in e["loc"] if part not in UNION_TAGS))
+                  for e in errors[1:]]
+        named = ", ".join(places[:MORE_NAMED]) + (", ..." if more > MORE_NAMED else "")
+        message += f" (and {more} more problem{'s' if more > 1 else ''}, at {named})"
     return ScenarioError(label, format_key_path(loc), message)
 
 

@@ -1,0 +1,57 @@
+"""What is bundled: the scenarios and NC programs a user can name without a path
+(``cnc-twin run nurbs_circle``), each with its one-line description, for ``cnc-twin list``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from cnc_twin.scenario.resources import programs_dir, scenarios_dir
+
+
+@dataclass(frozen=True)
+class BundledInput:
+    """One bundled scenario or program."""
+
+    kind: str
+    """``scenario`` or ``program``"""
+    name: str
+    """what to type: its path under its folder, without the suffix (``published/farfalla``)"""
+    description: str
+    """a scenario's ``description:``, a program's first comment; empty where it has none"""
+
+
+def bundled_inputs() -> list[BundledInput]:
+    """Every bundled scenario, then every bundled program, each kind sorted by name."""
+    found = []
+    for kind, folder, suffix, describe in (("scenario", scenarios_dir(), ".yaml", _scenario_description),
+                                           ("program", programs_dir(), ".ngc", _program_description)):
+        for path in sorted(folder.rglob(f"*{suffix}")):
+            found.append(BundledInput(kind, path.relative_to(folder).with_suffix("").as_posix(), describe(path)))
+    return found
+
+
+def _scenario_description(path: Path) -> str:
+    """The scenario's ``description:``, on one line (the file is read, not validated)."""
+    import yaml
+
+    try:
+        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError:
+        return ""
+    text = raw.get("description", "") if isinstance(raw, dict) else ""
+    return " ".join(str(text).split())
+
+
+def _program_description(path: Path) -> str:
+    """The program's first comment: a ``; ...`` line or a line that is one ``( ... )``."""
+    with path.open(encoding="utf-8", errors="replace") as lines:
+        for line in lines:
+            text = line.strip()
+            if text.startswith(";"):
+                return text[1:].strip()
+            if text.startswith("(") and text.endswith(")"):
+                return text[1:-1].strip()
+            if text and text != "%":
+                return ""
+    return ""
