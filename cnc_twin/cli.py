@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--rerun", action="store_true", help="show the run in a spawned rerun viewer as it runs")
     run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
     run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
+    run.add_argument("--tool-table", type=Path, default=None,
+                     help="an NC program's LinuxCNC tool table, for G43 H (a scenario's program.tool_table)")
+    run.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
     run.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
                      help="run on this bundled machine instead of the one the scenario names (its model and "
                           "parameter file; the scenario's own axes: keys still apply)")
@@ -173,6 +176,13 @@ def _run(args: argparse.Namespace) -> int:
         return _run_guarded(args, guard)
 
 
+def _beside(path: Path, scenario: Path) -> str:
+    """``path`` as the scenario names a file: its bare name where it lies in the scenario's (or
+    program's) folder (the run directory then keeps it beside the program), else absolute."""
+    path, folder = path.resolve(), scenario.resolve().parent
+    return path.name if path.parent == folder else str(path)
+
+
 def _check_destinations(args: argparse.Namespace) -> None:
     """Where the run and its recording will be written, checked before any process starts or
     anything runs: a run's work is never lost to a folder that cannot be written, and a mistyped
@@ -217,8 +227,11 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.run.twin import Twin
 
-    overrides = BUNDLED_MACHINES[args.machine] if args.machine is not None else None
-    scenario = load_scenario(args.scenario or default_scenario(), overrides=overrides)
+    overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else {}
+    if args.tool_table is not None:  # as the scenario key would say it (a G-code program's)
+        overrides.update({"program.tool_table": _beside(args.tool_table, args.scenario or default_scenario()),
+                          "program.tool_units": args.tool_units})
+    scenario = load_scenario(args.scenario or default_scenario(), overrides=overrides or None)
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")

@@ -223,6 +223,27 @@ def test_run_takes_a_program_directly_and_keeps_it_in_the_run_directory(tmp_path
     assert code == 0 and "1 feed path" in out, out + err
 
 
+def test_run_takes_a_tool_table_and_keeps_it_so_the_run_directory_runs_again(tmp_path):
+    """`cnc-twin run part.ngc --tool-table t.tbl`: G43 H1 lifts the commanded Z by the tool's
+    length (LinuxCNC: machine Z = programmed Z + length); the table is kept beside the program."""
+    from cnc_twin.trace.parquet import read_trace
+
+    (tmp_path / "plain.ngc").write_text("G21 G90\nG0 X1 Z5\nM2\n")
+    (tmp_path / "tooled.ngc").write_text("G21 G90\nT1 M6\nG43 H1\nG0 X1 Z5\nM2\n")
+    (tmp_path / "tools.tbl").write_text("T1 P1 Z2.0 D6 ;a 2 mm tool\n")
+    runs = {}
+    for name, extra in (("plain", ()), ("tooled", ("--tool-table", tmp_path / "tools.tbl"))):
+        code, _, err = run_cli("run", tmp_path / f"{name}.ngc", *extra, "--out", tmp_path / name, "--no-rrd", "--quiet")
+        assert code == 0, err
+        runs[name] = read_trace(tmp_path / name / "trace.parquet")["command_Z"][-1]
+    assert runs["tooled"] - runs["plain"] == pytest.approx(2000.0, abs=1.0)  # counts: 1 um each
+    assert (tmp_path / "tooled" / "tools.tbl").read_text() == (tmp_path / "tools.tbl").read_text()
+    code, out, err = run_cli("validate", tmp_path / "tooled" / "scenario.yaml")
+    assert code == 0, out + err
+    code, _, _ = run_cli("run", tmp_path / "tooled.ngc", "--out", tmp_path / "none", "--tool-table", tmp_path / "no.tbl")
+    assert code == 2 and not (tmp_path / "none").exists()
+
+
 @pytest.mark.parametrize("program, line, words", [
     ("G21\nG2 X1 Y1 R1 F100\nM2\n", 2, "first motion"),
     ("G21\nG0 X0 Y0 Z5\nG1 X900 F100\nM2\n", 3, "soft limits"),

@@ -111,6 +111,9 @@ class GcodeProgram:
     """[s] simulated after the program end"""
     workpiece: GcodeWorkpiece | None = None
     """the surface pressed on and polished; None = the scene as it is, no removal map"""
+    tool_table: tuple[str, str] | None = None
+    """``(name as the scenario gives it, text)`` of its LinuxCNC tool table (the run directory
+    keeps it beside the program); None without one"""
 
     @property
     def paths(self) -> tuple[GcodePath, ...]:

@@ -23,6 +23,7 @@ Hooks, each with a default that serves a point-to-point program:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -245,7 +246,11 @@ class GcodeKind(ProgramKind):
         return out
 
     def run_files(self, program: GcodeProgram) -> dict[str, str]:
-        return {program.file.name: program.text}
+        files = {program.file.name: program.text}
+        if program.tool_table is not None and Path(program.tool_table[0]).name == program.tool_table[0]:
+            # named beside the scenario: kept beside it (a path elsewhere is named as it was)
+            files[program.tool_table[0]] = program.tool_table[1]
+        return files
 
     def describe(self, program: GcodeProgram) -> str:
         moves = len(program.steps) - len(program.paths)

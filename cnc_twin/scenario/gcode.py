@@ -177,8 +177,9 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
         workpiece = GcodeWorkpieceSpec()
+    kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if table is not None else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
-                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label))
+                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table)
 
 
 def _check_force_paths(steps: list, where: _Where) -> None:
