@@ -71,6 +71,7 @@ def test_view_without_a_display_says_what_to_do_and_web_serves_the_run(short_run
     import signal
     import socket
     import time
+    import urllib.parse
     import urllib.request
 
     _, run_dir = short_run
@@ -95,6 +96,13 @@ def test_view_without_a_display_says_what_to_do_and_web_serves_the_run(short_run
         assert page and b"<html" in page.lower()
         said = server.stderr.readline()  # printed once the viewer has held its port for 1 s
         assert f"http://127.0.0.1:{port}" in said and "Ctrl-C" in said, said
+        # the printed address names where the page loads the recording from, and that is served
+        # (else the browser opens rerun's Welcome page)
+        query = urllib.parse.urlparse(said.split(" at ", 1)[1].split()[0]).query
+        source = urllib.parse.urlparse(urllib.parse.parse_qs(query)["url"][0].removeprefix("rerun+"))
+        assert (source.hostname, source.path) == ("127.0.0.1", "/proxy") and str(source.port) in said
+        with socket.create_connection(("127.0.0.1", source.port), timeout=5):
+            pass
         second = subprocess.run([sys.executable, "-m", "cnc_twin", "view", str(run_dir), "--web", "--port", str(port)],
                                 capture_output=True, text=True, timeout=60, env=env)
         assert second.returncode == 2 and "did not start" in second.stderr and "in use" in second.stderr

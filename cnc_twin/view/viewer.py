@@ -41,8 +41,12 @@ def serve_web(recording: Path, port: int) -> int:
         print(f"error: the web viewer did not start: port {port} on 127.0.0.1 is in use ({in_use}); choose "
               "another with --port", file=sys.stderr)
         return 2
+    # The recording is served over gRPC on a port of its own; the page must be told where, or the
+    # browser opens rerun's Welcome page instead of the run. A free port is taken here so that
+    # the address printed below holds it.
+    grpc_port = _free_port()
     command = rerun_command() + ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
-                                 "--port", "0", str(recording)]
+                                 "--port", str(grpc_port), str(recording)]
     # Its own process group: `rerun` may be a launcher whose child is the server, and both must
     # end with the command (Ctrl-C and SIGTERM here stop the whole group).
     with viewer_environment() as env:
@@ -53,8 +57,9 @@ def serve_web(recording: Path, port: int) -> int:
         try:  # a port in use ends it at once: say so instead of "serving"
             _, log = child.communicate(timeout=1.0)
         except subprocess.TimeoutExpired:
-            print(f"serving {recording} at http://127.0.0.1:{port} (open it in a browser on this machine, or "
-                  f"forward the port over ssh: ssh -L {port}:127.0.0.1:{port} HOST); Ctrl-C stops",
+            print(f"serving {recording} at {viewer_address(port, grpc_port)} (open it in a browser on this "
+                  f"machine; the page is on port {port}, the recording on {grpc_port}: over ssh forward both, "
+                  f"ssh -L {port}:127.0.0.1:{port} -L {grpc_port}:127.0.0.1:{grpc_port} HOST); Ctrl-C stops",
                   file=sys.stderr, flush=True)
             _, log = child.communicate()
     except KeyboardInterrupt:
@@ -70,6 +75,23 @@ def serve_web(recording: Path, port: int) -> int:
               file=sys.stderr)
         return 2
     return 0
+
+
+def viewer_address(port: int, grpc_port: int) -> str:
+    """The address that opens the served recording in rerun's web viewer: the page on ``port``,
+    told (its ``url`` parameter) to load the recording from the gRPC proxy on ``grpc_port``."""
+    from urllib.parse import quote
+
+    return f"http://127.0.0.1:{port}/?url={quote(f'rerun+http://127.0.0.1:{grpc_port}/proxy', safe='')}"
+
+
+def _free_port() -> int:
+    """A port on 127.0.0.1 that no one listens on now."""
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def _port_in_use(port: int) -> str | None:
