@@ -236,6 +236,8 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
+    for notice in twin.kind.notices(scenario):  # before any motion, once (metrics.json keeps them too)
+        print(f"note: {args.scenario or default_scenario()}: {notice}", file=sys.stderr)
     # no progress bar (not a terminal): one line says when the run has begun (compiled, planner started)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
                       stream=None if not args.quiet else _NullStream(),

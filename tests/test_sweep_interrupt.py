@@ -56,6 +56,7 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
     os.close(slave)
     stderr = _PtyReader(master)
     ours = {proc.pid}
+    our_semaphores: set[str] = set()
     clean = False
     try:
         # a liveness bound, not a speed figure: a loaded 2-core machine (three test workers and the
@@ -65,11 +66,13 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
         tree = _descendants(proc.pid)
         ours |= {pid for pid, _ in tree} | _marked(tag)
         assert any("cnc_twin.planner.process" in _cmdline(pid) for pid, _ in tree), "no planner in the sweep's tree"
+        our_semaphores |= _mapped_shm(ours)
         if to_group:
             os.killpg(proc.pid, sig)
         else:
             proc.send_signal(sig)
         signalled = time.monotonic()
+        our_semaphores |= _mapped_shm(ours | {pid for pid, _ in _descendants(proc.pid)})  # those its shutdown makes
         proc.wait(timeout=30)
         assert proc.returncode == exit_code, stderr.text()
         assert time.monotonic() - signalled < 10.0  # the running cases stopped, none started after
@@ -86,12 +89,12 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
         ours |= _marked(tag)
         left = _wait_gone(tree, tag, seconds=5.0)
         assert not left, f"left running: {left}"
-        leaked = _leaked_shm(shm_before, ours)
+        leaked = _leaked_shm(shm_before, ours, our_semaphores)
         assert not leaked, f"left in /dev/shm: {leaked}"
         clean = True
     finally:
         if not clean:
-            _clean_up(proc, tag, shm_before, ours)
+            _clean_up(proc, tag, shm_before, ours, our_semaphores)
         os.close(master)
 
 
@@ -191,10 +194,10 @@ def _wait_gone(tree: list[tuple[int, int]], tag: str, *, seconds: float) -> list
         time.sleep(0.1)
 
 
-def _mapped_shm() -> set[str]:
-    """Names in /dev/shm that some live process has mapped (another program's, in use)."""
+def _mapped_shm(pids=None) -> set[str]:
+    """Names in /dev/shm that some live process (of ``pids``, or any) has mapped."""
     names = set()
-    for pid in _pids():
+    for pid in _pids() if pids is None else pids:
         try:
             maps = Path(f"/proc/{pid}/maps").read_text()
         except OSError:
@@ -203,21 +206,24 @@ def _mapped_shm() -> set[str]:
     return names
 
 
-def _leaked_shm(before: set[str], ours: set[int]) -> list[str]:
+def _leaked_shm(before: set[str], ours: set[int], our_semaphores: set[str]) -> list[str]:
     """New entries in /dev/shm that the sweep left: whiteboards named after one of its processes,
-    and multiprocessing semaphores nobody has mapped (another program's live ones are mapped)."""
+    and multiprocessing semaphores its processes had mapped that nobody maps now. (A semaphore's
+    name does not say whose it is: one that another test created meanwhile, not yet opened by
+    its children, is not this sweep's to report or remove.)"""
     new = set(os.listdir("/dev/shm")) - before
     whiteboards = {n for n in new if n.startswith("cnc_twin_") and n.split("_")[2].isdigit()
                    and int(n.split("_")[2]) in ours}
-    semaphores = {n for n in new if n.startswith("sem.mp-")} - _mapped_shm()
+    semaphores = {n for n in new & our_semaphores if n.startswith("sem.mp-")} - _mapped_shm()
     return sorted(whiteboards | semaphores)
 
 
-def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[int]) -> None:
+def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[int], our_semaphores: set[str]) -> None:
     """After a failure, nothing of this test stays: kill the sweep's processes (found by the
     marker) and remove what they leaked."""
     marked = _marked(tag)
     ours = ours | marked  # found before the kill: a dead worker's whiteboard is ours to remove too
+    our_semaphores = our_semaphores | _mapped_shm(marked)  # theirs, while they live
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
@@ -227,7 +233,7 @@ def _clean_up(proc: subprocess.Popen, tag: str, shm_before: set[str], ours: set[
         except ProcessLookupError:
             pass
     time.sleep(0.2)
-    for name in _leaked_shm(shm_before, ours):
+    for name in _leaked_shm(shm_before, ours, our_semaphores):
         try:
             os.unlink(f"/dev/shm/{name}")
         except FileNotFoundError:

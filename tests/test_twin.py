@@ -196,3 +196,23 @@ def test_the_progress_bar_ends_at_the_time_simulated():
     for call in calls:
         bar(*call)
     assert log.getvalue() == "p: running\n"
+
+
+def test_a_feed_above_what_the_axes_allow_is_said_once_before_the_run_and_kept(write_scenario, tmp_path):
+    """A point-to-point feed of 50000 mm/min on an X move: the X axis (24000 mm/min) sets the
+    speed. The command says so before the run, with the key and the speed used, and metrics.json
+    keeps it; the trace shows that speed and no more. A feed the axes allow says nothing."""
+    from conftest import run_cli
+
+    path = write_scenario({"name": "fast", "program": {"type": "point_to_point", "settle": 0.0, "moves": [
+        {"X": 100, "feed": 50000}, {"X": 0, "feed": 6000}]}})
+    code, _, err = run_cli("run", path, "--out", tmp_path / "run", "--no-rrd", "--quiet")
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "program.moves[0].feed" in notes[0] and "24000 mm/min" in notes[0], err
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["notices"] == [notes[0].split(f"{path}: ", 1)[1]]
+    trace = read_trace(tmp_path / "run" / "trace.parquet")
+    x_mm = trace["command_X"] / 1000.0  # 1 um per count
+    speed = np.abs(np.diff(x_mm)) / np.diff(trace["time"]) * 60.0  # [mm/min]
+    assert 0.97 * 24000 <= speed.max() <= 24000 * 1.001

@@ -40,38 +40,55 @@ def plan_point_to_point(
     """
     segments: list[Segment] = []
     here = tuple(float(p) for p in start)
-    for move in program.moves:
-        target = tuple(here[i] if t is None else t for i, t in enumerate(move.targets))
+    for move, (here, target) in zip(program.moves, move_ends(program, start)):
         segment = plan_move(here, target, axes, feed=move.feed, period=period)
         if segment is not None:
             segments.append(segment)
-        here = target
         if move.dwell > 0:
-            segments.append(DwellSegment(position=here, periods=dwell_periods(move.dwell, period)))
+            segments.append(DwellSegment(position=target, periods=dwell_periods(move.dwell, period)))
+        here = target
     if program.settle > 0:
         segments.append(DwellSegment(position=here, periods=dwell_periods(program.settle, period)))
     return segments
+
+
+def move_ends(program: PointToPoint, start: Sequence[float]) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:
+    """``(from, to)`` of each move [m | rad], shape ``(6,)`` each: an axis a move leaves out stays
+    where it is."""
+    here, ends = tuple(float(p) for p in start), []
+    for move in program.moves:
+        target = tuple(here[i] if t is None else t for i, t in enumerate(move.targets))
+        ends.append((here, target))
+        here = target
+    return ends
+
+
+def axis_scales(start: tuple[float, ...], end: tuple[float, ...], axes: Sequence[AxisConfig]
+                ) -> tuple[float, float, float, int]:
+    """What the axes allow a move: ``(v_s [1/s], a_s [1/s^2], |d_xyz| [m], the axis that sets v_s)``
+    (see the module docstring; v_s infinite and the axis -1 when nothing moves)."""
+    v_s, a_s, xyz_sq, slowest = math.inf, math.inf, 0.0, -1
+    for i, (cfg, p0, p1) in enumerate(zip(axes, start, end)):
+        d = abs(p1 - p0)
+        if d == 0.0:
+            continue
+        if cfg.max_velocity / d < v_s:
+            v_s, slowest = cfg.max_velocity / d, i
+        a_s = min(a_s, cfg.max_acceleration / d)
+        if cfg.name in LINEAR_AXES:
+            xyz_sq += d * d
+    return v_s, a_s, math.sqrt(xyz_sq), slowest
 
 
 def plan_move(
     start: tuple[float, ...], end: tuple[float, ...], axes: Sequence[AxisConfig], *, feed: float | None, period: float
 ) -> MoveSegment | None:
     """One synchronised move, or ``None`` when nothing moves."""
-    v_s = math.inf
-    a_s = math.inf
-    xyz_sq = 0.0
-    for cfg, p0, p1 in zip(axes, start, end):
-        d = abs(p1 - p0)
-        if d == 0.0:
-            continue
-        v_s = min(v_s, cfg.max_velocity / d)
-        a_s = min(a_s, cfg.max_acceleration / d)
-        if cfg.name in LINEAR_AXES:
-            xyz_sq += d * d
+    v_s, a_s, xyz, _ = axis_scales(start, end, axes)
     if math.isinf(v_s):
         return None
-    if feed is not None and xyz_sq > 0.0:
-        v_s = min(v_s, feed / math.sqrt(xyz_sq))
+    if feed is not None and xyz > 0.0:
+        v_s = min(v_s, feed / xyz)
     profile, periods = Trapezoid.fastest(v_s, a_s).quantised(period)
     return MoveSegment(start=start, end=end, profile=profile, periods=periods)
 

@@ -79,6 +79,30 @@ class ProgramKind:
         """One line on what the program does."""
         return f"{len(program.moves)} moves"
 
+    def notices(self, scenario: Scenario) -> list[str]:
+        """What the run will do otherwise than the program asks (a cap, a clamp), one line each,
+        starting with the key path: said before the run and kept in ``metrics.json``."""
+        return []
+
+
+class PointKind(ProgramKind):
+    """Point-to-point moves: a feed above what the axes allow along a move is said."""
+
+    def notices(self, scenario: Scenario) -> list[str]:
+        from cnc_twin.core.units import MM_PER_MIN
+        from cnc_twin.planner.ptp import axis_scales, move_ends
+
+        said = []
+        for k, (move, (start, end)) in enumerate(zip(scenario.program.moves, move_ends(scenario.program, scenario.home))):
+            v_s, _, xyz, slowest = axis_scales(start, end, scenario.axes)
+            if move.feed is None or xyz == 0.0 or move.feed <= v_s * xyz * (1.0 + 1e-9):
+                continue
+            axis = scenario.axes[slowest]
+            said.append(f"program.moves[{k}].feed: {move.feed / MM_PER_MIN:g} mm/min is more than the axes allow along "
+                        f"this move; it runs at {v_s * xyz / MM_PER_MIN:.0f} mm/min ({axis.name} at its max_velocity "
+                        f"{axis.max_velocity * axis.display_factor * 60:g} {axis.display_unit}/min)")
+        return said
+
     def run_files(self, program) -> dict[str, str]:
         """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
         (name -> text): the program a scenario names."""
@@ -259,7 +283,7 @@ class GcodeKind(ProgramKind):
 
 
 KINDS: dict[type, ProgramKind] = {
-    PointToPoint: ProgramKind(),
+    PointToPoint: PointKind(),
     NurbsProgram: CurveKind(),
     ContourProgram: ContourKind(),
     SurfaceProgram: SurfaceKind(),

@@ -258,6 +258,9 @@ class Twin:
         if sc.timing.mode == "realtime":
             metrics["late_periods"] = self.late_periods
         metrics.update(self.kind.metrics(self, trace, dsp, wall_time))
+        notices = self.kind.notices(sc)
+        if notices:
+            metrics["notices"] = notices
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason
