@@ -155,17 +155,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    """The bundled scenarios and programs, a name and its description per line."""
-    from cnc_twin.scenario.catalogue import bundled_inputs
+    from cnc_twin.scenario.catalogue import catalogue_lines
 
-    entries = bundled_inputs()
-    width = max(len(entry.name) for entry in entries)
-    for kind in ("scenario", "program"):
-        print(f"{kind}s (cnc-twin run NAME):" if kind == "scenario" else f"\n{kind}s (cnc-twin run NAME.ngc):")
-        for entry in entries:
-            if entry.kind == kind:
-                first = entry.description.split(". ", 1)[0]  # its first sentence: one line each
-                print(f"  {entry.name:<{width}}  {first}".rstrip())
+    print("\n".join(catalogue_lines()))
     return EXIT_OK
 
 
@@ -390,47 +382,15 @@ def _sweep(args: argparse.Namespace) -> int:
 
 def _tune(args: argparse.Namespace) -> int:
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.tuning import check_margins, format_verdict, save_plots, verified_proposal
+    from cnc_twin.studies.tune_command import tune_axis
+    from cnc_twin.studies.tuning import check_margins
 
     try:
         check_margins(args.phase_margin, args.gain_margin)
     except ValueError as exc:
         raise ScenarioError(args.scenario, "", str(exc)) from None
-    scenario = load_scenario(args.scenario)
-    axis, cfg = args.axis, scenario.axis(args.axis)
-    mechanics = None
-    if cfg.drive is not None:  # a drive with loops of its own: tuned on its mechanics, measured as commissioning does
-        print(f"axis {axis}: measuring its mechanics on the twin, designing the drive's velocity loop and the "
-              f"position loop on them (phase margin >= {args.phase_margin:g} deg, gain margin >= "
-              f"{args.gain_margin:g} dB), each checked on the twin ...", file=sys.stderr, flush=True)
-        try:
-            from cnc_twin.studies.measured_tuning import tune_on_measured
-
-            mechanics, verdict, report = tune_on_measured(args.scenario, scenario, axis, phase_margin=args.phase_margin,
-                                                          gain_margin=args.gain_margin, step=args.step)
-        except ValueError as exc:
-            raise ScenarioError(args.scenario, "", str(exc)) from None
-        print(report)
-    else:
-        print(f"axis {axis}: candidates with phase margin >= {args.phase_margin:g} deg, gain margin >= "
-              f"{args.gain_margin:g} dB, each checked on the twin ...", file=sys.stderr, flush=True)
-        try:
-            verdict = verified_proposal(args.scenario, scenario, axis, phase_margin=args.phase_margin,
-                                        gain_margin=args.gain_margin, step=args.step)
-        except ValueError as exc:
-            raise ScenarioError(args.scenario, "", str(exc)) from None
-        print(format_verdict(verdict, scenario, axis, phase_margin=args.phase_margin, gain_margin=args.gain_margin,
-                             step=args.step))
-    if args.out is not None:
-        gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
-        if verdict.proposal is not None:
-            gains["proposed"] = {"kp": verdict.proposal.kp, "ki": verdict.proposal.ki}
-        paths = save_plots(scenario, axis, args.out, gains)
-        if mechanics is not None:
-            from cnc_twin.studies.commissioning import save_mechanics_plot
-
-            paths.append(save_mechanics_plot(axis, *mechanics, args.out))
-        print("plots: " + ", ".join(str(p) for p in paths))
+    tune_axis(args.scenario, load_scenario(args.scenario), args.axis, phase_margin=args.phase_margin,
+              gain_margin=args.gain_margin, step=args.step, out=args.out)
     return EXIT_OK
 
 

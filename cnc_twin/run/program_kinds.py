@@ -84,6 +84,11 @@ class ProgramKind:
         starting with the key path: said before the run and kept in ``metrics.json``."""
         return []
 
+    def run_files(self, program) -> dict[str, str]:
+        """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
+        (name -> text): the program a scenario names."""
+        return {}
+
 
 class PointKind(ProgramKind):
     """Point-to-point moves: a feed above what the axes allow along a move is said."""
@@ -102,11 +107,6 @@ class PointKind(ProgramKind):
                         f"this move; it runs at {v_s * xyz / MM_PER_MIN:.0f} mm/min ({axis.name} at its max_velocity "
                         f"{axis.max_velocity * axis.display_factor * 60:g} {axis.display_unit}/min)")
         return said
-
-    def run_files(self, program) -> dict[str, str]:
-        """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
-        (name -> text): the program a scenario names."""
-        return {}
 
 
 def _path_stop_time(limits) -> float:

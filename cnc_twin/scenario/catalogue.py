@@ -55,3 +55,18 @@ def _program_description(path: Path) -> str:
             if text and text != "%":
                 return ""
     return ""
+
+
+def catalogue_lines() -> list[str]:
+    """``cnc-twin list``: the scenarios, then the programs, a name and its description's first
+    sentence per line."""
+    entries = bundled_inputs()
+    width = max(len(entry.name) for entry in entries)
+    lines = []
+    for kind, heading in (("scenario", "scenarios (cnc-twin run NAME):"), ("program", "programs (cnc-twin run NAME.ngc):")):
+        lines += ([""] if lines else []) + [heading]
+        for entry in entries:
+            if entry.kind == kind:
+                first = entry.description.split(". ", 1)[0]  # its first sentence: one line each
+                lines.append(f"  {entry.name:<{width}}  {first}".rstrip())
+    return lines
