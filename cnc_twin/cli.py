@@ -219,17 +219,17 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.run.twin import Twin
 
+    source = args.scenario or default_scenario()
     overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else {}
     if args.tool_table is not None:  # as the scenario key would say it (a G-code program's)
-        overrides.update({"program.tool_table": _beside(args.tool_table, args.scenario or default_scenario()),
-                          "program.tool_units": args.tool_units})
-    scenario = load_scenario(args.scenario or default_scenario(), overrides=overrides or None)
+        overrides.update({"program.tool_table": _beside(args.tool_table, source), "program.tool_units": args.tool_units})
+    scenario = load_scenario(source, overrides=overrides or None)
     run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
-    for notice in twin.kind.notices(scenario):  # before any motion, once (metrics.json keeps them too)
-        print(f"note: {args.scenario or default_scenario()}: {notice}", file=sys.stderr)
+    for notice in twin.notices:  # before any motion, once (metrics.json keeps them too)
+        print(f"note: {source}: {notice}", file=sys.stderr)
     # no progress bar (not a terminal): one line says when the run has begun (compiled, planner started)
     bar = ProgressBar(scenario.name, period=scenario.timing.interpolation_period,
                       stream=None if not args.quiet else _NullStream(),

@@ -26,6 +26,8 @@ from pathlib import Path
 
 from websockets.sync.client import connect
 
+from cnc_twin.view.viewer import viewer_address
+
 VIEWER_PORT, GRPC_PORT, DEVTOOLS_PORT = 9090, 9876, 9222
 
 
@@ -68,7 +70,7 @@ def main() -> int:
         wait_http(f"http://127.0.0.1:{VIEWER_PORT}/", 30)
         pages = json.loads(wait_http(f"http://127.0.0.1:{DEVTOOLS_PORT}/json/list", 30))
         page = next(p for p in pages if p.get("type") == "page")
-        url = (f"http://127.0.0.1:{VIEWER_PORT}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{GRPC_PORT}%2Fproxy")
+        url = viewer_address(VIEWER_PORT, GRPC_PORT)
         with connect(page["webSocketDebuggerUrl"], max_size=None) as ws:
             ws.send(json.dumps({"id": 1, "method": "Page.navigate", "params": {"url": url}}))
             time.sleep(args.wait)

@@ -39,16 +39,15 @@ def plan_point_to_point(
     list of segments, ending with a dwell of ``program.settle`` so the run records settling.
     """
     segments: list[Segment] = []
-    here = tuple(float(p) for p in start)
-    for move, (here, target) in zip(program.moves, move_ends(program, start)):
-        segment = plan_move(here, target, axes, feed=move.feed, period=period)
+    end = tuple(float(p) for p in start)
+    for move, (begin, end) in zip(program.moves, move_ends(program, start)):
+        segment = plan_move(begin, end, axes, feed=move.feed, period=period)
         if segment is not None:
             segments.append(segment)
         if move.dwell > 0:
-            segments.append(DwellSegment(position=target, periods=dwell_periods(move.dwell, period)))
-        here = target
+            segments.append(DwellSegment(position=end, periods=dwell_periods(move.dwell, period)))
     if program.settle > 0:
-        segments.append(DwellSegment(position=here, periods=dwell_periods(program.settle, period)))
+        segments.append(DwellSegment(position=end, periods=dwell_periods(program.settle, period)))
     return segments
 
 

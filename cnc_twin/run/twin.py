@@ -75,6 +75,9 @@ class Twin:
         self.scenario = scenario
         timing = scenario.timing
         self.kind = kind_of(scenario.program)
+        self.notices = self.kind.notices(scenario)
+        """what the run will do otherwise than the program asks, one line each (said before the
+        run by the CLI, kept in ``metrics.json``)"""
         obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
         self.plant, self.removal, self.tiling = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
@@ -258,9 +261,8 @@ class Twin:
         if sc.timing.mode == "realtime":
             metrics["late_periods"] = self.late_periods
         metrics.update(self.kind.metrics(self, trace, dsp, wall_time))
-        notices = self.kind.notices(sc)
-        if notices:
-            metrics["notices"] = notices
+        if self.notices:
+            metrics["notices"] = self.notices
         if self.stop_reason is not None:
             metrics["status"] = "interrupted"
             metrics["stop_reason"] = self.stop_reason
