@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+import yaml
 
 from cnc_twin.run.run_dir import METRICS_FILE, RECORDING_FILE, SCENARIO_FILE, TRACE_FILE
 from cnc_twin.scenario.resources import scenarios_dir
@@ -35,18 +36,28 @@ class StopTarget:
         self.stopped = name
 
 
-def _scenario() -> Path:
-    """The freeform polishing run, whole: every stage a polishing run goes through (workpiece solid,
-    MJCF, planner, seek, force loop, turns, removal map, recording, writing). Its 46 s simulated
-    run in batches (about 2 s) keeps the middle moment inside the clock: a shorter raster now runs
-    in half a second, and the start-up and the writing around it took the middle moment."""
-    return SCENARIO
+STEP_OVER = 25.0
+"""[mm] the raster's step-over here (the bundled scenario's is 7 mm): 22 s simulated instead of 46,
+about 1.5 s in the clock, half the CPU of each of this module's dozen runs"""
 
 
-def _start(folder: Path, env: dict[str, str] | None = None) -> subprocess.Popen:
-    """`cnc-twin run` into ``folder/run``, in a session of its own (its process group is its pid)."""
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory) -> Path:
+    """The freeform polishing run with a wider step-over, whole: every stage a polishing run goes
+    through (workpiece solid, MJCF, planner, seek, force loop, turns, removal map, recording,
+    writing), its run in batches long enough (about 1.5 s) that the middle moment falls inside
+    the clock."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    data["program"]["path"]["step_over"] = STEP_OVER
+    target = tmp_path_factory.mktemp("scenario") / SCENARIO.name
+    target.write_text(yaml.safe_dump(data, sort_keys=False))
+    return target
+
+
+def _start(folder: Path, scenario: Path, env: dict[str, str] | None = None) -> subprocess.Popen:
+    """`cnc-twin run scenario` into ``folder/run``, in a session of its own (its process group is
+    its pid)."""
     folder.mkdir(parents=True)
-    scenario = _scenario()
     return subprocess.Popen([sys.executable, "-m", "cnc_twin", "run", str(scenario), "--out", str(folder / "run")],
                             cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, env=env)
@@ -115,7 +126,7 @@ def _outcome(proc: subprocess.Popen, folder: Path, segments_before: set[str]) ->
 
 
 @pytest.fixture(scope="module")
-def time_scale(tmp_path_factory) -> float:
+def time_scale(tmp_path_factory, scenario) -> float:
     """[s] a clean run's wall time from start-up to the last write (the ten moments spread over
     it). Measured once per session: the suite's workers share it through a locked file in their
     common temporary folder (the first to need it runs the clean run, the others read it)."""
@@ -131,21 +142,21 @@ def time_scale(tmp_path_factory) -> float:
         folder = tmp_path_factory.mktemp("clean")
         before = set(leftover_segments())
         started = time.monotonic()
-        clean = _start(folder / "clean")
+        clean = _start(folder / "clean", scenario)
         assert _outcome(clean, folder / "clean", before) == "complete", clean.returncode
         scale = time.monotonic() - started
         shared.write_text(repr(scale))
         return scale
 
 
-def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
+def signal_at_moment(k: int, time_scale: float, tmp_path: Path, scenario: Path) -> None:
     """SIGINT (even ``k``) or SIGTERM (odd) at moment ``k`` of ten evenly spread over a clean
     run's time: the first comes before the run begins (nothing left), the middle one while it
     runs (a whole run directory, interrupted), any other leaves one of the two."""
     before = set(leftover_segments())
     at, sig = time_scale * (k + 0.5) / MOMENTS, (signal.SIGINT, signal.SIGTERM)[k % 2]
     t0 = time.monotonic()
-    proc = _start(tmp_path / f"m{k}")
+    proc = _start(tmp_path / f"m{k}", scenario)
     _wait_until_started(proc)
     if k == 0:  # the first moment: as soon as the command catches signals, long before any run
         at = time.monotonic() - t0
@@ -174,22 +185,22 @@ def signal_at_moment(k: int, time_scale: float, tmp_path: Path) -> None:
 # class on one worker; the clean run is made once, by the first to need it).
 class TestSigintMoments:
     @pytest.mark.parametrize("k", range(0, MOMENTS, 2))
-    def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
-        signal_at_moment(k, time_scale, tmp_path)
+    def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path, scenario):
+        signal_at_moment(k, time_scale, tmp_path, scenario)
 
 
 class TestSigtermMoments:
     @pytest.mark.parametrize("k", range(1, MOMENTS, 2))
-    def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path):
-        signal_at_moment(k, time_scale, tmp_path)
+    def test_a_signal_at_ten_moments_leaves_nothing_or_a_whole_run(self, k, time_scale, tmp_path, scenario):
+        signal_at_moment(k, time_scale, tmp_path, scenario)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_the_moment_the_cli_starts_ends_it_in_one_line(sig, tmp_path):
+def test_a_signal_the_moment_the_cli_starts_ends_it_in_one_line(sig, tmp_path, scenario):
     """The earliest moment: as soon as the program's first lines run, before its imports. One
     line, 130 / 143, nothing written (not a KeyboardInterrupt traceback, not a death by SIGTERM)."""
     before = set(leftover_segments())
-    proc = _start(tmp_path / "early")
+    proc = _start(tmp_path / "early", scenario)
     _wait_until_started(proc)
     proc.send_signal(sig)
     assert _outcome(proc, tmp_path / "early", before) == "nothing"
@@ -261,7 +272,7 @@ def test_a_signal_inside_importlibs_lock_callback_is_noted_and_stops_the_run_at_
         SignalGuard()._handle(signal.SIGINT, sys._getframe())
 
 
-def test_a_signal_while_a_first_run_compiles_ends_it_at_once(tmp_path):
+def test_a_signal_while_a_first_run_compiles_ends_it_at_once(tmp_path, scenario):
     """Seen in CI: SIGINT during a fresh install's first run, while numba compiled the twin's
     kernels (half a minute, minutes on a loaded machine), was only acted on after the compiling.
     The run has not begun then: the signal ends the command at once, nothing written. An empty
@@ -269,7 +280,7 @@ def test_a_signal_while_a_first_run_compiles_ends_it_at_once(tmp_path):
     says it is compiling. Bound: 20 s, well under what the compiling alone takes (28 s idle)."""
     before = set(leftover_segments())
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba_cache"))
-    proc = _start(tmp_path / "cold", env=env)
+    proc = _start(tmp_path / "cold", scenario, env=env)
     for line in proc.stderr:
         if "compiling" in line:
             break
