@@ -261,10 +261,13 @@ def _amps(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         speed_per_volt=rng.uniform(0.01, 0.5), kp=10 ** rng.uniform(1, 6), tn=rng.choice([0.0, rng.uniform(1e-3, 0.05)]),
         current_bandwidth=rng.uniform(300, 3000), force_limit=rng.uniform(10, 1e4),
         notches=tuple(Notch(rng.uniform(20, 900), rng.uniform(5, 200), rng.uniform(3, 40))
-                      for _ in range(rng.integers(0, 3))))
+                      for _ in range(rng.integers(0, 3))),
+        # the actual speed: exact, filtered, quantised, or both
+        speed_filter=rng.choice([0.0, rng.uniform(100, 2000)]), feedback_counts=int(rng.choice([0, 10000, 2**20])))
         for _ in range(n)]
     taps = np.zeros(n, plant.ENCODER_TAP)
     taps["dof_adr"], taps["scale"] = rng.integers(0, 8, n), rng.uniform(1e-3, 1.0, n)
+    taps["qpos_adr"] = rng.integers(0, 8, n)
     amps = amplifier.setup_amps(drives, taps, dt)
     amps["integral"] = rng.uniform(-1, 1, n) * amps["limit"]
     amps["notch_state"] = rng.uniform(-100, 100, amps["notch_state"].shape)
@@ -279,11 +282,15 @@ def test_amp_force_and_drive_amps(seed):
     amps = _amps(rng)
     _walk(amplifier.amp_force, amps[amps["modelled"]] if amps["modelled"].any() else amps, rng,
           lambda r: (r.uniform(-12, 12), r.uniform(-5, 5)), 50)
+    _walk(amplifier.feedback_speed, amps[amps["modelled"]] if amps["modelled"].any() else amps, rng,
+          lambda r: (r.uniform(-50, 50, 8), r.uniform(-50, 50, 8)), 50)
     compiled, interpreted = _twins(amps)
+    qpos = rng.uniform(-50, 50, 8)
     for _ in range(20):
         volts, qvel = rng.uniform(-12, 12, 6), rng.uniform(-50, 50, 8)
+        qpos += qvel * 2.5e-4
         ctrl_c, ctrl_i = np.zeros(6), np.zeros(6)
-        amplifier.drive_amps(compiled, volts, qvel, ctrl_c)
-        amplifier.drive_amps.py_func(interpreted, volts, qvel, ctrl_i)
+        amplifier.drive_amps(compiled, volts, qpos, qvel, ctrl_c)
+        amplifier.drive_amps.py_func(interpreted, volts, qpos, qvel, ctrl_i)
         _same(ctrl_c, ctrl_i)
     _same(compiled, np.asarray(interpreted))

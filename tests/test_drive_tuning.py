@@ -80,7 +80,8 @@ def test_the_velocity_loop_designed_on_the_measured_response_keeps_its_margins_o
     assert loop.margins.phase_margin_deg >= 40.0 and loop.margins.gain_margin_db >= 6.0
     assert loop.margins.crossover_hz <= drive_tuning.CURRENT_LOOP_SHARE * cfg.drive.current_bandwidth
     model = model_mechanics(compliant, "Y", measured.frequency)
-    on_model = drive_tuning.loop_margins(drive_tuning.velocity_open_loop(model, loop.kp, loop.tn, loop.notches, dt),
+    on_model = drive_tuning.loop_margins(drive_tuning.velocity_open_loop(model, loop.kp, loop.tn, loop.notches, dt,
+                                                                             loop.speed_filter),
                                          model.frequency, drive_tuning.valid_band(measured, dt))
     assert on_model.phase_margin_deg == pytest.approx(loop.margins.phase_margin_deg, abs=2.0)
     assert on_model.gain_margin_db == pytest.approx(loop.margins.gain_margin_db, abs=0.5)

@@ -41,6 +41,12 @@ class DriveConfig:
     """on the torque command, in order"""
     motor_per_axis: float = 1.0
     """motor rad per axis m | rad (2 pi gear / lead; the ratio): converts back to motor terms"""
+    speed_filter: float = 0.0
+    """the actual speed's first-order low-pass [Hz] (the drive's velocity-feedback bandwidth); 0:
+    the loop reads the motor's exact speed"""
+    feedback_counts: int = 0
+    """the drive's motor feedback, counts per motor revolution: its speed is the difference of
+    these counts over a step; 0: not quantised"""
 
 
 COMP_MAX_POINTS = 256

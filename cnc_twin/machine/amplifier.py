@@ -8,11 +8,23 @@ velocity loop, the notch filters and the torque limit are the amplifier's, compu
 physics step from the DAC voltage and the motor's speed::
 
     w*     = speed_per_volt V                        # the analog input [m/s | rad/s at the axis]
-    e      = w* - w_motor                           # the motor's speed (its encoder), axis units
+    w_act  = feedback(q_motor)                       # the actual speed, axis units (below)
+    e      = w* - w_act
     u      = kp e + I                               # PI
     I     += kp e dt / tn    unless u is limited and e pushes further (anti-windup)
     u      = notch_k(u) for each notch              # biquads, bilinear with prewarping
     force  = clamp(u, +-force_limit)                # -> ctrl; MuJoCo lags it (the current loop)
+
+The actual speed is what a drive measures, not MuJoCo's exact ``qvel``: the motor feedback's counts
+(``feedback_counts`` per motor revolution; not quantised when 0) differenced over the step, then a
+first-order low-pass at ``speed_filter`` [Hz] (a drive's velocity-feedback bandwidth: Beckhoff's
+AX2000 defaults to 600 Hz, "a compromise between phase lag and noise"), discretised exactly::
+
+    n      = floor(q_motor counts_per_rad)          # the feedback's count
+    w_diff = (n - n_last) / counts_per_rad / dt      # MuJoCo's step makes q - q_last = dt qvel: no lag
+    w_act += alpha (w_diff - w_act),  alpha = 1 - exp(-2 pi speed_filter dt)
+
+With neither (both 0) the loop reads ``qvel`` exactly, as before these were modelled.
 
 An axis whose drive is the MJCF's own velocity-mode actuator (a rigid machine's ideal velocity
 source) passes the voltage through: ``ctrl = V``.
@@ -34,8 +46,15 @@ dof_adr            -                       the motor hinge's dof (its speed)    
 scale              m/rad | rad/rad         motor to axis units (the drive's gear)       set up
 n_notches          -                       notch filters in use (0 .. 2)                set up
 notch              -                       per notch: b0, b1, b2, a1, a2                set up
+qpos_adr           -                       the motor hinge's qpos (its feedback)        set up
+counts_per_rad     1/rad                   feedback counts per motor rad; 0: exact      set up
+alpha              -                       the speed filter's step gain; 0: no filter   set up
+inv_dt             1/s                     1 / the physics step                         set up
 notch_state        -                       per notch: the biquad's two delays           :func:`amp_force`
 integral           N | N m                 the PI's integral                            :func:`amp_force`
+last_count         -                       the feedback's count at the last step         :func:`feedback_speed`
+speed              m/s | rad/s             the filtered actual speed                     :func:`feedback_speed`
+primed             -                       ``last_count`` holds a count                  :func:`feedback_speed`
 =================  ======================  ==========================================  ===========
 """
 
@@ -51,8 +70,9 @@ MAX_NOTCHES = 2
 
 AMP = np.dtype([("modelled", np.bool_), ("speed_per_volt", np.float64), ("kp", np.float64), ("ki_dt", np.float64),
                 ("limit", np.float64), ("dof_adr", np.int64), ("scale", np.float64), ("n_notches", np.int64),
-                ("notch", np.float64, (MAX_NOTCHES, 5)), ("notch_state", np.float64, (MAX_NOTCHES, 2)),
-                ("integral", np.float64)])
+                ("notch", np.float64, (MAX_NOTCHES, 5)), ("qpos_adr", np.int64), ("counts_per_rad", np.float64),
+                ("alpha", np.float64), ("inv_dt", np.float64), ("notch_state", np.float64, (MAX_NOTCHES, 2)),
+                ("integral", np.float64), ("last_count", np.float64), ("speed", np.float64), ("primed", np.bool_)])
 """one amplifier's record: see the module docstring"""
 
 
@@ -90,6 +110,9 @@ def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
         a["speed_per_volt"], a["kp"], a["limit"] = drive.speed_per_volt, drive.kp, drive.force_limit
         a["ki_dt"] = drive.kp * dt / drive.tn if drive.tn > 0.0 else 0.0
         a["dof_adr"], a["scale"] = taps[i]["dof_adr"], taps[i]["scale"]
+        a["qpos_adr"], a["inv_dt"] = taps[i]["qpos_adr"], 1.0 / dt
+        a["counts_per_rad"] = drive.feedback_counts / (2.0 * math.pi)
+        a["alpha"] = speed_filter_alpha(drive.speed_filter, dt)
         if len(drive.notches) > MAX_NOTCHES:
             raise ValueError(f"at most {MAX_NOTCHES} notch filters per drive, got {len(drive.notches)}")
         a["n_notches"] = len(drive.notches)
@@ -98,10 +121,48 @@ def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
     return amps
 
 
+def speed_filter_alpha(frequency: float, dt: float) -> float:
+    """The step gain of a first-order low-pass at ``frequency`` [Hz] sampled at ``dt`` [s]
+    (exact: ``1 - exp(-2 pi f dt)``); 0 when ``frequency`` is 0 (no filter)."""
+    return 1.0 - math.exp(-2.0 * math.pi * frequency * dt) if frequency > 0.0 else 0.0
+
+
+def measures_speed(a: np.void) -> bool:
+    """Whether amplifier ``a`` (an :data:`AMP` record) measures its speed (quantised or filtered)
+    rather than reading the exact ``qvel``."""
+    return bool(a["alpha"] > 0.0 or a["counts_per_rad"] > 0.0)
+
+
 def reset_amps(amps: np.ndarray) -> None:
-    """The amplifiers as at power-on: no integral, the filters at rest."""
+    """The amplifiers as at power-on: no integral, the filters at rest, the feedback not yet read."""
     amps["integral"] = 0.0
     amps["notch_state"] = 0.0
+    amps["speed"] = 0.0
+    amps["primed"] = False
+
+
+@njit(cache=True)
+def feedback_speed(a, qpos, qvel):
+    """Amplifier ``a``'s actual speed [m/s | rad/s at the axis] this step (see the module
+    docstring); advances its feedback state."""
+    if a.alpha == 0.0 and a.counts_per_rad == 0.0:
+        return qvel[a.dof_adr] * a.scale
+    if a.counts_per_rad > 0.0:
+        count = np.floor(qpos[a.qpos_adr] * a.counts_per_rad)
+        step = (count - a.last_count) / a.counts_per_rad
+    else:
+        count = qpos[a.qpos_adr]
+        step = count - a.last_count
+    if not a.primed:  # the first read after power-on: the speed of the step before is unknown
+        a.primed = True
+        step = qvel[a.dof_adr] / a.inv_dt
+    a.last_count = count
+    raw = step * a.inv_dt * a.scale
+    if a.alpha == 0.0:
+        a.speed = raw
+    else:
+        a.speed += a.alpha * (raw - a.speed)
+    return a.speed
 
 
 @njit(cache=True)
@@ -128,13 +189,14 @@ def amp_force(a, volts, speed):
 
 
 @njit(cache=True)
-def drive_amps(amps, volts, qvel, ctrl):
+def drive_amps(amps, volts, qpos, qvel, ctrl):
     """Every amplifier for one physics step: ``ctrl`` (MuJoCo's, the drives first) from the DACs'
-    ``volts`` [V] and MuJoCo's ``qvel``; a drive that is not modelled passes its voltage."""
+    ``volts`` [V] and the motors' feedback (MuJoCo's ``qpos``, ``qvel``); a drive that is not
+    modelled passes its voltage."""
     for i in range(amps.shape[0]):
         a = amps[i]
         if a.modelled:
-            ctrl[i] = amp_force(a, volts[i], qvel[a.dof_adr] * a.scale)
+            ctrl[i] = amp_force(a, volts[i], feedback_speed(a, qpos, qvel))
         else:
             ctrl[i] = volts[i]
 

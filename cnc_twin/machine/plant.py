@@ -272,9 +272,10 @@ class Plant:
         if not self.amps_modelled:
             mujoco.mj_step(self.model, self.data, nstep=n)
             return
-        model, data, amps, volts, qvel, ctrl = self.model, self.data, self.amps, self.volts, self.data.qvel, self._ctrl
+        model, data, amps, volts, ctrl = self.model, self.data, self.amps, self.volts, self._ctrl
+        qpos, qvel = data.qpos, data.qvel
         for _ in range(n):
-            drive_amps(amps, volts, qvel, ctrl)
+            drive_amps(amps, volts, qpos, qvel, ctrl)
             mujoco.mj_step(model, data)
 
     def pad_force(self) -> float:

@@ -12,7 +12,7 @@ Per tick ``j`` of the period::
     positions = the encoders' positions from qpos (gather_encoders)
     servo_tick(axes, fraction[j] or the step interpolator's point, positions) -> volts
     force = read_load_cell(-sensordata[force_adr])
-    (drive_amps(volts, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
+    (drive_amps(volts, qpos, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
     force at row t + j
 
 Used for analog output with the drives enabled and no injected card faults (the fault injector
@@ -76,7 +76,7 @@ if mujoco_c.IMPORT_ERROR is None:
                         rec_actual[row], rec_dac[row], volts)
             rec_force[row] = _read_load_cell(cell, -sensordata[force_adr])
             for _ in range(substeps):
-                _drive_amps(amps, volts, qvel, ctrl)
+                _drive_amps(amps, volts, qpos, qvel, ctrl)
                 _mj_step(model_ptr, data_ptr)
 
 

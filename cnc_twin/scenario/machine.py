@@ -89,6 +89,12 @@ class DriveSpec(Strict):
     current_bandwidth: float = Field(1000.0, gt=10.0, le=20000.0, description="current-loop bandwidth [Hz]")
     torque_limit: float = Field(gt=0.0, le=1e4, description="peak torque [N m at the motor]")
     notch_filters: list[NotchSpec] = Field([], max_length=2, description="on the torque command, at most two")
+    speed_filter: float = Field(0.0, ge=0.0, le=20000.0,
+                                description="the actual speed's first-order low-pass [Hz] (the velocity "
+                                            "feedback's bandwidth, e.g. 600); 0: the motor's exact speed")
+    feedback_resolution: int = Field(0, ge=0, le=2**32,
+                                     description="the drive's motor feedback [counts per motor revolution]: "
+                                                 "its speed is their difference over a step; 0: not quantised")
 
 
 class AxisSpec(Strict):
@@ -318,6 +324,8 @@ def _drive(axis: str, a: AxisSpec, info: ModelInfo, label: Path) -> DriveConfig 
         force_limit=d.torque_limit * ratio,
         notches=tuple(Notch(n.frequency, n.width, n.depth) for n in d.notch_filters),
         motor_per_axis=ratio,
+        speed_filter=d.speed_filter,
+        feedback_counts=d.feedback_resolution,
     )
 
 

@@ -78,7 +78,7 @@ def measure_mechanics(scenario: Scenario, axis: str, *, seconds: float = 4.0, am
     plant.apply_volts(volts)
     plant.step(lead_in)
     for k in range(n):
-        drive_amps(plant.amps, plant.volts, qvel, ctrl)
+        drive_amps(plant.amps, plant.volts, data.qpos, qvel, ctrl)
         ctrl[act] += r[k]
         u[k] = ctrl[act]
         w[k] = qvel[tap["dof_adr"]] * tap["scale"]

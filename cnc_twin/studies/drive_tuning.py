@@ -9,8 +9,9 @@ them at the physics step; the card's PID at the servo period), so each loop is t
 with H, and what the machine does decides (its resonances, the current loop's lag, the delays),
 not the linearised model:
 
-    velocity loop    L_v = C_v N H                       (C_v the PI, N the notches)
-    velocity closed  T_v = L_v / (1 + L_v)
+    velocity loop    L_v = C_v N H F                     (C_v the PI, N the notches, F the drive's
+                                                          speed filter on the actual speed)
+    velocity closed  T_v = C_v N H / (1 + L_v)           (the motor's true speed per command)
     position loop    L_p = C_p cpu spv T_v dt z / (z - 1) (C_p the card's PID [V/count], cpu counts
                                                           per unit, spv the drive's speed per volt;
                                                           dt z / (z - 1): MuJoCo's semi-implicit
@@ -31,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_twin.core.config import AxisConfig, DriveConfig, Notch
-from cnc_twin.machine.amplifier import AMP, notch_coefficients
+from cnc_twin.machine.amplifier import AMP, notch_coefficients, speed_filter_alpha
 from cnc_twin.studies.commissioning import FrequencyResponse, resonances
-from cnc_twin.studies.linearize import amplifier_ss, frequency_response, pid_controller
+from cnc_twin.studies.linearize import amplifier_ss, frequency_response, pid_controller, speed_filter_ss
 from cnc_twin.studies.tuning import gain_grid
 
 COHERENCE_MIN = 0.6
@@ -83,9 +84,10 @@ def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | No
                    phase_margin_deg=float(min(pm)) if pm else float("nan"), crossover_hz=crossover)
 
 
-def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void:
+def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float, speed_filter: float = 0.0) -> np.void:
     a = np.zeros(1, AMP)[0]
     a["modelled"] = True
+    a["alpha"] = speed_filter_alpha(speed_filter, dt)
     a["kp"], a["ki_dt"] = kp, kp * dt / tn if tn > 0.0 else 0.0
     a["n_notches"] = len(notches)
     for n, notch in enumerate(notches):
@@ -94,11 +96,21 @@ def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void
 
 
 def velocity_open_loop(fr: FrequencyResponse, kp: float, tn: float, notches: tuple[Notch, ...],
-                       dt: float) -> np.ndarray:
+                       dt: float, speed_filter: float = 0.0) -> np.ndarray:
     """L_v at ``fr.frequency``: the drive's PI (``kp`` [N/(m/s) | N m/(rad/s) at the axis], ``tn``
-    [s]) and ``notches`` at the physics step ``dt`` [s], times the measured mechanics."""
-    controller = frequency_response(amplifier_ss(_amp(kp, tn, notches, dt)), 2.0 * np.pi * fr.frequency, dt)
-    return controller * fr.response
+    [s]) and ``notches`` at the physics step ``dt`` [s], times the measured mechanics, read
+    through the drive's ``speed_filter`` [Hz] (0: none)."""
+    return _controller(fr, kp, tn, notches, dt, speed_filter) * fr.response * _filter(fr, dt, speed_filter)
+
+
+def _controller(fr, kp, tn, notches, dt, speed_filter) -> np.ndarray:
+    amp = _amp(kp, tn, notches, dt, speed_filter)
+    return frequency_response(amplifier_ss(amp), 2.0 * np.pi * fr.frequency, dt)
+
+
+def _filter(fr, dt, speed_filter) -> np.ndarray:
+    amp = _amp(0.0, 0.0, (), dt, speed_filter)
+    return frequency_response(speed_filter_ss(amp), 2.0 * np.pi * fr.frequency, dt)
 
 
 def valid_band(fr: FrequencyResponse, dt: float, hold: int = 2) -> np.ndarray:
@@ -116,12 +128,13 @@ class VelocityLoop:
     """[s]"""
     notches: tuple[Notch, ...]
     margins: Margins
+    speed_filter: float = 0.0
+    """[Hz] the drive's filter on the actual speed the loop reads (0: none): the drive's, not tuned"""
 
 
 CURRENT_LOOP_SHARE = 1 / 3
 """a velocity loop's crossover stays below this share of the current loop's bandwidth (the
-commissioning rule of thumb: the inner loop three to five times faster). The twin's drive
-measures speed without noise, so nothing else would stop the search at the band's end"""
+commissioning rule of thumb: the inner loop three to five times faster)"""
 
 
 def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 45.0,
@@ -140,16 +153,17 @@ def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, 
     best: VelocityLoop | None = None
     for kp in np.logspace(np.log10(drive.kp / 30.0), np.log10(drive.kp * 30.0), 61):
         for notches in settings:
-            proportional = loop_margins(velocity_open_loop(fr, kp, 0.0, notches, dt), fr.frequency, valid)
+            proportional = loop_margins(velocity_open_loop(fr, kp, 0.0, notches, dt, drive.speed_filter),
+                                        fr.frequency, valid)
             if not np.isfinite(proportional.crossover_hz):
                 continue
             for tn in (drive.tn, *(c / (2.0 * np.pi * proportional.crossover_hz) for c in TN_CROSSOVERS)):
-                m = loop_margins(velocity_open_loop(fr, kp, tn, notches, dt), fr.frequency, valid)
+                m = loop_margins(velocity_open_loop(fr, kp, tn, notches, dt, drive.speed_filter), fr.frequency, valid)
                 if not (m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin
                         and m.crossover_hz <= highest):
                     continue
                 if best is None or m.crossover_hz > best.margins.crossover_hz * (1.0 + 1e-9):
-                    best = VelocityLoop(float(kp), float(tn), notches, m)
+                    best = VelocityLoop(float(kp), float(tn), notches, m, drive.speed_filter)
     if best is None:
         raise ValueError(f"no velocity loop on the grid meets {phase_margin:g} deg / {gain_margin:g} dB "
                          "on the measured response")
@@ -157,9 +171,9 @@ def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, 
 
 
 def velocity_closed_loop(fr: FrequencyResponse, loop: VelocityLoop, dt: float) -> np.ndarray:
-    """T_v: the motor's speed per commanded speed, at ``fr.frequency``."""
-    open_loop = velocity_open_loop(fr, loop.kp, loop.tn, loop.notches, dt)
-    return open_loop / (1.0 + open_loop)
+    """T_v: the motor's true speed per commanded speed, at ``fr.frequency``."""
+    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt, loop.speed_filter) * fr.response
+    return forward / (1.0 + forward * _filter(fr, dt, loop.speed_filter))
 
 
 def position_open_loop(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
@@ -201,8 +215,9 @@ def position_candidates(fr: FrequencyResponse, velocity: VelocityLoop, cfg: Axis
 
 def current_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float) -> VelocityLoop:
     """The drive's own velocity loop, with its margins on the measured response."""
-    m = loop_margins(velocity_open_loop(fr, drive.kp, drive.tn, drive.notches, dt), fr.frequency, valid_band(fr, dt))
-    return VelocityLoop(drive.kp, drive.tn, drive.notches, m)
+    m = loop_margins(velocity_open_loop(fr, drive.kp, drive.tn, drive.notches, dt, drive.speed_filter), fr.frequency,
+                     valid_band(fr, dt))
+    return VelocityLoop(drive.kp, drive.tn, drive.notches, m, drive.speed_filter)
 
 
 def choose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 40.0,

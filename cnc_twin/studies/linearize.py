@@ -7,8 +7,9 @@ Plant, from the DAC voltage to encoder counts, discrete at the servo period ``Ts
     left out: Coulomb friction (frictionloss), the joint limits, the harmonic drives' plasticity
     (an elastic copy: below the yield the element is a linear spring; mjd_transitionFD's A is
     wrong for a model with plastic state, MuJoCo 4.0.0). Every amplifier with loops of its own
-    (cnc_twin.machine.amplifier: velocity PI on the motor's speed, notch filters; the current
-    loop is MuJoCo's actuator state) is closed around it at the physics rate, the others' inputs
+    (cnc_twin.machine.amplifier: velocity PI on the motor's actual speed through the drive's
+    speed filter, notch filters; the current loop is MuJoCo's actuator state; the feedback's
+    quantisation left out) is closed around it at the physics rate, the others' inputs
     at 0 V; the axis's voltage held over the servo tick's ``n`` substeps (zero-order hold):
     Ad = M^n, Bd = sum_k M^k N; output y = counts_per_unit x the encoder's position (the motor's
     on a compliant machine, the axis joint's on a rigid one).
@@ -63,9 +64,22 @@ def amplifier_ss(amp: np.void) -> control.StateSpace:
     return out
 
 
+def speed_filter_ss(amp: np.void) -> control.StateSpace:
+    """An amplifier's actual speed from the motor's speed [axis units], discrete at the physics
+    step, as :func:`~cnc_twin.machine.amplifier.feedback_speed` measures it (its quantisation
+    left out): the first-order low-pass ``w_act += alpha (w - w_act)``, or 1 without a filter.
+    (MuJoCo's step makes the position's difference over a step the step's speed exactly, so the
+    differencing adds no lag.)"""
+    alpha = float(amp["alpha"])
+    if alpha == 0.0:
+        return control.ss([], [], [], [[1.0]], True)
+    return control.ss([[1.0 - alpha]], [[alpha]], [[1.0 - alpha]], [[alpha]], True)
+
+
 def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(M, N, speed)`` of the linearised machine over one physics step, ``x' = M x + N u``, with
-    every amplifier's velocity loop closed (PI and notches as :func:`amplifier_ss`), the other
+    every amplifier's velocity loop closed (PI and notches as :func:`amplifier_ss`, on the speed
+    its filter gives, :func:`speed_filter_ss`), the other
     axes' inputs at 0 V; ``u`` is ``axis``'s voltage [V], or with ``force_input`` its force
     command [N | N m at the axis] with that axis's own amplifier left open (what a drive's
     commissioning measures: the mechanics as its motor sees them). ``speed``: the row that reads
@@ -77,25 +91,33 @@ def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple
     B = np.zeros((nx, model.nu))
     mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
     i_axis = AXES.index(axis)
-    loops = [(i, amplifier_ss(plant.amps[i])) for i in range(len(AXES))
+    loops = [(i, speed_filter_ss(plant.amps[i]), amplifier_ss(plant.amps[i])) for i in range(len(AXES))
              if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
-    size = nx + sum(loop.nstates for _, loop in loops)
+    size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops)
     M, N = np.zeros((size, size)), np.zeros((size, 1))
     M[:nx, :nx] = A
     if force_input or not plant.amps[i_axis]["modelled"]:
         N[:nx, 0] = B[:, plant.actuator_ids[i_axis]]  # the actuator's control itself
     at = nx
-    for i, loop in loops:
+    for i, speed_filter, loop in loops:
         amp = plant.amps[i]
-        speed = np.zeros(nx)
-        speed[nv + amp["dof_adr"]] = amp["scale"]  # the motor's speed [axis units] from the state
+        # the actual speed as a row over the whole state: w_act = Cf s + Df (speed . x)
+        f = slice(at, at + speed_filter.nstates)
+        at += speed_filter.nstates
+        Af, Bf, Cf, Df = (np.asarray(m) for m in (speed_filter.A, speed_filter.B, speed_filter.C, speed_filter.D))
+        actual = np.zeros(size)
+        actual[nv + amp["dof_adr"]] = amp["scale"] * Df[0, 0]  # the motor's speed [axis units] from the state
+        if speed_filter.nstates:
+            actual[f] = Cf[0]
+            M[f, f] = Af
+            M[f, nv + amp["dof_adr"]] = Bf[:, 0] * amp["scale"]
         Az, Bz, Cz, Dz = (np.asarray(m) for m in (loop.A, loop.B, loop.C, loop.D))
         k, b = slice(at, at + loop.nstates), B[:, plant.actuator_ids[i]]
-        # u = Cz z + Dz e, e = spv V (this axis) - speed . x
-        M[:nx, :nx] -= np.outer(b, speed) * Dz[0, 0]
+        # u = Cz z + Dz e, e = spv V (this axis) - actual . X
+        M[:nx, :] -= np.outer(b, actual) * Dz[0, 0]
         M[:nx, k] += np.outer(b, Cz[0])
-        M[k, :nx] -= np.outer(Bz[:, 0], speed)
-        M[k, k] = Az
+        M[k, :] -= np.outer(Bz[:, 0], actual)
+        M[k, k] += Az
         if i == i_axis:
             N[:nx, 0] += b * Dz[0, 0] * amp["speed_per_volt"]
             N[k, 0] += Bz[:, 0] * amp["speed_per_volt"]
