@@ -56,10 +56,12 @@ def test_a_loop_above_0_db_at_the_bands_end_has_no_crossover_in_it():
 def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(compliant, axis):
     """The card's PID on the drive's closed velocity loop on the mechanics' response (what the
     tuner does with the measured one), here the linearised mechanics' response, gives the margins
-    the full linearised machine gives: within 1 deg (the two frequency grids), 0.05 dB and the
-    grid's 0.25 Hz."""
+    the full linearised machine gives: within 1 deg (the two frequency grids), 0.1 dB and the
+    grid's 0.25 Hz. X's position loop crosses -180 deg at its motor-side antiresonance, where the
+    gain changes by 3 dB in 0.75 Hz: the grid is 200 times finer over 20-50 Hz there, and 0.01 Hz
+    between the two methods' crossings is still 0.04 dB."""
     cfg, dt = compliant.axis(axis), compliant.timing.physics_timestep
-    f = np.linspace(0.25, 2000.0, 8000)
+    f = np.union1d(np.linspace(0.25, 2000.0, 8000), np.linspace(20.0, 50.0, 24001))
     mechanics = model_mechanics(compliant, axis, f)
     velocity = drive_tuning.current_velocity_loop(mechanics, cfg.drive, dt)
     for kp in (50.0, 150.0):
@@ -67,7 +69,7 @@ def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(com
             mechanics, velocity, cfg, compliant.timing.servo_period, dt, kp=kp, ki=0.0, kd=0.0), f, f >= 1.0)
         machine = analyse(compliant, axis, kp=kp, ki=0.0)[0]
         assert composed.phase_margin_deg == pytest.approx(machine.phase_margin_deg, abs=1.0)
-        assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.05)
+        assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.1)
         assert composed.crossover_hz == pytest.approx(machine.crossover_hz, abs=0.3)
 
 
