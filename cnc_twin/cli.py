@@ -108,6 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
     bench.add_argument("--no-whiteboard", action="store_true",
                        help="skip the whiteboard figures (exchange round trip, streaming throughput)")
+    bench.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
+                       help="measure on this bundled machine instead of the one the scenario names")
     return parser
 
 
@@ -462,20 +464,12 @@ def _bench(args: argparse.Namespace) -> int:
     scenario_file = args.scenario or default_scenario()
     print(f"bench: {scenario_file.name}, the twin and bare MuJoCo stepping, best of {args.repeat} each "
           "(compiling the kernels first if this is the first run) ...", file=sys.stderr, flush=True)
-    figures = bench_scenario(scenario_file, repeat=args.repeat)
+    overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else None
+    figures = bench_scenario(scenario_file, repeat=args.repeat, overrides=overrides)
     if not args.no_whiteboard:
-        from cnc_twin.studies.bench_whiteboard import exchange_round_trip, stream_throughput
+        from cnc_twin.studies.bench_whiteboard import whiteboard_figures
 
-        rt = exchange_round_trip()
-        block = stream_throughput(kind="block")
-        move = stream_throughput(kind="move", count=20000)
-        figures.update({
-            "exchange_round_trip_median_us": rt["median_us"],
-            "exchange_round_trip_p99_us": rt["p99_us"],
-            "stream_4k_blocks_mb_per_s": block["mb_per_s"],
-            "stream_move_records_mb_per_s": move["mb_per_s"],
-            "pci_burst_mb_per_s": block["pci_burst_mb_per_s"],
-        })
+        figures.update(whiteboard_figures())
     print(format_bench(figures))
     if args.json is not None:
         args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")

@@ -17,14 +17,24 @@ from cnc_twin.trace.parquet import read_trace
 from conftest import run_cli
 
 
-def _run_choices() -> list[str]:
-    run = next(a for a in build_parser()._subparsers._group_actions[0].choices["run"]._actions
-               if a.dest == "machine")
-    return list(run.choices)
+def _machine_choices(command: str) -> list[str]:
+    option = next(a for a in build_parser()._subparsers._group_actions[0].choices[command]._actions
+                  if a.dest == "machine")
+    return list(option.choices)
 
 
 def test_the_cli_offers_every_bundled_machine():
-    assert _run_choices() == list(BUNDLED_MACHINES)
+    assert _machine_choices("run") == _machine_choices("bench") == list(BUNDLED_MACHINES)
+
+
+def test_bench_measures_the_machine_it_is_given(tmp_path):
+    """`cnc-twin bench jog_axes --machine compliant` measures the compliant model (its figures name
+    the model the twin and the bare stepping ran)."""
+    code, _, err = run_cli("bench", scenarios_dir() / "jog_axes.yaml", "--machine", "compliant", "--repeat", "1",
+                           "--no-whiteboard", "--json", tmp_path / "bench.json")
+    assert code == 0, err
+    figures = json.loads((tmp_path / "bench.json").read_text())
+    assert figures["model"] == "scene_compliant.xml"
 
 
 def test_a_scenario_run_on_the_compliant_machine_is_that_machines_own_scenario(tmp_path):

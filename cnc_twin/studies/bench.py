@@ -60,15 +60,15 @@ def time_bare_steps(model_file: Path, *, timestep: float, steps: int, drives=Non
     return time.perf_counter() - start
 
 
-def time_twin_build(scenario_file: Path, *, kept: bool = False) -> float:
+def time_twin_build(scenario_file: Path, *, kept: bool = False, overrides: dict | None = None) -> float:
     """Wall time [s] of building a run's twin from its loaded scenario: the plant's model (for a
     polishing run the workpiece's solid, its convex collision tiles and the MJCF compile), the
     removal map, the card, the compiled servo's set-up. ``kept``: with the workpiece an earlier
     run of the process built (:mod:`cnc_twin.run.workpiece_cache`, a sweep's later runs); else
-    built from scratch."""
+    built from scratch. ``overrides``: as :func:`~cnc_twin.scenario.load.load_scenario` takes them."""
     from cnc_twin.run import workpiece_cache
 
-    scenario = load_scenario(scenario_file)
+    scenario = load_scenario(scenario_file, overrides=overrides)
     if kept:
         Twin(scenario)
     else:
@@ -78,17 +78,18 @@ def time_twin_build(scenario_file: Path, *, kept: bool = False) -> float:
     return time.perf_counter() - start
 
 
-def time_twin_run(scenario_file: Path, planners: PlannerPool | None = None, **options) -> tuple[float, float, Any]:
+def time_twin_run(scenario_file: Path, planners: PlannerPool | None = None, *, overrides: dict | None = None,
+                  **options) -> tuple[float, float, Any]:
     """One twin run (``options`` for :class:`Twin`, the planner from ``planners`` if given):
     clock wall time [s], whole run() wall time [s], the result."""
-    twin = Twin(load_scenario(scenario_file), **options)
+    twin = Twin(load_scenario(scenario_file, overrides=overrides), **options)
     start = time.perf_counter()
     result = twin.run(planners=planners)
     total = time.perf_counter() - start
     return result.metrics["wall_time_s"], total, result
 
 
-def time_rerun_export(scenario_file: Path, *, repeat: int = 1) -> tuple[float, float]:
+def time_rerun_export(scenario_file: Path, *, repeat: int = 1, overrides: dict | None = None) -> tuple[float, float]:
     """(rerun export wall [s] with rerun already imported, import time [s]): the export of one
     run, the fastest of ``repeat``."""
     import sys
@@ -101,7 +102,7 @@ def time_rerun_export(scenario_file: Path, *, repeat: int = 1) -> tuple[float, f
     import_s = 0.0 if already else time.perf_counter() - started
     from cnc_twin.view.rerun_export import export_run  # noqa: F401
 
-    result = Twin(load_scenario(scenario_file)).run()
+    result = Twin(load_scenario(scenario_file, overrides=overrides)).run()
     exports = []
     with tempfile.TemporaryDirectory() as folder:
         for i in range(max(1, repeat)):
@@ -111,23 +112,25 @@ def time_rerun_export(scenario_file: Path, *, repeat: int = 1) -> tuple[float, f
     return min(exports), import_s
 
 
-def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
-    """Measure twin and bare stepping for ``scenario_file``; returns figures as a flat dict."""
-    scenario = load_scenario(scenario_file)
+def bench_scenario(scenario_file: Path, *, repeat: int = 3, overrides: dict | None = None) -> dict[str, Any]:
+    """Measure twin and bare stepping for ``scenario_file`` (with ``overrides``, e.g. another
+    bundled machine's, :data:`~cnc_twin.scenario.resources.BUNDLED_MACHINES`); returns figures
+    as a flat dict."""
+    scenario = load_scenario(scenario_file, overrides=overrides)
     twin_times, bare_times, totals, pooled, no_record, python_servo = [], [], [], [], [], []
     planners = PlannerPool()
-    time_twin_run(scenario_file, planners)  # starts the planner the pool keeps
+    time_twin_run(scenario_file, planners, overrides=overrides)  # starts the planner the pool keeps
     for _ in range(repeat):
-        wall, total, result = time_twin_run(scenario_file)
+        wall, total, result = time_twin_run(scenario_file, overrides=overrides)
         steps = result.metrics["physics_steps"]
         twin_times.append(wall)
         totals.append(total - wall)
-        wall, total, _ = time_twin_run(scenario_file, planners)
+        wall, total, _ = time_twin_run(scenario_file, planners, overrides=overrides)
         pooled.append(total - wall)
         bare_times.append(time_bare_steps(scenario.model_file, timestep=scenario.timing.physics_timestep, steps=steps,
                                           drives=scenario.drives))
-        no_record.append(time_twin_run(scenario_file, record=False)[0])
-        python_servo.append(time_twin_run(scenario_file, compiled=False)[0])
+        no_record.append(time_twin_run(scenario_file, record=False, overrides=overrides)[0])
+        python_servo.append(time_twin_run(scenario_file, compiled=False, overrides=overrides)[0])
     planners.close()
     trace = result.trace
     twin_s, bare_s = min(twin_times), min(bare_times)
@@ -135,6 +138,7 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
     sim_time = ticks * scenario.timing.servo_period
     return {
         "scenario": scenario.name,
+        "model": scenario.model_file.name,
         "physics_steps": steps,
         "servo_ticks": ticks,
         "sim_time_s": sim_time,
@@ -148,14 +152,15 @@ def bench_scenario(scenario_file: Path, *, repeat: int = 3) -> dict[str, Any]:
         "twin_us_per_tick": twin_s / ticks * 1e6,
         "twin_overhead_us_per_tick": (twin_s - bare_s) / ticks * 1e6,
         "real_time_factor": sim_time / twin_s,
-        "twin_build_s": min(time_twin_build(scenario_file) for _ in range(max(1, repeat))),
-        "twin_build_kept_s": min(time_twin_build(scenario_file, kept=True) for _ in range(max(1, repeat))),
+        "twin_build_s": min(time_twin_build(scenario_file, overrides=overrides) for _ in range(max(1, repeat))),
+        "twin_build_kept_s": min(time_twin_build(scenario_file, kept=True, overrides=overrides)
+                                 for _ in range(max(1, repeat))),
         "twin_startup_s": min(totals),
         "twin_startup_pooled_s": min(pooled),
         "trace_bytes": trace.nbytes(),
         "trace_held_over_raw": trace.held_nbytes() / trace.raw_nbytes(),
         "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-        **_rerun_figures(scenario_file, repeat, twin_s),
+        **_rerun_figures(scenario_file, repeat, twin_s, overrides),
         "repeat": repeat,
     }
 
@@ -179,7 +184,7 @@ def _replay_figures(scenario, trace, repeat: int, twin_s: float) -> dict[str, An
             "replay_contacts_mean": replays[0].contacts_mean, "bare_contacts_mean": contacts_at_rest(scenario)}
 
 
-def time_streamed_recording(scenario_file: Path, *, repeat: int = 1) -> dict[str, float]:
+def time_streamed_recording(scenario_file: Path, *, repeat: int = 1, overrides: dict | None = None) -> dict[str, float]:
     """A run recorded while it runs by a :class:`~cnc_twin.view.rerun_stream.RecordingProcess`, as
     ``cnc-twin run`` records: the run's clock, the wait after it until the recording is closed
     (the tail), and, alternating, the same run's clock without the recording process. Both runs
@@ -188,7 +193,7 @@ def time_streamed_recording(scenario_file: Path, *, repeat: int = 1) -> dict[str
 
     from cnc_twin.view.rerun_stream import RecordingProcess
 
-    scenario = load_scenario(scenario_file)
+    scenario = load_scenario(scenario_file, overrides=overrides)
     clocks, tails, alone = [], [], []
     with tempfile.TemporaryDirectory() as folder:
         for i in range(max(1, repeat)):
@@ -209,11 +214,11 @@ def _no_progress(done: int, total: int) -> None:
     """A progress callback that shows nothing (the CLI's bar when stderr is not a terminal)."""
 
 
-def _rerun_figures(scenario_file: Path, repeat: int, twin_s: float) -> dict[str, float]:
+def _rerun_figures(scenario_file: Path, repeat: int, twin_s: float, overrides: dict | None) -> dict[str, float]:
     """The in-process export's best of ``repeat`` over the run loop's best (``twin_s``, measured
     above), and the streamed recording's figures."""
-    export, import_s = time_rerun_export(scenario_file, repeat=repeat)
-    streamed = time_streamed_recording(scenario_file, repeat=repeat)
+    export, import_s = time_rerun_export(scenario_file, repeat=repeat, overrides=overrides)
+    streamed = time_streamed_recording(scenario_file, repeat=repeat, overrides=overrides)
     # Over the plain run's clock (no progress reports, no recording process): the strictest base.
     return {"rerun_export_s": export, "rerun_export_over_run": export / twin_s, "rerun_import_s": import_s,
             "rerun_streamed_tail_s": streamed["rerun_streamed_tail_s"],

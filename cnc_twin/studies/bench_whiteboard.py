@@ -146,3 +146,18 @@ def stream_throughput(*, kind: str = "block", count: int = 4000, words: int = 81
                 "ratio_to_pci": moved / seconds / 1e6 / PCI_BURST_MB_S}
 
     return _with_pc(_source, (words, chunk_words, kind, count), words, body)
+
+
+def whiteboard_figures() -> dict[str, float]:
+    """``cnc-twin bench``'s whiteboard figures: the exchange's round trip (median, p99 [us]) and
+    the streaming throughput of 4 KB blocks and of move records [MB/s], with the PCI burst."""
+    rt = exchange_round_trip()
+    block = stream_throughput(kind="block")
+    move = stream_throughput(kind="move", count=20000)
+    return {
+        "exchange_round_trip_median_us": rt["median_us"],
+        "exchange_round_trip_p99_us": rt["p99_us"],
+        "stream_4k_blocks_mb_per_s": block["mb_per_s"],
+        "stream_move_records_mb_per_s": move["mb_per_s"],
+        "pci_burst_mb_per_s": block["pci_burst_mb_per_s"],
+    }
