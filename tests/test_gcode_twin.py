@@ -285,3 +285,37 @@ def test_g64_p_is_the_chord_tolerance_of_the_paths_it_governs(mode, overrides, c
     program = load_scenario(tmp_path / "p.ngc", overrides=overrides).program
     (path,) = program.paths
     assert path.curve.limits.chord_tolerance == pytest.approx(chord_mm * 1e-3)
+
+
+def test_an_f_above_what_the_axes_allow_along_a_path_is_said_once_before_the_run_and_kept(tmp_path):
+    """G1 X100 F40000 along X (X's max_velocity 24000 mm/min): the command says before the run, once,
+    with the line and the speed the path runs at, and metrics.json keeps it; the trace shows that
+    speed and no more. The same F along the XY diagonal (24000 x sqrt 2 = 33941 mm/min allowed) is
+    still too fast and runs at 33941; F30000 on the diagonal is allowed and says nothing."""
+    import json
+
+    from cnc_twin.trace.parquet import read_trace
+
+    def run(text: str, name: str):
+        program = tmp_path / f"{name}.ngc"
+        program.write_text(text)
+        code, _, err = run_cli("run", program, "--out", tmp_path / name, "--no-rrd", "--quiet")
+        assert code == 0, err
+        notes = [line for line in err.splitlines() if line.startswith("note:")]
+        metrics = json.loads((tmp_path / name / "metrics.json").read_text())
+        trace = read_trace(tmp_path / name / "trace.parquet")
+        xy = np.stack([trace["command_X"], trace["command_Y"]], axis=1) / 1000.0  # [mm], 1 um per count
+        speed = np.linalg.norm(np.diff(xy, axis=0), axis=1) / np.diff(trace["time"]) * 60.0  # [mm/min]
+        on_the_path = trace["mark"][1:] == 3  # the G1's line (the G0 before it runs at the axes' own limits)
+        return notes, metrics.get("notices", []), speed[on_the_path].max()
+
+    notes, kept, top = run("G21 G90\nG0 X0 Y0 Z5\nG1 X300 F40000\nM2\n", "along_x")
+    assert len(notes) == 1 and "line 3" in notes[0] and "24000 mm/min" in notes[0], notes
+    assert kept == [notes[0].split("along_x.ngc: ", 1)[1]]  # the command names the program first
+    assert 0.97 * 24000 <= top <= 24000 * 1.001
+    notes, kept, top = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F40000\nM2\n", "diagonal")
+    assert len(notes) == 1 and "33941 mm/min" in notes[0], notes
+    assert 0.97 * 33941 <= top <= 33941 * 1.001
+    notes, kept, top = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F30000\nM2\n", "allowed")
+    assert notes == [] and kept == []
+    assert 0.97 * 30000 <= top <= 30000 * 1.001

@@ -21,6 +21,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
+
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
 from cnc_twin.geometry.kinematics import tool_axis
@@ -55,6 +57,37 @@ def _end_pose(curve, axis_path, hold: tuple[float, ...]) -> tuple[float, ...]:
     if axis_path is None:
         return (*curve.point(u1)[0].tolist(), *hold)
     return (*(float(x) for x in axis_path([u1])[0]), hold[2])
+
+
+FEED_CAP_SAMPLES = 257
+"""points per feed path at which :func:`feed_caps` reads the tangent"""
+
+
+def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[int, float, float, int]]:
+    """The feed paths whose programmed feed is more than X/Y/Z's velocity limits allow anywhere
+    along them (the planner's axis-velocity term ``v_i / |t_i|``, :mod:`cnc_twin.planner.feed`, at
+    :data:`FEED_CAP_SAMPLES` points): ``(line, feed [m/s], cap [m/s], axis)`` each, ``cap`` the
+    fastest the path may go at its best point and ``axis`` (0..2) the one that holds it there.
+    Paths with a varying tool axis are left out (their axes are not the tip's). A feed at or below
+    every linear axis's limit is never capped, so most programs cost nothing here."""
+    from cnc_twin.geometry.nurbs import NurbsCurve
+
+    limits = np.array([a.max_velocity for a in axes[:3]])
+    out = []
+    for path in prog.paths:
+        c = path.curve
+        if c.axis_curve is not None or c.limits.feed <= limits.min():
+            continue
+        curve = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
+        d1 = curve.derivatives(np.linspace(*curve.domain, FEED_CAP_SAMPLES), 1)[1]
+        tangent = np.abs(d1) / np.maximum(np.linalg.norm(d1, axis=1), 1e-300)[:, None]
+        with np.errstate(divide="ignore"):
+            per_axis = limits[None, :] / tangent  # (samples, 3) [m/s]
+        caps = per_axis.min(axis=1)
+        best = int(np.argmax(caps))
+        if c.limits.feed > caps[best] * (1.0 + 1e-9):
+            out.append((path.line, c.limits.feed, float(caps[best]), int(np.argmin(per_axis[best]))))
+    return out
 
 
 class GcodePlan:

@@ -276,6 +276,27 @@ class GcodeKind(ProgramKind):
             files[program.tool_table[0]] = program.tool_table[1]
         return files
 
+    def notices(self, scenario: Scenario) -> list[str]:
+        """A programmed F more than the axes allow along a feed path, once per F value: how many
+        paths, the first line, and the fastest they run at (the axis that holds them)."""
+        from cnc_twin.core.units import MM_PER_MIN
+        from cnc_twin.planner.gcode_program import feed_caps
+
+        by_feed: dict[float, list[tuple[int, float, int]]] = {}
+        for line, feed, cap, axis in feed_caps(scenario.program, scenario.axes):
+            by_feed.setdefault(feed, []).append((line, cap, axis))
+        said = []
+        for feed, paths in by_feed.items():
+            line, cap, axis = max(paths, key=lambda p: p[1])
+            cfg = scenario.axes[axis]
+            more = len(paths) - 1
+            where = f"line {paths[0][0]}" + (f" (and {more} more feed path{'s' if more > 1 else ''} at this F)"
+                                             if more else "")
+            said.append(f"{where}: F{feed / MM_PER_MIN:g} mm/min is more than the axes "
+                        f"allow along the path; it runs at {cap / MM_PER_MIN:.0f} mm/min at most ({cfg.name} at its "
+                        f"max_velocity {cfg.max_velocity * cfg.display_factor * 60:g} {cfg.display_unit}/min)")
+        return said
+
     def describe(self, program: GcodeProgram) -> str:
         moves = len(program.steps) - len(program.paths)
         return (f"{program.file.name}: {program.lines} lines, {len(program.paths)} feed path(s), "
