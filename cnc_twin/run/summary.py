@@ -32,8 +32,11 @@ def summary_table(metrics: dict) -> str:
         )
     path = metrics.get("path")
     if path and "contour_error_um" in path:
+        # an NC program's figures are over its feed paths only (its moves are not curves): say how many
+        what = (f"feed paths: {path['feed_paths']}, {path['length_mm']:.1f} mm" if "feed_paths" in path
+                else f"path: {path['length_mm']:.1f} mm")
         lines.append(
-            f"path: {path['length_mm']:.1f} mm, contour error max {path['contour_error_um']['max']:.2f} um "
+            f"{what}, contour error max {path['contour_error_um']['max']:.2f} um "
             f"rms {path['contour_error_um']['rms']:.2f} um (by the encoders: max "
             f"{path['encoder_contour_error_um']['max']:.2f} um), chord error max {path['chord_error_um']['max']:.3f} um, "
             f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
@@ -85,7 +88,7 @@ def program_line(program: dict) -> str:
     d, feed, fits = program["deviation_um"], program["feed"], program["fits"]
     p = f" (G64 P {d['tolerance_um']:g} um)" if d["tolerance_um"] is not None else ""
     text = (f"program: deviation from it max {d['max']:.2f} um, its vertices {d['vertices_max']:.2f} um{p}; "
-            f"feed paths {feed['time_s']:.2f} s (at F: {feed['ideal_time_s']:.2f} s), "
+            f"feed motion (G1, paths and moves) {feed['time_s']:.2f} s (at F: {feed['ideal_time_s']:.2f} s), "
             f"{100 * (feed['share_at_95pct'] or 0):.1f} % of it at >= 95 % of F")
     if fits["runs"]:
         text += f"; {fits['runs']} run(s) of lines fitted in {fits['spans']} spans"
