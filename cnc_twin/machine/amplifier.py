@@ -127,12 +127,6 @@ def speed_filter_alpha(frequency: float, dt: float) -> float:
     return 1.0 - math.exp(-2.0 * math.pi * frequency * dt) if frequency > 0.0 else 0.0
 
 
-def measures_speed(a: np.void) -> bool:
-    """Whether amplifier ``a`` (an :data:`AMP` record) measures its speed (quantised or filtered)
-    rather than reading the exact ``qvel``."""
-    return bool(a["alpha"] > 0.0 or a["counts_per_rad"] > 0.0)
-
-
 def reset_amps(amps: np.ndarray) -> None:
     """The amplifiers as at power-on: no integral, the filters at rest, the feedback not yet read."""
     amps["integral"] = 0.0
