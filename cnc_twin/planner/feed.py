@@ -148,12 +148,19 @@ def _limit_terms(curve: NurbsCurve, u: np.ndarray, s: np.ndarray, limits: PathLi
         q1, q2, q3 = axis_derivatives(axis_q, s)
         v_lim, a_lim, j_lim = axis_limits
     coupling = np.full(len(u), np.inf)
+    f = np.minimum(f, axis_velocity_caps(q1, v_lim).min(axis=1))
     for i in range(q1.shape[1]):
-        f = np.minimum(f, v_lim[i] / np.maximum(np.abs(q1[:, i]), tiny))
         f = np.minimum(f, np.sqrt(0.5 * a_lim[i] / np.maximum(np.abs(q2[:, i]), tiny)))
         f = np.minimum(f, np.cbrt(j_lim[i] / 3.0 / np.maximum(np.abs(q3[:, i]), tiny)))
         coupling = np.minimum(coupling, j_lim[i] / (9.0 * np.maximum(np.abs(q2[:, i]), tiny)))
     return f, coupling
+
+
+def axis_velocity_caps(q1: np.ndarray, v_lim) -> np.ndarray:
+    """Each axis's feed limit ``v_i / |q1_i|`` [m/s] at each sample, shape (N, k): ``q1`` the
+    axes' derivatives with respect to arc length (N, k) (the unit tangent for X/Y/Z), ``v_lim``
+    their velocity limits (k,)."""
+    return np.asarray(v_lim, dtype=np.float64)[None, :] / np.maximum(np.abs(q1), 1e-300)
 
 
 def _arc_length_derivatives(d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -65,12 +65,13 @@ FEED_CAP_SAMPLES = 257
 
 def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[int, float, float, int]]:
     """The feed paths whose programmed feed is more than X/Y/Z's velocity limits allow anywhere
-    along them (the planner's axis-velocity term ``v_i / |t_i|``, :mod:`cnc_twin.planner.feed`, at
-    :data:`FEED_CAP_SAMPLES` points): ``(line, feed [m/s], cap [m/s], axis)`` each, ``cap`` the
+    along them (the planner's axis-velocity term, :func:`~cnc_twin.planner.feed.axis_velocity_caps`,
+    at :data:`FEED_CAP_SAMPLES` points): ``(line, feed [m/s], cap [m/s], axis)`` each, ``cap`` the
     fastest the path may go at its best point and ``axis`` (0..2) the one that holds it there.
     Paths with a varying tool axis are left out (their axes are not the tip's). A feed at or below
     every linear axis's limit is never capped, so most programs cost nothing here."""
     from cnc_twin.geometry.nurbs import NurbsCurve
+    from cnc_twin.planner.feed import axis_velocity_caps
 
     limits = np.array([a.max_velocity for a in axes[:3]])
     out = []
@@ -80,9 +81,8 @@ def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[in
             continue
         curve = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
         d1 = curve.derivatives(np.linspace(*curve.domain, FEED_CAP_SAMPLES), 1)[1]
-        tangent = np.abs(d1) / np.maximum(np.linalg.norm(d1, axis=1), 1e-300)[:, None]
-        with np.errstate(divide="ignore"):
-            per_axis = limits[None, :] / tangent  # (samples, 3) [m/s]
+        tangent = d1 / np.maximum(np.linalg.norm(d1, axis=1), 1e-300)[:, None]
+        per_axis = axis_velocity_caps(tangent, limits)  # (samples, 3) [m/s]
         caps = per_axis.min(axis=1)
         best = int(np.argmax(caps))
         if c.limits.feed > caps[best] * (1.0 + 1e-9):

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from cnc_twin.core.config import (
-    ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
+    AxisConfig, ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
 )
 from cnc_twin.machine.model_file import load_model_with_obstacles
 from cnc_twin.machine.plant import Plant
@@ -102,11 +102,15 @@ class PointKind(ProgramKind):
             v_s, _, xyz, slowest = axis_scales(start, end, scenario.axes)
             if move.feed is None or xyz == 0.0 or move.feed <= v_s * xyz * (1.0 + 1e-9):
                 continue
-            axis = scenario.axes[slowest]
             said.append(f"program.moves[{k}].feed: {move.feed / MM_PER_MIN:g} mm/min is more than the axes allow along "
-                        f"this move; it runs at {v_s * xyz / MM_PER_MIN:.0f} mm/min ({axis.name} at its max_velocity "
-                        f"{axis.max_velocity * axis.display_factor * 60:g} {axis.display_unit}/min)")
+                        f"this move; it runs at {v_s * xyz / MM_PER_MIN:.0f} mm/min "
+                        f"({_at_max_velocity(scenario.axes[slowest])})")
         return said
+
+
+def _at_max_velocity(axis: AxisConfig) -> str:
+    """"X at its max_velocity 24000 mm/min": the axis that holds a feed notice's speed."""
+    return f"{axis.name} at its max_velocity {axis.max_velocity * axis.display_factor * 60:g} {axis.display_unit}/min"
 
 
 def _path_stop_time(limits) -> float:
@@ -287,14 +291,12 @@ class GcodeKind(ProgramKind):
             by_feed.setdefault(feed, []).append((line, cap, axis))
         said = []
         for feed, paths in by_feed.items():
-            line, cap, axis = max(paths, key=lambda p: p[1])
-            cfg = scenario.axes[axis]
+            _, cap, axis = max(paths, key=lambda p: p[1])
             more = len(paths) - 1
             where = f"line {paths[0][0]}" + (f" (and {more} more feed path{'s' if more > 1 else ''} at this F)"
                                              if more else "")
-            said.append(f"{where}: F{feed / MM_PER_MIN:g} mm/min is more than the axes "
-                        f"allow along the path; it runs at {cap / MM_PER_MIN:.0f} mm/min at most ({cfg.name} at its "
-                        f"max_velocity {cfg.max_velocity * cfg.display_factor * 60:g} {cfg.display_unit}/min)")
+            said.append(f"{where}: F{feed / MM_PER_MIN:g} mm/min is more than the axes allow along the path; it runs "
+                        f"at {cap / MM_PER_MIN:.0f} mm/min at most ({_at_max_velocity(scenario.axes[axis])})")
         return said
 
     def describe(self, program: GcodeProgram) -> str:

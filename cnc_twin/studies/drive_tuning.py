@@ -84,10 +84,9 @@ def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | No
                    phase_margin_deg=float(min(pm)) if pm else float("nan"), crossover_hz=crossover)
 
 
-def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float, speed_filter: float = 0.0) -> np.void:
+def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void:
     a = np.zeros(1, AMP)[0]
     a["modelled"] = True
-    a["alpha"] = speed_filter_alpha(speed_filter, dt)
     a["kp"], a["ki_dt"] = kp, kp * dt / tn if tn > 0.0 else 0.0
     a["n_notches"] = len(notches)
     for n, notch in enumerate(notches):
@@ -100,17 +99,23 @@ def velocity_open_loop(fr: FrequencyResponse, kp: float, tn: float, notches: tup
     """L_v at ``fr.frequency``: the drive's PI (``kp`` [N/(m/s) | N m/(rad/s) at the axis], ``tn``
     [s]) and ``notches`` at the physics step ``dt`` [s], times the measured mechanics, read
     through the drive's ``speed_filter`` [Hz] (0: none)."""
-    return _controller(fr, kp, tn, notches, dt, speed_filter) * fr.response * _filter(fr, dt, speed_filter)
+    return _open_loop(fr, kp, tn, notches, dt, _feedback(fr, dt, speed_filter))
 
 
-def _controller(fr, kp, tn, notches, dt, speed_filter) -> np.ndarray:
-    amp = _amp(kp, tn, notches, dt, speed_filter)
-    return frequency_response(amplifier_ss(amp), 2.0 * np.pi * fr.frequency, dt)
+def _open_loop(fr, kp, tn, notches, dt, feedback: np.ndarray) -> np.ndarray:
+    """L_v with the speed filter's response ``feedback`` at ``fr.frequency`` already evaluated
+    (the same for every loop a design tries)."""
+    return _controller(fr, kp, tn, notches, dt) * fr.response * feedback
 
 
-def _filter(fr, dt, speed_filter) -> np.ndarray:
-    amp = _amp(0.0, 0.0, (), dt, speed_filter)
-    return frequency_response(speed_filter_ss(amp), 2.0 * np.pi * fr.frequency, dt)
+def _controller(fr, kp, tn, notches, dt) -> np.ndarray:
+    """The drive's PI and notches at ``fr.frequency``: speed error -> force command."""
+    return frequency_response(amplifier_ss(_amp(kp, tn, notches, dt)), 2.0 * np.pi * fr.frequency, dt)
+
+
+def _feedback(fr, dt, speed_filter) -> np.ndarray:
+    """The drive's speed filter at ``fr.frequency``: the motor's speed -> the actual speed."""
+    return frequency_response(speed_filter_ss(speed_filter_alpha(speed_filter, dt)), 2.0 * np.pi * fr.frequency, dt)
 
 
 def valid_band(fr: FrequencyResponse, dt: float, hold: int = 2) -> np.ndarray:
@@ -150,15 +155,15 @@ def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, 
     resonance = resonances(fr).resonance_hz
     settings: list[tuple[Notch, ...]] = [()] + [(Notch(resonance, width * resonance, depth),)
                                                 for depth in NOTCH_DEPTHS for width in NOTCH_WIDTHS]
+    feedback = _feedback(fr, dt, drive.speed_filter)
     best: VelocityLoop | None = None
     for kp in np.logspace(np.log10(drive.kp / 30.0), np.log10(drive.kp * 30.0), 61):
         for notches in settings:
-            proportional = loop_margins(velocity_open_loop(fr, kp, 0.0, notches, dt, drive.speed_filter),
-                                        fr.frequency, valid)
+            proportional = loop_margins(_open_loop(fr, kp, 0.0, notches, dt, feedback), fr.frequency, valid)
             if not np.isfinite(proportional.crossover_hz):
                 continue
             for tn in (drive.tn, *(c / (2.0 * np.pi * proportional.crossover_hz) for c in TN_CROSSOVERS)):
-                m = loop_margins(velocity_open_loop(fr, kp, tn, notches, dt, drive.speed_filter), fr.frequency, valid)
+                m = loop_margins(_open_loop(fr, kp, tn, notches, dt, feedback), fr.frequency, valid)
                 if not (m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin
                         and m.crossover_hz <= highest):
                     continue
@@ -172,8 +177,8 @@ def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, 
 
 def velocity_closed_loop(fr: FrequencyResponse, loop: VelocityLoop, dt: float) -> np.ndarray:
     """T_v: the motor's true speed per commanded speed, at ``fr.frequency``."""
-    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt, loop.speed_filter) * fr.response
-    return forward / (1.0 + forward * _filter(fr, dt, loop.speed_filter))
+    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt) * fr.response
+    return forward / (1.0 + forward * _feedback(fr, dt, loop.speed_filter))
 
 
 def position_open_loop(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,

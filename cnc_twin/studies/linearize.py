@@ -64,13 +64,13 @@ def amplifier_ss(amp: np.void) -> control.StateSpace:
     return out
 
 
-def speed_filter_ss(amp: np.void) -> control.StateSpace:
+def speed_filter_ss(alpha: float) -> control.StateSpace:
     """An amplifier's actual speed from the motor's speed [axis units], discrete at the physics
     step, as :func:`~cnc_twin.machine.amplifier.feedback_speed` measures it (its quantisation
-    left out): the first-order low-pass ``w_act += alpha (w - w_act)``, or 1 without a filter.
+    left out): the first-order low-pass ``w_act += alpha (w - w_act)`` (``alpha``: the
+    :data:`~cnc_twin.machine.amplifier.AMP` field), or 1 without a filter (``alpha`` 0).
     (MuJoCo's step makes the position's difference over a step the step's speed exactly, so the
     differencing adds no lag.)"""
-    alpha = float(amp["alpha"])
     if alpha == 0.0:
         return control.ss([], [], [], [[1.0]], True)
     return control.ss([[1.0 - alpha]], [[alpha]], [[1.0 - alpha]], [[alpha]], True)
@@ -91,8 +91,8 @@ def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple
     B = np.zeros((nx, model.nu))
     mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
     i_axis = AXES.index(axis)
-    loops = [(i, speed_filter_ss(plant.amps[i]), amplifier_ss(plant.amps[i])) for i in range(len(AXES))
-             if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
+    loops = [(i, speed_filter_ss(float(plant.amps[i]["alpha"])), amplifier_ss(plant.amps[i]))
+             for i in range(len(AXES)) if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
     size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops)
     M, N = np.zeros((size, size)), np.zeros((size, 1))
     M[:nx, :nx] = A
