@@ -15,7 +15,7 @@ from cnc_twin.studies.commissioning import (
 
 @pytest.fixture(scope="module")
 def compliant():
-    return load_scenario(scenarios_dir() / "jog_axes_compliant.yaml")
+    return load_scenario(scenarios_dir() / "jog_axes.yaml")
 
 
 @pytest.mark.parametrize("axis", list("XYZAB"))
@@ -35,7 +35,7 @@ def test_a_harmonic_drives_resonance_falls_as_the_excitation_grows(compliant):
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.scenario.resources import scenarios_dir
 
-    first = load_scenario(scenarios_dir() / "jog_axes_compliant.yaml", overrides={
+    first = load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={
         "axes.A.drive.kp_speed": 0.04, "axes.A.drive.notch_filters": []})
     small = resonances(measure_mechanics(first, "A", amplitude=0.005)).resonance_hz
     large = resonances(measure_mechanics(first, "A", amplitude=0.02)).resonance_hz
@@ -55,7 +55,7 @@ def test_tune_on_a_machine_with_drive_loops_measures_its_mechanics(tmp_path):
     plots them beside the model's (the plot: a PNG beside the Bode and step plots)."""
     from conftest import run_cli
 
-    code, out, err = run_cli("tune", scenarios_dir() / "jog_axes_compliant.yaml", "--axis", "Y", "--step", "0.1",
+    code, out, err = run_cli("tune", scenarios_dir() / "jog_axes.yaml", "--axis", "Y", "--step", "0.1",
                              "--out", tmp_path)
     assert code == 0, err
     plot = tmp_path / "Y_mechanics.png"

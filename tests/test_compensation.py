@@ -94,7 +94,7 @@ def worn(tmp_path_factory):
     """A folder with the compliant machine whose X screw is worn (its MJCF: the screw tendon's
     lead 50 um/m long, a deadband of 8 um), its parameter file with X's tuned loops, and a scenario."""
     folder = tmp_path_factory.mktemp("worn")
-    xml = (models_dir() / "polisher_compliant.xml").read_text()
+    xml = (models_dir() / "polisher.xml").read_text()
     screw = ('<fixed name="x_screw" stiffness="8e+07" damping="9352.14" springlength="0">\n'
              '      <joint joint="x_joint" coef="1"/>\n      <joint joint="x_motor" coef="-0.001591549431"/>')
     assert screw in xml
@@ -103,11 +103,11 @@ def worn(tmp_path_factory):
                              f'      <joint joint="x_joint" coef="1"/>\n'
                              f'      <joint joint="x_motor" coef="{-0.001591549431 * (1 + LEAD_ERROR):.12g}"/>')
     (folder / "polisher_worn.xml").write_text(xml)
-    (folder / "scene_worn.xml").write_text((models_dir() / "scene_compliant.xml").read_text()
-                                           .replace("polisher_compliant.xml", "polisher_worn.xml"))
+    (folder / "scene_worn.xml").write_text((models_dir() / "scene.xml").read_text()
+                                           .replace("polisher.xml", "polisher_worn.xml"))
     shutil.copy(models_dir() / "workcell.xml", folder / "workcell.xml")
-    raw = yaml.safe_load((scenarios_dir() / "jog_axes_compliant.yaml").read_text())
-    raw["machine"] = {"model": "scene_worn.xml", "parameters": "polisher_compliant.yaml"}
+    raw = yaml.safe_load((scenarios_dir() / "jog_axes.yaml").read_text())
+    raw["machine"] = {"model": "scene_worn.xml", "parameters": "polisher.yaml"}
     raw["axes"] = {"X": {"servo": {"kp": 66.3, "ki": 0.0}}}  # the tuner's X loops (the drive's: the file's)
     (folder / "worn.yaml").write_text(yaml.safe_dump(raw))
     return folder

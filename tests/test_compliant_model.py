@@ -1,4 +1,4 @@
-"""The compliant machine (models/polisher_compliant.xml) against outside references: the two-mass
+"""The compliant machine (models/polisher.xml) against outside references: the two-mass
 formulas for its entered parameters, Hooke's law on a clamped table, the harmonic drive's
 catalogue curve; and the card reading its encoders on the motors.
 
@@ -21,7 +21,7 @@ from cnc_twin.machine.model_file import load_model
 from cnc_twin.machine.plant import Plant
 from cnc_twin.scenario.resources import models_dir
 
-MACHINE = models_dir() / "polisher_compliant.xml"
+MACHINE = models_dir() / "polisher.xml"
 LOCK = 1e9
 """armature that holds a dof still [kg | kg m^2]"""
 DT = 0.00025
@@ -153,7 +153,7 @@ def test_the_card_reads_the_encoders_on_the_motors_of_the_compliant_machine():
     """Each axis's encoder is its motor hinge times the drive's gear (a rotary encoder on the
     motor, semi-closed loop); under a steady force on the table, the motor reading and the
     table part by F/k: the card sees the motor, not the table."""
-    plant = Plant(load_model(models_dir() / "scene_compliant.xml"), timestep=DT, drives=compliant_jog().drives)
+    plant = Plant(load_model(models_dir() / "scene.xml"), timestep=DT, drives=compliant_jog().drives)
     model, data = plant.model, plant.data
     for i, axis in enumerate("xyzab"):
         motor = model.joint(f"{axis}_motor")
@@ -171,7 +171,7 @@ def test_the_card_reads_the_encoders_on_the_motors_of_the_compliant_machine():
 
 
 def test_a_rigid_machine_reads_its_encoders_on_the_axis_joints():
-    plant = Plant(load_model(models_dir() / "scene.xml"), timestep=DT)
+    plant = Plant(load_model(models_dir() / "scene_rigid.xml"), timestep=DT)
     assert list(plant.encoder_taps["qpos_adr"]) == list(plant.qpos_adr)
     assert list(plant.encoder_taps["scale"]) == [1.0] * 6
     assert plant.encoder_home == tuple(plant.axis_positions())
@@ -204,7 +204,7 @@ def compliant_jog(**overrides):
     from cnc_twin.scenario.resources import scenarios_dir
 
     return load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={
-        "machine.model": "scene_compliant.xml", "machine.parameters": "polisher_compliant.yaml", **overrides})
+        "machine.model": "scene.xml", "machine.parameters": "polisher.yaml", **overrides})
 
 
 def test_the_compliant_machine_gives_one_trace_batched_compiled_and_in_python():
@@ -226,7 +226,7 @@ def test_the_drive_loops_are_required_on_a_current_mode_machine_and_refused_on_a
     from cnc_twin.core.errors import ScenarioError
     from cnc_twin.scenario.load import load_scenario
 
-    for model, parameters in (("scene_compliant.xml", "polisher.yaml"), ("scene.xml", "polisher_compliant.yaml")):
+    for model, parameters in (("scene.xml", "polisher_rigid.yaml"), ("scene_rigid.xml", "polisher.yaml")):
         path = write_scenario({"name": "mismatch", "machine": {"model": model, "parameters": parameters},
                                "program": {"type": "point_to_point", "moves": [{"X": 1.0}]}})
         with pytest.raises(ScenarioError) as caught:
@@ -254,7 +254,7 @@ def test_todays_gains_ring_on_motor_encoders_and_go_unstable_on_linear_scales(wr
 
     on_motor = compliant_jog(**RIGID_ERA_X)
     assert analyse(on_motor, "X")[0].phase_margin_deg < 20.0
-    raw = yaml.safe_load((scenarios_dir() / "jog_axes_compliant.yaml").read_text())
+    raw = yaml.safe_load((scenarios_dir() / "jog_axes.yaml").read_text())
     raw["program"] = {"type": "point_to_point", "moves": [{"X": 5.0, "feed": 600, "dwell": 0.5}], "settle": 0.3}
     outcome = {}
     for kp, ki in ((400.0, 16000.0), (30.0, 0.0)):

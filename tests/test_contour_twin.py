@@ -158,4 +158,6 @@ def test_contour_distance_agrees_with_the_metrics(three_ways):
     tip, pivot = trace.tool[periods, :3], trace.tool[periods, 3:]
     true = contour_distance(head.axes_from_pose(tip, pivot - tip)[:, :2], scenario.program.elements) * 1e6
     assert true.max() == pytest.approx(first["contour_error_um"]["max"])
-    assert abs(true.max() - d.max()) < 1e6 * np.sqrt(2) / cpu
+    # the compliant machine's table parts from its motors by the screws' deflection under the
+    # accelerating force, m a / k: X 350 kg x 2 m/s^2 / 80 N/um = 8.8 um at the most
+    assert abs(true.max() - d.max()) < 350.0 * 2.0 / 80.0

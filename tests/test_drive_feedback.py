@@ -82,7 +82,7 @@ def test_the_linear_machine_with_the_speed_filter_is_the_nonlinear_plants_respon
     from cnc_twin.studies.linearize import linear_plant, machine_loop
 
     def responses(speed_filter: float) -> tuple[np.ndarray, np.ndarray]:
-        scenario = load_scenario(scenarios_dir() / "jog_axes_compliant.yaml",
+        scenario = load_scenario(scenarios_dir() / "jog_axes.yaml",
                                  overrides={"axes.Y.drive.speed_filter": speed_filter})
         p = linear_plant(scenario)
         M, N, speed = machine_loop(p, "Y")

@@ -24,7 +24,7 @@ from cnc_twin.studies import drive_tuning
 from cnc_twin.studies.commissioning import model_mechanics, measure_mechanics
 from cnc_twin.studies.linearize import analyse
 
-COMPLIANT = scenarios_dir() / "jog_axes_compliant.yaml"
+COMPLIANT = scenarios_dir() / "jog_axes.yaml"
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 @pytest.mark.parametrize("script, expect", [
-    ("tune_axis.py", "proposal: kp"),
+    ("tune_axis.py", "twin 1 mm step, current ->"),
     ("sweep_gains.py", "following error rms"),
     ("sweep_force_gains.py", "force error rms"),
     ("compare_tool_axis.py", "nurbs_tilted.yaml"),

@@ -28,24 +28,38 @@ def test_the_cli_offers_every_bundled_machine():
 
 
 def test_bench_measures_the_machine_it_is_given(tmp_path):
-    """`cnc-twin bench jog_axes --machine compliant` measures the compliant model (its figures name
-    the model the twin and the bare stepping ran)."""
-    code, _, err = run_cli("bench", scenarios_dir() / "jog_axes.yaml", "--machine", "compliant", "--repeat", "1",
+    """`cnc-twin bench jog_axes --machine rigid` measures the rigid variant (its figures name the
+    model the twin and the bare stepping ran)."""
+    code, _, err = run_cli("bench", scenarios_dir() / "jog_axes.yaml", "--machine", "rigid", "--repeat", "1",
                            "--no-whiteboard", "--json", tmp_path / "bench.json")
     assert code == 0, err
     figures = json.loads((tmp_path / "bench.json").read_text())
-    assert figures["model"] == "scene_compliant.xml"
+    assert figures["model"] == "scene_rigid.xml"
 
 
-def test_a_scenario_run_on_the_compliant_machine_is_that_machines_own_scenario(tmp_path):
-    """jog_axes with --machine compliant gives jog_axes_compliant's trace bit for bit (the same moves
-    on the compliant machine's model and parameter file), and its run directory's scenario.yaml
-    names that machine, so the run can be repeated from it."""
-    code, _, err = run_cli("run", scenarios_dir() / "jog_axes.yaml", "--machine", "compliant", "--quiet",
+def test_a_scenario_without_a_machine_runs_on_the_compliant_default(tmp_path):
+    """A scenario that names no machine runs on the compliant machine (models/scene.xml,
+    polisher.yaml), and its run directory's metrics say which machine it ran on."""
+    code, _, err = run_cli("run", scenarios_dir() / "nurbs_circle.yaml", "--quiet", "--no-rrd",
+                           "--out", tmp_path / "run")
+    assert code == 0, err
+    assert "machine" not in yaml.safe_load((tmp_path / "run" / "scenario.yaml").read_text())
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["machine"] == {"model": BUNDLED_MACHINES["compliant"]["machine.model"],
+                                  "parameters": BUNDLED_MACHINES["compliant"]["machine.parameters"]}
+
+
+def test_a_scenario_run_on_the_rigid_machine_is_that_machines_own_scenario(tmp_path):
+    """jog_axes with --machine rigid gives, bit for bit, the trace of jog_axes whose machine section
+    names the rigid variant's files (the same moves on its model and parameter file), and its run
+    directory's scenario.yaml names that machine, so the run can be repeated from it."""
+    code, _, err = run_cli("run", scenarios_dir() / "jog_axes.yaml", "--machine", "rigid", "--quiet",
                            "--no-rrd", "--out", tmp_path / "switched")
     assert code == 0, err
-    code, _, err = run_cli("run", scenarios_dir() / "jog_axes_compliant.yaml", "--quiet", "--no-rrd",
-                           "--out", tmp_path / "own")
+    raw = yaml.safe_load((scenarios_dir() / "jog_axes.yaml").read_text())
+    raw["machine"] = {"model": "scene_rigid.xml", "parameters": "polisher_rigid.yaml"}
+    (tmp_path / "own.yaml").write_text(yaml.safe_dump(raw))
+    code, _, err = run_cli("run", tmp_path / "own.yaml", "--quiet", "--no-rrd", "--out", tmp_path / "own")
     assert code == 0, err
     switched = read_trace(tmp_path / "switched" / "trace.parquet")
     own = read_trace(tmp_path / "own" / "trace.parquet")
@@ -53,8 +67,10 @@ def test_a_scenario_run_on_the_compliant_machine_is_that_machines_own_scenario(t
     for column in own:
         assert np.array_equal(switched[column], own[column]), column
     kept = yaml.safe_load((tmp_path / "switched" / "scenario.yaml").read_text())
-    assert kept["machine"] == {"model": "scene_compliant.xml", "parameters": "polisher_compliant.yaml"}
-    assert json.loads((tmp_path / "switched" / "metrics.json").read_text())["status"] == "complete"
+    assert kept["machine"] == {"model": "scene_rigid.xml", "parameters": "polisher_rigid.yaml"}
+    metrics = json.loads((tmp_path / "switched" / "metrics.json").read_text())
+    assert metrics["status"] == "complete"
+    assert metrics["machine"] == {"model": "scene_rigid.xml", "parameters": "polisher_rigid.yaml"}
 
 
 def test_an_unknown_machine_is_refused_in_one_line(tmp_path):

@@ -16,7 +16,7 @@ SCENES = sorted(p for p in models_dir().glob("*.xml") if p.name != "workcell.xml
 
 def test_bundled_models_found():
     names = {p.name for p in SCENES}
-    assert {"polisher.xml", "scene.xml", "polisher_compliant.xml", "scene_compliant.xml"} <= names
+    assert {"polisher_rigid.xml", "scene_rigid.xml", "polisher.xml", "scene.xml"} <= names
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.name)
@@ -38,7 +38,7 @@ def test_scene_steps_one_second_with_random_controls_without_warnings(path):
 
 
 def test_every_axis_has_damping_friction_and_travel():
-    model = load_model(models_dir() / "scene.xml")
+    model = load_model(models_dir() / "scene_rigid.xml")
     for axis in "xyzabc":
         joint = model.joint(f"{axis}_joint")
         assert joint.damping[0] > 0 and joint.frictionloss[0] > 0, axis
@@ -49,7 +49,7 @@ def test_every_axis_has_damping_friction_and_travel():
 
 def test_velocity_mode_drive_runs_at_commanded_speed():
     """A constant command on X settles at speed_per_volt * V, less the friction droop."""
-    plant = Plant(load_model(models_dir() / "scene.xml"), timestep=0.00025)
+    plant = Plant(load_model(models_dir() / "scene_rigid.xml"), timestep=0.00025)
     volts = [2.0, 0, 0, 0, 0, 0]
     plant.apply_volts(volts)
     plant.step(2000)  # 0.5 s: far longer than the 80 Hz drive loop's time constant
@@ -62,14 +62,14 @@ def test_velocity_mode_drive_runs_at_commanded_speed():
 
 
 def test_counterbalance_holds_z_with_drive_at_zero_volts():
-    plant = Plant(load_model(models_dir() / "scene.xml"), timestep=0.00025)
+    plant = Plant(load_model(models_dir() / "scene_rigid.xml"), timestep=0.00025)
     plant.step(4000)
     assert abs(plant.axis_positions()[2]) < 0.5e-3  # sags less than 0.5 mm in 1 s unpowered
 
 
 def test_load_cell_reads_contact_force_when_pad_pressed_on_workpiece():
     """Lower Z until the pad touches; at rest the load cell equals the pad spring force."""
-    model = load_model(models_dir() / "scene.xml")
+    model = load_model(models_dir() / "scene_rigid.xml")
     plant = Plant(model, timestep=0.00025)
     data = plant.data
     z_adr = plant.qpos_adr[2]
@@ -98,7 +98,7 @@ def test_head_kinematics_match_mujoco_forward_kinematics():
     """Inverse kinematics from the tool tip and axis recover the joint values MuJoCo posed."""
     from cnc_twin.geometry.kinematics import HeadGeometry
 
-    model = load_model(models_dir() / "scene.xml")
+    model = load_model(models_dir() / "scene_rigid.xml")
     head = HeadGeometry.from_model(model)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(1)
@@ -118,16 +118,16 @@ def test_compiled_models_are_reused_as_copies_and_recompiled_when_a_file_in_the_
     import os
     import shutil
 
-    for name in ("scene.xml", "polisher.xml", "workcell.xml"):
+    for name in ("scene_rigid.xml", "polisher_rigid.xml", "workcell.xml"):
         shutil.copy(models_dir() / name, tmp_path / name)
-    scene = tmp_path / "scene.xml"
+    scene = tmp_path / "scene_rigid.xml"
     first = load_model(scene)
     plant = Plant(first, timestep=0.00025)
     plant.disable_drives()  # a run changes its model: the next load must not see that
     again = load_model(scene)
     assert again is not first and again.actuator_gainprm[0, 0] != 0.0
     assert np.array_equal(again.actuator_gainprm, load_model(scene).actuator_gainprm)
-    included = tmp_path / "polisher.xml"  # an include changes: compiled again
+    included = tmp_path / "polisher_rigid.xml"  # an include changes: compiled again
     text = included.read_text()
     assert 'armature="' in text
     included.write_text(text.replace('armature="', 'armature="1', 1))

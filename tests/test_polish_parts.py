@@ -19,7 +19,7 @@ from cnc_twin.scenario.resources import resolve_model_file
 from cnc_twin.whiteboard.codec import decode, encode
 from cnc_twin.whiteboard.records import ForceControlRecord, SurfaceCurve, SurfaceGeometry
 
-HEAD = HeadGeometry.from_model(load_model(resolve_model_file("scene.xml", None)))
+HEAD = HeadGeometry.from_model(load_model(resolve_model_file("scene_rigid.xml", None)))
 KNOTS = [0, 0, 0, 0, 0.4, 1, 1, 1, 1]
 
 

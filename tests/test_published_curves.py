@@ -191,7 +191,7 @@ def test_planning_windows_join_without_a_step_in_speed(name):
 
 
 def test_friction_feed_forward_takes_out_the_reversal_glitches():
-    """On the butterfly at 40 mm/s, with the slow loops the machine had before tuning (kp 40 / ki
+    """On the rigid machine, on the butterfly at 40 mm/s, with the slow loops the machine had before tuning (kp 40 / ki
     400, 30 / 300 on A/B: crossover about 6 Hz), the largest contour errors come after an axis
     reverses: the Coulomb friction changes sign and the PID alone needs 10-20 um of following
     error to push through it. The friction feed-forward of the machine's parameter file (the
@@ -200,13 +200,15 @@ def test_friction_feed_forward_takes_out_the_reversal_glitches():
     planner takes a share of the tangential budget; at the slower plan before, 19.6 / 5.9 against
     7.0 / 1.8)."""
     from cnc_twin import run_scenario
+    from cnc_twin.scenario.resources import BUNDLED_MACHINES
 
     path = scenarios_dir() / "published" / "farfalla.yaml"
     slow = {**{f"servo.{a}.kp": 40.0 for a in "XYZ"}, **{f"servo.{a}.ki": 400.0 for a in "XYZ"},
             **{f"servo.{a}.kp": 30.0 for a in "AB"}, **{f"servo.{a}.ki": 300.0 for a in "AB"}}
     off = {f"servo.{axis}.friction_ff": 0.0 for axis in "XYZABC"}
-    without = run_scenario(load_scenario(path, overrides={**slow, **off})).metrics["path"]["contour_error_um"]
-    with_ff = run_scenario(load_scenario(path, overrides=slow)).metrics["path"]["contour_error_um"]
+    rigid = dict(BUNDLED_MACHINES["rigid"])  # ideal velocity-source drives: the card's feed-forward is theirs
+    without = run_scenario(load_scenario(path, overrides={**rigid, **slow, **off})).metrics["path"]["contour_error_um"]
+    with_ff = run_scenario(load_scenario(path, overrides={**rigid, **slow})).metrics["path"]["contour_error_um"]
     assert with_ff["max"] < 0.65 * without["max"] and with_ff["rms"] < 0.5 * without["rms"], (with_ff, without)
     assert with_ff["max"] < 12.5 and with_ff["rms"] < 2.5
 
@@ -232,17 +234,22 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
 
 
 @pytest.mark.parametrize("name", ["farfalla", "mazatrol"])
-def test_contour_error_at_40_mm_per_s_with_the_tuned_gains(name):
-    """The target of the machine at 40 mm/s, after the approach has settled: the tool tip within
-    5 um of the curve in every period, 2 um RMS (the parameter file's gains from `cnc-twin tune`,
-    crossover about 50 Hz, with velocity, acceleration and friction feed-forward). Measured here
-    from the trace: encoder positions through the head's kinematics against the curve."""
+@pytest.mark.parametrize("machine, max_um, rms_um", [("rigid", 5.0, 2.0), ("compliant", 20.0, 6.0)])
+def test_contour_error_at_40_mm_per_s_with_the_tuned_gains(name, machine, max_um, rms_um):
+    """What each machine holds at 40 mm/s, after the approach has settled, at its parameter file's
+    gains from `cnc-twin tune`: the rigid machine (ideal drives, crossover about 50 Hz, velocity,
+    acceleration and friction feed-forward) within 5 um of the curve in every period, 2 um RMS; the
+    compliant default (its drives' own loops, position loops 66-182 1/s, the bridge's 45 Hz rocking)
+    within 20 / 6 um (measured 2026-11-27: farfalla 14.8 / 3.9, mazatrol 11.6 / 3.1). Measured from
+    the trace: the tool's true tip against the curve."""
     from cnc_twin import run_scenario
+    from cnc_twin.scenario.resources import BUNDLED_MACHINES
 
-    result = run_scenario(load_scenario(scenarios_dir() / "published" / f"{name}.yaml"))
+    result = run_scenario(load_scenario(scenarios_dir() / "published" / f"{name}.yaml",
+                                        overrides=dict(BUNDLED_MACHINES[machine])))
     contour = result.metrics["path"]["contour_error_um"]
     assert result.status == "complete"
-    assert contour["max"] <= 5.0 and contour["rms"] <= 2.0, contour
+    assert contour["max"] <= max_um and contour["rms"] <= rms_um, contour
 
 
 def test_a_curve_longer_than_one_record_runs_and_a_flipped_part_is_resent():

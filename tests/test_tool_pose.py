@@ -21,7 +21,7 @@ import pytest
 
 from cnc_twin import load_scenario, run_scenario
 from cnc_twin.geometry.kinematics import HeadGeometry
-from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
 
 SCREW_K_X = 80e6
 """[N/m] X's ball-screw drive train, the published figure (machine-dynamics reference: 80 N/um)"""
@@ -42,7 +42,7 @@ def _true_and_encoder_axes(result):
 
 
 def test_on_the_rigid_machine_the_tool_is_where_the_encoders_say_within_a_count():
-    scenario = load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={"max_time": 2.0})
+    scenario = load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={"max_time": 2.0, **BUNDLED_MACHINES["rigid"]})
     result = run_scenario(scenario)
     true, encoders, command = _true_and_encoder_axes(result)
     assert np.ptp(command[:, 0]) > 0.15  # X moved
@@ -51,7 +51,7 @@ def test_on_the_rigid_machine_the_tool_is_where_the_encoders_say_within_a_count(
 
 
 def test_on_the_compliant_machine_the_encoders_and_the_tool_part_by_the_windup():
-    scenario = load_scenario(scenarios_dir() / "jog_axes_compliant.yaml", overrides={
+    scenario = load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={
         "max_time": 2.0, "axes.X.servo.kp": 130.0, "axes.X.servo.ki": 0.0})  # the tuner's gains: no ringing
     result = run_scenario(scenario)
     model = result.model

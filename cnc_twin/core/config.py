@@ -6,7 +6,7 @@ passed as plain data to every part of the twin, including the planner process.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from cnc_twin.core.axes import AXES
@@ -416,6 +416,9 @@ class Scenario:
     command_output: str = "analog"
     """``analog``: +-10 V speed commands from the card's PID (drives in velocity mode);
     ``pulse``: step/direction pulses (drives in position mode, :mod:`cnc_twin.machine.drive`)"""
+    machine: dict[str, str] = field(default_factory=dict)
+    """the machine's files as the scenario names them or by default (``model``: the MJCF,
+    ``parameters``: the parameter file), kept in the run's metrics"""
 
     def axis(self, name: str) -> AxisConfig:
         return self.axes[AXES.index(name)]

@@ -29,6 +29,7 @@ def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_s
         final[cfg.name] = {"counts": last, "value": last * to_user, "unit": cfg.display_unit}
     return {
         "scenario": scenario.name,
+        "machine": dict(scenario.machine),
         "status": "complete",
         "sim_time_s": sim_time,
         "wall_time_s": wall_time,

@@ -225,6 +225,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         supervisor=convert_supervisor(spec.supervisor),
         max_time=spec.max_time,
         command_output=spec.command_output,
+        machine={"model": machine_ref.model, "parameters": machine_ref.parameters},
     )
 
 

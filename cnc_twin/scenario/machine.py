@@ -2,9 +2,9 @@
 cell, the three rates, the planner and whiteboard settings; their schema in machinist units and
 their conversion to SI (:mod:`cnc_twin.core.config`).
 
-A machine parameter file (``machine.parameters``, default ``polisher.yaml``) gives every axis's
-limits, encoder and servo gains; a scenario's own ``axes:`` / ``force_sensor:`` keys override any
-of them, key by key.
+A machine parameter file (``machine.parameters``, default ``polisher.yaml``: the compliant
+machine's; ``polisher_rigid.yaml`` the rigid variant's) gives every axis's limits, encoder and
+servo gains; a scenario's own ``axes:`` / ``force_sensor:`` keys override any of them, key by key.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ class NotchSpec(Strict):
 
 class DriveSpec(Strict):
     """The servo amplifier's own loops, in motor terms as a drive's parameter list gives them, for
-    a machine whose MJCF drive is current-mode (models/polisher_compliant.xml)."""
+    a machine whose MJCF drive is current-mode (models/polisher.xml)."""
 
     speed_at_10v: float = Field(gt=0.0, le=20000.0, description="motor speed commanded by +10 V [rpm]")
     kp_speed: float = Field(gt=0.0, le=1e3, description="velocity-loop proportional gain [N m s/rad at the motor]")

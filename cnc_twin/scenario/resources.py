@@ -11,12 +11,12 @@ from pathlib import Path
 _PACKAGE_DIR = Path(__file__).resolve().parent.parent  # cnc_twin/
 
 BUNDLED_MACHINES = {
-    "rigid": {"machine.model": "scene.xml", "machine.parameters": "polisher.yaml"},
-    "compliant": {"machine.model": "scene_compliant.xml", "machine.parameters": "polisher_compliant.yaml"},
+    "rigid": {"machine.model": "scene_rigid.xml", "machine.parameters": "polisher_rigid.yaml"},
+    "compliant": {"machine.model": "scene.xml", "machine.parameters": "polisher.yaml"},
 }
 """The bundled machines by name, each as the scenario overrides that select it: ``rigid`` (every axis
 one rigid joint, the drives ideal velocity sources) and ``compliant`` (two-mass feed axes, harmonic
-drives, the bridge's rocking mode, drives with their own loops; models/polisher_compliant.xml).
+drives, the bridge's rocking mode, drives with their own loops; models/polisher.xml).
 ``cnc-twin run --machine NAME`` runs a scenario on either, so the two can be compared."""
 
 

@@ -42,8 +42,9 @@ class Replay:
     """wall time of the stepping loop [s]"""
     contacts_mean: float
     """MuJoCo contacts per tick (after each tick's steps), mean"""
-    final_positions: np.ndarray
-    """the six axis joint positions after the last tick [m | rad]"""
+    final_encoders: np.ndarray
+    """where the six encoders read after the last tick, counted from home [m | rad] (the motors'
+    on the compliant machine's semi-closed axes; the axis joints' on the rigid one)"""
 
 
 def time_replayed_steps(model: mujoco.MjModel, dac_codes: np.ndarray, *, timestep: float, substeps: int,
@@ -71,7 +72,8 @@ def time_replayed_steps(model: mujoco.MjModel, dac_codes: np.ndarray, *, timeste
             mj_step(model, data, nstep=substeps)
             contacts += data.ncon
     elapsed = time.perf_counter() - start
-    return Replay(elapsed, contacts / max(len(volts), 1), np.array(plant.axis_positions()))
+    final_encoders = plant.encoder_positions() - np.asarray(plant.encoder_home)
+    return Replay(elapsed, contacts / max(len(volts), 1), final_encoders)
 
 
 def contacts_at_rest(scenario: Scenario, *, steps: int = 200) -> float:
