@@ -82,6 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--gain-margin", type=float, default=6.0, help="[dB]")
     tune.add_argument("--step", type=float, default=1.0, help="verification step [mm | deg]")
     tune.add_argument("--out", type=Path, default=None, help="folder for the Bode and step plots (PNG)")
+    tune.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
+                      help="tune on this bundled machine instead of the one the scenario names")
 
     view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
     view.add_argument("run_dir", type=Path, help="a run directory, or a .rrd recording")
@@ -391,8 +393,10 @@ def _tune(args: argparse.Namespace) -> int:
         check_margins(args.phase_margin, args.gain_margin)
     except ValueError as exc:
         raise ScenarioError(args.scenario, "", str(exc)) from None
-    tune_axis(args.scenario, load_scenario(args.scenario), args.axis, phase_margin=args.phase_margin,
-              gain_margin=args.gain_margin, step=args.step, out=args.out)
+    overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else None
+    tune_axis(args.scenario, load_scenario(args.scenario, overrides=overrides), args.axis,
+              phase_margin=args.phase_margin, gain_margin=args.gain_margin, step=args.step, out=args.out,
+              overrides=overrides)
     return EXIT_OK
 
 

@@ -24,7 +24,21 @@ def _machine_choices(command: str) -> list[str]:
 
 
 def test_the_cli_offers_every_bundled_machine():
-    assert _machine_choices("run") == _machine_choices("bench") == list(BUNDLED_MACHINES)
+    assert _machine_choices("run") == _machine_choices("bench") == _machine_choices("tune") == list(BUNDLED_MACHINES)
+
+
+def test_tune_tunes_the_machine_it_is_given():
+    """`cnc-twin tune jog_axes --machine rigid` tunes the rigid variant: its velocity-mode drive has
+    no velocity loop to design (no velocity-loop table), and its current gains are the rigid
+    parameter file's (kp 400), where the default machine's Y is tuned on its measured mechanics."""
+    import re
+
+    code, out, err = run_cli("tune", scenarios_dir() / "jog_axes.yaml", "--axis", "Y", "--step", "0.1",
+                             "--machine", "rigid")
+    assert code == 0, err
+    assert "velocity loop" not in out
+    before = [line for line in out.splitlines() if line.startswith("before")]
+    assert len(before) == 1 and float(re.findall(r"[-\d.]+", before[0])[0]) == 400.0, out
 
 
 def test_bench_measures_the_machine_it_is_given(tmp_path):

@@ -16,11 +16,12 @@ from cnc_twin.studies.tuning import Proposal, format_verdict, verified_proposal
 
 
 def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float = 45.0,
-                     gain_margin: float = 6.0, step: float = 1.0) -> tuple:
+                     gain_margin: float = 6.0, step: float = 1.0, overrides: dict | None = None) -> tuple:
     """An axis with drive loops: its mechanics measured on the twin; the drive's velocity loop and
     then the position loop designed on them, the position gains verified on the twin (the tool's
     step; proportional only: the drive's PI holds constant loads). Returns ``((measured, model)
-    responses, verdict, report text)``."""
+    responses, verdict, report text)``. ``overrides``: those ``scenario`` was loaded with, for the
+    twin's steps."""
     cfg, timing = scenario.axis(axis), scenario.timing
     measured = measure_mechanics(scenario, axis)
     mechanics = (measured, model_mechanics(scenario, axis, measured.frequency))
@@ -32,7 +33,7 @@ def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phas
     settings = drive_tuning.drive_settings(velocity, cfg.drive)
     extra = None if velocity is current else {f"axes.{axis}.drive.{key}": value for key, value in settings.items()}
     verdict = verified_proposal(scenario_file, scenario, axis, phase_margin=phase_margin,
-                                gain_margin=gain_margin, step=step, extra=extra,
+                                gain_margin=gain_margin, step=step, extra=extra, overrides=overrides,
                                 measured=[Proposal(c.kp, c.ki, c.margins.phase_margin_deg, c.margins.gain_margin_db,
                                                    c.margins.crossover_hz) for c in found if c.ki == 0.0])
 

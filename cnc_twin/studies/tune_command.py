@@ -13,10 +13,11 @@ from cnc_twin.core.errors import ScenarioError
 
 
 def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float, gain_margin: float,
-              step: float, out: Path | None) -> None:
+              step: float, out: Path | None, overrides: dict | None = None) -> None:
     """Print the proposal and its check on the twin for ``axis`` (``step`` [mm | deg] the
-    verification step; ``out`` a folder for the Bode and step plots, PNG). A design that cannot
-    meet the margins is a ScenarioError naming ``scenario_file``."""
+    verification step; ``out`` a folder for the Bode and step plots, PNG). ``scenario`` is
+    ``scenario_file`` loaded with ``overrides`` (e.g. a bundled machine), which the twin's steps
+    load it with too. A design that cannot meet the margins is a ScenarioError naming ``scenario_file``."""
     from cnc_twin.studies.tuning import format_verdict, save_plots, verified_proposal
 
     cfg = scenario.axis(axis)
@@ -29,7 +30,7 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
             from cnc_twin.studies.measured_tuning import tune_on_measured
 
             mechanics, verdict, report = tune_on_measured(scenario_file, scenario, axis, phase_margin=phase_margin,
-                                                          gain_margin=gain_margin, step=step)
+                                                          gain_margin=gain_margin, step=step, overrides=overrides)
         except ValueError as exc:
             raise ScenarioError(scenario_file, "", str(exc)) from None
         print(report)
@@ -38,7 +39,7 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
               f"{gain_margin:g} dB, each checked on the twin ...", file=sys.stderr, flush=True)
         try:
             verdict = verified_proposal(scenario_file, scenario, axis, phase_margin=phase_margin,
-                                        gain_margin=gain_margin, step=step)
+                                        gain_margin=gain_margin, step=step, overrides=overrides)
         except ValueError as exc:
             raise ScenarioError(scenario_file, "", str(exc)) from None
         print(format_verdict(verdict, scenario, axis, phase_margin=phase_margin, gain_margin=gain_margin, step=step))

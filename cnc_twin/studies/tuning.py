@@ -120,7 +120,8 @@ def check_margins(phase_margin: float, gain_margin: float) -> None:
 
 def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float = 45.0,
                       gain_margin: float = 6.0, step: float = 1.0, tries: int = 12,
-                      measured: list[Proposal] | None = None, extra: dict[str, Any] | None = None) -> Verdict:
+                      measured: list[Proposal] | None = None, extra: dict[str, Any] | None = None,
+                      overrides: dict[str, Any] | None = None) -> Verdict:
     """Candidates meeting the margins on the linear loop (``tries`` of them, spread over the list
     from the highest crossover down) are each run on the nonlinear twin; of those that
     :func:`beats` the current gains' own twin step and overshoot within 10 points of their linear
@@ -130,7 +131,8 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
     ``measured``: candidates whose margins were read from the axis's measured response instead
     (:func:`~cnc_twin.studies.drive_tuning.position_candidates`, highest crossover first); the
     twin alone judges them then. ``extra``: scenario overrides the candidates' twin steps run with
-    (a proposed velocity loop), not the current gains' own step."""
+    (a proposed velocity loop), not the current gains' own step. ``overrides``: those ``scenario``
+    was loaded with (e.g. a bundled machine): every twin step loads ``scenario_file`` with them."""
     check_margins(phase_margin, gain_margin)
     found = measured if measured is not None else candidates(scenario, axis, phase_margin=phase_margin,
                                                              gain_margin=gain_margin)
@@ -141,7 +143,7 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
         best = max(candidates(scenario, axis, phase_margin=1e-9, gain_margin=1e-9), key=lambda p: p.phase_margin_deg)
         raise ValueError(f"no gains on the search grid meet {phase_margin:g} deg / {gain_margin:g} dB on {axis}; "
                          f"the most phase margin any reaches is {best.phase_margin_deg:.1f} deg (kp {best.kp:.3g})")
-    before = twin_step(scenario_file, axis, step=step)
+    before = twin_step(scenario_file, axis, step=step, base=overrides)
     if before["fault"] is not None:
         raise ValueError(f"the {abs(step):g} {units.position_unit(scenario.axis(axis).rotary)} step with the "
                          f"current gains ends in a fault on the twin ({before['fault']}); choose a smaller --step")
@@ -152,7 +154,8 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
     def try_on_twin(index: int) -> None:
         nonlocal fastest
         cand = found[index]
-        twin = tried[index] = twin_step(scenario_file, axis, step=step, kp=cand.kp, ki=cand.ki, extra=extra)
+        twin = tried[index] = twin_step(scenario_file, axis, step=step, kp=cand.kp, ki=cand.ki, extra=extra,
+                                        base=overrides)
         # better than the current gains, and behaving as its linear loop predicts (drive force
         # limits and DAC saturation are not in the linear model); measured candidates: the twin
         # alone, with at most OVERSHOOT_MAX_PCT
@@ -246,18 +249,21 @@ def step_direction(scenario: Scenario, axis_index: int, step: float) -> float:
 
 
 def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | None = None,
-              ki: float | None = None, settle: float = 0.5, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+              ki: float | None = None, settle: float = 0.5, extra: dict[str, Any] | None = None,
+              base: dict[str, Any] | None = None) -> dict[str, Any]:
     """Nonlinear twin response to a ``step`` (mm | deg) of ``axis`` from home; step figures of
     where the tool really went (X..B: the trace's tool pose through the head's inverse
     kinematics, per period; C: its encoder, per tick): on a compliant machine the table rings
     where the motor's encoder does not, and that is what the part gets. ``extra``: more scenario
-    overrides (e.g. the drive's loops).
+    overrides (e.g. the drive's loops); ``base``: overrides the scenario was loaded with (a bundled
+    machine), under the step's own.
 
     The step goes the other way when home + ``step`` is outside the axis's soft limits (Z's home
     is at the top of its travel); the figures are of its size either way."""
     i = "XYZABC".index(axis)
-    step = step * step_direction(load_scenario(scenario_file), i, step)
+    step = step * step_direction(load_scenario(scenario_file, overrides=base), i, step)
     overrides: dict[str, Any] = {
+        **(base or {}),
         f"axes.{axis}.max_velocity": 1e9, f"axes.{axis}.max_acceleration": 1e9,
         f"servo.{axis}.kvff": 0.0, f"servo.{axis}.kaff": 0.0,
         "program": {"type": "point_to_point", "settle": settle, "moves": [{axis: step}]},
