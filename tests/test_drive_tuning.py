@@ -69,7 +69,8 @@ def test_the_position_loop_composed_on_a_response_is_the_linearised_machines(com
             mechanics, velocity, cfg, compliant.timing.servo_period, dt, kp=kp, ki=0.0, kd=0.0), f, f >= 1.0)
         machine = analyse(compliant, axis, kp=kp, ki=0.0)[0]
         assert composed.phase_margin_deg == pytest.approx(machine.phase_margin_deg, abs=1.0)
-        assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.1)
+        # 0.3 dB: the drives' dead time moves A's phase crossing up, where the grid is coarser
+        assert composed.gain_margin_db == pytest.approx(machine.gain_margin_db, abs=0.3)
         assert composed.crossover_hz == pytest.approx(machine.crossover_hz, abs=0.3)
 
 
@@ -96,16 +97,15 @@ def _row(out: str, name: str) -> list[float]:
 
 def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are(tmp_path):
     """X of the compliant machine with the loops it had before it was tuned (the rigid machine's
-    kp 400 / ki 16000, the drive's first velocity loop), the tuner's default margins (45 deg,
+    kp 400 / ki 16000, a drive's cautious first velocity loop: kp_speed 0.3, no notch), the tuner's default margins (45 deg,
     6 dB): its position gain within 30-70 1/s with those margins on the measured response, its
     tool step on the twin with at most 2 % overshoot; kp 400 overshoots the tool by more than half
-    the step. The velocity loop it uses keeps 45 deg / 6 dB too. (With 40 deg it lands at 74 1/s,
-    just above.)"""
+    the step. The velocity loop it uses keeps 45 deg / 6 dB too."""
     import yaml
     from conftest import run_cli
 
     raw = yaml.safe_load(COMPLIANT.read_text())
-    raw["axes"] = {"X": {"servo": {"kp": 400.0, "ki": 16000.0}, "drive": {"kp_speed": 1.14, "notch_filters": []}}}
+    raw["axes"] = {"X": {"servo": {"kp": 400.0, "ki": 16000.0}, "drive": {"kp_speed": 0.3, "notch_filters": []}}}
     untuned = tmp_path / "untuned.yaml"
     untuned.write_text(yaml.safe_dump(raw))
     code, out, err = run_cli("tune", untuned, "--axis", "X", "--step", "0.1")

@@ -16,11 +16,13 @@ RIGID = dict(BUNDLED_MACHINES["rigid"])
 
 @pytest.mark.parametrize("kp, ki", [(40.0, 400.0), (70.0, 0.0)])
 def test_linear_step_matches_the_twin_within_10_percent(kp, ki):
-    """1 mm step on X (a one-period move, feed-forward off): rise time, overshoot, settling."""
+    """1 mm step on X of the rigid machine (a one-period move, feed-forward off): rise time,
+    overshoot, settling. (The compliant machine's linear model against its nonlinear one:
+    tests/test_drive_feedback.py, tests/test_drive_delay.py, tests/test_drive_tuning.py.)"""
     raw = {"name": "step", "axes": {"X": {"max_velocity": 1e9, "max_acceleration": 1e9,
                                           "servo": {"kp": kp, "ki": ki, "kvff": 0.0, "kaff": 0.0}}},
            "program": {"type": "point_to_point", "settle": 0.5, "moves": [{"X": 1.0}]}}
-    scenario = scenario_from_dict(raw)
+    scenario = scenario_from_dict(raw | {"machine": {"model": "scene_rigid.xml", "parameters": "polisher_rigid.yaml"}})
     trace = run_scenario(scenario).trace
     command, actual, time = trace.command[:, 0], trace.actual[:, 0], trace.time
     start = int(np.argmax(command > 0)) - 1
@@ -71,8 +73,9 @@ def test_tune_proposes_gains_that_the_twin_confirms(tmp_path):
     import subprocess
     import sys
 
-    scenario = tmp_path / "slow_z.yaml"
-    raw = default_scenario().read_text()
+    scenario = tmp_path / "slow_z.yaml"  # the rigid machine: the linear loop's tuner
+    raw = default_scenario().read_text().replace("model: scene.xml", "model: scene_rigid.xml").replace(
+        "parameters: polisher.yaml", "parameters: polisher_rigid.yaml")
     scenario.write_text(raw.replace("name:", "axes: {Z: {servo: {kp: 40, ki: 400}}}\nname:", 1))
     proc = subprocess.run([sys.executable, "-m", "cnc_twin", "tune", str(scenario), "--axis", "Z", "--step", "0.1",
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=600)
@@ -115,15 +118,21 @@ def _row(text: str, name: str) -> dict[str, float]:
 @pytest.mark.parametrize("axis", list("XYZABC"))
 def test_tune_never_recommends_what_the_twin_did_not_show_better(axis):
     """jog_axes, default margins and step: either gains whose printed twin step settles sooner
-    (by 10 %) with no more overshoot than the current gains', or the current gains kept with the
-    reason and no recommendation."""
+    (by 10 %) with no more overshoot than the current gains', or, on an axis tuned on its measured
+    mechanics whose current gains overshoot the tool beyond 2 % (+0.5 for the count), gains that
+    settle within 2 %; or the current gains kept with the reason and no recommendation."""
     code, out, err = _tune("--axis", axis)
     assert code == 0, err
     before = _row(out, "before")
     if "to use:" in out:
         proposed = _row(out, "proposed")
-        assert proposed["settle"] < before["settle"] * 0.9 or not np.isfinite(before["settle"]), out
-        assert proposed["overshoot"] <= before["overshoot"] + 0.5 and proposed["pm"] >= 45, out
+        measured = "velocity loop" in out  # a drive with loops of its own: the measured mechanics
+        if measured and before["overshoot"] > 2.5:
+            assert np.isfinite(proposed["settle"]) and proposed["overshoot"] <= 2.0, out
+        else:
+            assert proposed["settle"] < before["settle"] * 0.9 or not np.isfinite(before["settle"]), out
+            assert proposed["overshoot"] <= before["overshoot"] + 0.5, out
+        assert proposed["pm"] >= 45, out
         import re
 
         use = re.search(r"to use: axes: \{(\w): \{servo: \{kp: ([\d.e+]+), ki: ([\d.e+]+)\}", out)

@@ -4,7 +4,9 @@ the same trace, removal map and figures as the card's Python task (``batch=False
 pure-Python reference (``compiled=False``), bit for bit; and the batches carry nearly the whole run.
 Cases: the freeform face, the flat plate, a G-code path under M100, a leaning tool with a force
 profile, a force limit tripping in the middle of a pass (the retract), the feed adaptation (a
-force step)."""
+force step). All on the rigid machine (the batches are the card's, the same on either; the pure-Python
+reference runs several times faster there); the compliant default's drives' loops in batches
+against the reference: tests/test_servo_kernel.py."""
 
 from __future__ import annotations
 
@@ -14,12 +16,13 @@ import pytest
 from cnc_twin import load_scenario
 from cnc_twin.polishing import removal_kernel as rk
 from cnc_twin.run.twin import Twin
-from cnc_twin.scenario.resources import scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
 
 TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path"}
 """wall-clock figures, different between any two runs"""
-SHORT_FREEFORM = {"program.path.margin": 45.0}
-"""two passes of the freeform raster (20 s simulated instead of 46)"""
+RIGID = dict(BUNDLED_MACHINES["rigid"])
+SHORT_FREEFORM = {"program.path.margin": 45.0, **RIGID}
+"""two passes of the freeform raster (20 s simulated instead of 46), on the rigid machine"""
 FIRST_PASS = {**SHORT_FREEFORM, "max_time": 10.0}
 """its first 10 s: the seek, the first pass (the force step of the cases below comes at 6.6 s,
 the spike at 8 s) and the move to the second"""
@@ -53,8 +56,8 @@ def _batched_share(result, twin) -> float:
 
 
 @pytest.mark.parametrize("name, overrides", [("freeform_polish", SHORT_FREEFORM),
-                                             ("flat_plate_polish", {"program.path.step_over": 30.0}),
-                                             ("gcode_force", {})])
+                                             ("flat_plate_polish", {"program.path.step_over": 30.0, **RIGID}),
+                                             ("gcode_force", RIGID)])
 def test_a_polishing_run_in_batches_is_the_python_task_and_the_reference_bit_for_bit(name, overrides):
     """gcode_force: M100 on a G-code path, the force pushing along a fixed tool axis, program
     line marks per period."""

@@ -218,7 +218,8 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
     Coulomb friction; the card's friction feed-forward is a speed command on top. With the rigid
     machine's recipe (Coulomb / kv / speed_per_volt, per axis) the butterfly at 40 mm/s on the
     compliant machine's tuned loops runs with more contour error, max and RMS, than with it off as
-    its parameter file has it (measured 19.0 / 6.3 um against 14.8 / 3.9)."""
+    its parameter file has it (measured 19.0 / 6.3 um against 14.8 / 3.9 before the drives' dead
+    time and the loops re-tuned for it, 2026-11-27)."""
     from cnc_twin import run_scenario
     from cnc_twin.scenario.resources import BUNDLED_MACHINES
 
@@ -234,14 +235,14 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
 
 
 @pytest.mark.parametrize("name", ["farfalla", "mazatrol"])
-@pytest.mark.parametrize("machine, max_um, rms_um", [("rigid", 5.0, 2.0), ("compliant", 20.0, 6.0)])
+@pytest.mark.parametrize("machine, max_um, rms_um", [("rigid", 5.0, 2.0), ("compliant", 35.0, 8.0)])
 def test_contour_error_at_40_mm_per_s_with_the_tuned_gains(name, machine, max_um, rms_um):
     """What each machine holds at 40 mm/s, after the approach has settled, at its parameter file's
     gains from `cnc-twin tune`: the rigid machine (ideal drives, crossover about 50 Hz, velocity,
     acceleration and friction feed-forward) within 5 um of the curve in every period, 2 um RMS; the
-    compliant default (its drives' own loops, position loops 66-182 1/s, the bridge's 45 Hz rocking)
-    within 20 / 6 um (measured 2026-11-27: farfalla 14.8 / 3.9, mazatrol 11.6 / 3.1). Measured from
-    the trace: the tool's true tip against the curve."""
+    compliant default (its drives' own loops with their dead time, position loops X 53 / Y 74 1/s,
+    the bridge's 45 Hz rocking) within 35 / 8 um (measured 2026-11-27: farfalla 28.9 / 5.7,
+    mazatrol 16.2 / 3.6). Measured from the trace: the tool's true tip against the curve."""
     from cnc_twin import run_scenario
     from cnc_twin.scenario.resources import BUNDLED_MACHINES
 

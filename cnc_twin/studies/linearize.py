@@ -6,7 +6,9 @@ Plant, from the DAC voltage to encoder counts, discrete at the servo period ``Ts
     finite differences (mujoco.mjd_transitionFD) over one physics step, with what is not smooth
     left out: Coulomb friction (frictionloss), the joint limits, the harmonic drives' plasticity
     (an elastic copy: below the yield the element is a linear spring; mjd_transitionFD's A is
-    wrong for a model with plastic state, MuJoCo 4.0.0). Every amplifier with loops of its own
+    wrong for a model with plastic state, MuJoCo 4.0.0) and the actuators' dead time (MuJoCo's
+    actuator ``delay``, which mjd_transitionFD refuses: put back here as a shift register of
+    whole physics steps between the control and the actuator). Every amplifier with loops of its own
     (cnc_twin.machine.amplifier: velocity PI on the motor's actual speed through the drive's
     speed filter, notch filters; the current loop is MuJoCo's actuator state; the feedback's
     quantisation left out) is closed around it at the physics rate, the others' inputs
@@ -38,17 +40,41 @@ from cnc_twin.machine.plant import Plant
 
 
 def linear_plant(scenario: Scenario) -> Plant:
-    """The scenario's machine as it is linearised: an elastic copy (no plastic state), with
-    Coulomb friction and the joint limits off, at the home keyframe, at rest."""
+    """The scenario's machine as it is linearised: an elastic copy (no plastic state) without the
+    actuators' dead time (:func:`actuator_delays` gives it back), with Coulomb friction and the
+    joint limits off, at the home keyframe, at rest."""
     load_model(scenario.model_file)  # the file's checks, with their clear errors
     spec = mujoco.MjSpec.from_file(str(scenario.model_file))
     for tendon in spec.tendons:
         tendon.springyield = 0.0
+    for actuator in spec.actuators:
+        actuator.delay, actuator.nsample = 0.0, 0
     plant = Plant(spec.compile(), timestep=scenario.timing.physics_timestep, drives=scenario.drives,
                   encoder_mounts=scenario.encoder_mounts)
     plant.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
     plant.reset()
     return plant
+
+
+def actuator_delays(scenario: Scenario) -> np.ndarray:
+    """Each actuator's dead time in whole physics steps, shape ``(nu,)`` int: MuJoCo's actuator
+    ``delay`` over the scenario's physics step (the machine's MJCF; 0 where it has none)."""
+    model = load_model(scenario.model_file)
+    steps = np.asarray(model.actuator_delay) / scenario.timing.physics_timestep
+    whole = np.rint(steps).astype(int)
+    if np.any(np.abs(steps - whole) > 1e-6):
+        raise ValueError("the linear model takes actuator delays of whole physics steps only")
+    return whole
+
+
+def delay_ss(steps: int) -> control.StateSpace:
+    """A dead time of ``steps`` >= 1 physics steps, discrete: a shift register, ``z^-steps``."""
+    a = np.eye(steps, k=-1)
+    b = np.zeros((steps, 1))
+    b[0, 0] = 1.0
+    c = np.zeros((1, steps))
+    c[0, -1] = 1.0
+    return control.ss(a, b, c, [[0.0]], True)
 
 
 def amplifier_ss(amp: np.void) -> control.StateSpace:
@@ -76,14 +102,17 @@ def speed_filter_ss(alpha: float) -> control.StateSpace:
     return control.ss([[1.0 - alpha]], [[alpha]], [[1.0 - alpha]], [[alpha]], True)
 
 
-def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def machine_loop(plant: Plant, axis: str, *, force_input: bool = False,
+                 delays: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(M, N, speed)`` of the linearised machine over one physics step, ``x' = M x + N u``, with
     every amplifier's velocity loop closed (PI and notches as :func:`amplifier_ss`, on the speed
     its filter gives, :func:`speed_filter_ss`), the other
     axes' inputs at 0 V; ``u`` is ``axis``'s voltage [V], or with ``force_input`` its force
     command [N | N m at the axis] with that axis's own amplifier left open (what a drive's
     commissioning measures: the mechanics as its motor sees them). ``speed``: the row that reads
-    the axis's motor speed [m/s | rad/s at the axis] from the state. ``plant``: :func:`linear_plant`."""
+    the axis's motor speed [m/s | rad/s at the axis] from the state. ``plant``: :func:`linear_plant`;
+    ``delays``: the actuators' dead times in physics steps (:func:`actuator_delays`; default none),
+    between each control (an amplifier's, or ``u`` itself) and its actuator."""
     model, data = plant.model, plant.data
     nv, na = model.nv, model.na
     nx = 2 * nv + na
@@ -91,14 +120,30 @@ def machine_loop(plant: Plant, axis: str, *, force_input: bool = False) -> tuple
     B = np.zeros((nx, model.nu))
     mujoco.mjd_transitionFD(model, data, 1e-6, True, A, B, None, None)
     i_axis = AXES.index(axis)
-    loops = [(i, speed_filter_ss(float(plant.amps[i]["alpha"])), amplifier_ss(plant.amps[i]))
+    delays = np.zeros(model.nu, dtype=int) if delays is None else delays
+
+    def delayed(i: int, loop: control.StateSpace) -> control.StateSpace:
+        k = int(delays[plant.actuator_ids[i]])
+        return control.series(loop, delay_ss(k)) if k else loop
+
+    loops = [(i, speed_filter_ss(float(plant.amps[i]["alpha"])), delayed(i, amplifier_ss(plant.amps[i])))
              for i in range(len(AXES)) if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
-    size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops)
+    direct = force_input or not plant.amps[i_axis]["modelled"]  # u is the axis actuator's control itself
+    lag = delayed(i_axis, control.ss([], [], [], [[1.0]], True)) if direct else None
+    size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops) + (lag.nstates if direct else 0)
     M, N = np.zeros((size, size)), np.zeros((size, 1))
     M[:nx, :nx] = A
-    if force_input or not plant.amps[i_axis]["modelled"]:
-        N[:nx, 0] = B[:, plant.actuator_ids[i_axis]]  # the actuator's control itself
     at = nx
+    if direct:
+        b = B[:, plant.actuator_ids[i_axis]]
+        if lag.nstates:  # through the actuator's dead time
+            d = slice(at, at + lag.nstates)
+            M[d, d] = np.asarray(lag.A)
+            N[d, 0] = np.asarray(lag.B)[:, 0]
+            M[:nx, d] += np.outer(b, np.asarray(lag.C)[0])
+            at += lag.nstates
+        else:
+            N[:nx, 0] = b
     for i, speed_filter, loop in loops:
         amp = plant.amps[i]
         # the actual speed as a row over the whole state: w_act = Cf s + Df (speed . x)
@@ -132,7 +177,7 @@ def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
     """The axis plant from DAC volts to encoder counts, discrete at the servo period."""
     timing = scenario.timing
     plant = linear_plant(scenario)
-    M, N, _ = machine_loop(plant, axis)
+    M, N, _ = machine_loop(plant, axis, delays=actuator_delays(scenario))
     ad, bd = np.eye(M.shape[0]), np.zeros((M.shape[0], 1))
     for _ in range(timing.substeps_per_tick):  # voltage held over the servo tick
         bd = M @ bd + N
@@ -148,7 +193,7 @@ def mechanics(scenario: Scenario, axis: str) -> control.StateSpace:
     """The axis's mechanics as its drive sees them: from the force command [N | N m at the axis]
     to the motor's speed [m/s | rad/s at the axis], discrete at the physics step, the other
     drives' loops closed (:func:`machine_loop` with ``force_input``)."""
-    M, N, speed = machine_loop(linear_plant(scenario), axis, force_input=True)
+    M, N, speed = machine_loop(linear_plant(scenario), axis, force_input=True, delays=actuator_delays(scenario))
     return control.ss(M, N, speed[None, :], [[0.0]], dt=scenario.timing.physics_timestep)
 
 
