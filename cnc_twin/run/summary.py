@@ -10,6 +10,9 @@ def summary_table(metrics: dict) -> str:
         f"{metrics['scenario']}: {metrics['sim_time_s']:.3f} s simulated in {metrics['wall_time_s']:.2f} s "
         f"({metrics['real_time_factor']:.1f}x real time), {metrics['physics_steps']} physics steps",
     ]
+    machine = metrics.get("machine")
+    if machine:  # which machine the figures are of (the compliant default or the rigid variant)
+        lines.append(f"machine: {machine['model']} with {machine['parameters']}")
     # analog output: ticks each DAC spent clamped; pulse output: ticks at the pulse rate limit
     limited = metrics.get("pulse_limited_ticks") or metrics["dac_saturation_ticks"]
     lines.append(f"{'axis':<5}{'max ferr':>14}{'rms ferr':>14}{'final ferr':>14}"
