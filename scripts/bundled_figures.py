@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, bundled_machine_names, scenarios_dir
 
 UM_PER_MM = 1e3
 ARCSEC_PER_DEG = 3600.0
@@ -58,10 +58,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--machines", default="compliant,rigid", help=f"of {', '.join(BUNDLED_MACHINES)}")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
-    machines = args.machines.split(",")
-    unknown = [m for m in machines if m not in BUNDLED_MACHINES]
-    if unknown:
-        parser.error(f"unknown machine(s) {', '.join(unknown)}: choose from {', '.join(BUNDLED_MACHINES)}")
+    try:
+        machines = bundled_machine_names(args.machines)
+    except ValueError as exc:
+        parser.error(f"--machines: {exc}")
     files = args.scenarios or sorted(scenarios_dir().glob("*.yaml"))
     print("| scenario | machine | ended | simulated [s] | ferr X/Y/Z max [um] | ferr A/B max [arcsec] "
           "| contour max / RMS [um] | force RMS [%] | removed [mm3] |")

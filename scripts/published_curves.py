@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_twin import load_scenario, run_scenario
-from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, bundled_machine_names, scenarios_dir
 
 
 def trace_axis_ratios(result) -> tuple[float, float, float, str]:
@@ -137,10 +137,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--machines", default="rigid,compliant", help=f"of {', '.join(BUNDLED_MACHINES)}")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
-    machines = args.machines.split(",")
-    unknown = [m for m in machines if m not in BUNDLED_MACHINES]
-    if unknown:
-        parser.error(f"--machines: {', '.join(unknown)} unknown; the machines are {', '.join(BUNDLED_MACHINES)}")
+    try:
+        machines = bundled_machine_names(args.machines)
+    except ValueError as exc:
+        parser.error(f"--machines: {exc}")
     files = args.scenarios or sorted((scenarios_dir() / "published").glob("*.yaml"))
     rows = []
     for file in files:

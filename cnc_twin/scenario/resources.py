@@ -20,6 +20,16 @@ drives, the bridge's rocking mode, drives with their own loops; models/polisher.
 ``cnc-twin run --machine NAME`` runs a scenario on either, so the two can be compared."""
 
 
+def bundled_machine_names(text: str) -> list[str]:
+    """A comma-separated list of :data:`BUNDLED_MACHINES` names (a script's ``--machines``), in
+    its order; ValueError naming the unknown ones."""
+    names = text.split(",")
+    unknown = [name for name in names if name not in BUNDLED_MACHINES]
+    if unknown:
+        raise ValueError(f"{', '.join(unknown)} unknown; the machines are {', '.join(BUNDLED_MACHINES)}")
+    return names
+
+
 def _bundled_dir(name: str) -> Path:
     for candidate in (_PACKAGE_DIR / name, _PACKAGE_DIR.parent / name):
         if candidate.is_dir():

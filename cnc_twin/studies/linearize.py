@@ -129,19 +129,19 @@ def machine_loop(plant: Plant, axis: str, *, force_input: bool = False,
     loops = [(i, speed_filter_ss(float(plant.amps[i]["alpha"])), delayed(i, amplifier_ss(plant.amps[i])))
              for i in range(len(AXES)) if plant.amps[i]["modelled"] and not (force_input and i == i_axis)]
     direct = force_input or not plant.amps[i_axis]["modelled"]  # u is the axis actuator's control itself
-    lag = delayed(i_axis, control.ss([], [], [], [[1.0]], True)) if direct else None
-    size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops) + (lag.nstates if direct else 0)
+    lag = int(delays[plant.actuator_ids[i_axis]]) if direct else 0  # u's own dead time [steps]
+    size = nx + sum(f.nstates + loop.nstates for _, f, loop in loops) + lag
     M, N = np.zeros((size, size)), np.zeros((size, 1))
     M[:nx, :nx] = A
     at = nx
     if direct:
         b = B[:, plant.actuator_ids[i_axis]]
-        if lag.nstates:  # through the actuator's dead time
-            d = slice(at, at + lag.nstates)
-            M[d, d] = np.asarray(lag.A)
-            N[d, 0] = np.asarray(lag.B)[:, 0]
-            M[:nx, d] += np.outer(b, np.asarray(lag.C)[0])
-            at += lag.nstates
+        if lag:  # through the actuator's dead time
+            shift, d = delay_ss(lag), slice(at, at + lag)
+            M[d, d] = np.asarray(shift.A)
+            N[d, 0] = np.asarray(shift.B)[:, 0]
+            M[:nx, d] += np.outer(b, np.asarray(shift.C)[0])
+            at += lag
         else:
             N[:nx, 0] = b
     for i, speed_filter, loop in loops:
