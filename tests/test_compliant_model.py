@@ -17,8 +17,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.model_file import load_model
 from cnc_twin.machine.plant import Plant
+from cnc_twin.machine.screw import screw_stiffness, setup_screws
 from cnc_twin.scenario.resources import models_dir
 
 MACHINE = models_dir() / "polisher.xml"
@@ -36,12 +38,16 @@ def elastic_model() -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(re.sub(r' (delay|nsample)="[^"]*"', "", text))
 
 
-def screw(model: mujoco.MjModel, axis: str) -> tuple[float, float]:
-    """``(k [N/m], lead / 2 pi [m/rad])`` of ``axis``'s screw tendon as the MJCF enters them."""
+def screw(model: mujoco.MjModel, axis: str, position: float = 0.0) -> tuple[float, float]:
+    """``(k [N/m], lead / 2 pi [m/rad])`` of ``axis``'s screw as the MJCF enters it, with the table
+    at ``position`` [m]: its chain (``<axis>_screw_chain``: k_rest, EA, a0, side) is the shaft
+    between the fixed bearing and the nut, E A / a, in series with the rest, 1 / k = 1 / k_rest +
+    a / (E A), a = a0 + side q (springs in series; the shaft a bar in tension)."""
     t = model.tendon(f"{axis}_screw").id
     adr, num = int(model.tendon_adr[t]), int(model.tendon_num[t])
     coefs = {model.joint(int(model.wrap_objid[w])).name: float(model.wrap_prm[w]) for w in range(adr, adr + num)}
-    return float(np.ravel(model.tendon_stiffness[t])[0]), -coefs[f"{axis}_motor"]
+    k_rest, ea, a0, side = model.numeric(f"{axis}_screw_chain").data
+    return 1.0 / (1.0 / k_rest + (a0 + side * position) / ea), -coefs[f"{axis}_motor"]
 
 
 def two_mass(axis: str, *, motor_held: bool, timestep: float, position: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
@@ -61,6 +67,7 @@ def two_mass(axis: str, *, motor_held: bool, timestep: float, position: float) -
     _, r = screw(m, axis)
     d.qpos[m.joint(f"{axis}_joint").qposadr[0]] = position
     d.qpos[m.joint(f"{axis}_motor").qposadr[0]] = position / r
+    screw_stiffness(setup_screws(m), d.qpos, m.tendon_stiffness)  # as before every physics step
     mujoco.mj_forward(m, d)
     return m, d
 
@@ -78,14 +85,14 @@ def highest_mode_hz(m: mujoco.MjModel, d: mujoco.MjData) -> float:
 @pytest.mark.parametrize("axis", ["x", "y", "z"])
 def test_two_mass_modes_match_the_formulas_at_both_ends_and_mid_travel(axis):
     model = load_model(MACHINE)
-    k, r = screw(model, axis)
     m_t = float(model.body_subtreemass[model.joint(f"{axis}_joint").bodyid[0]])  # all the slide carries
     J = float(model.dof_armature[model.joint(f"{axis}_motor").dofadr[0]])
-    m_m = J / r ** 2
-    f_r = math.sqrt(k * (1 / m_t + 1 / m_m)) / (2 * math.pi)
-    f_a = math.sqrt(k / m_t) / (2 * math.pi)
     lo, hi = model.joint(f"{axis}_joint").range
     for position in (lo + 0.002, 0.5 * (lo + hi), hi - 0.002):
+        k, r = screw(model, axis, position)  # the screw's stiffness there
+        m_m = J / r ** 2
+        f_r = math.sqrt(k * (1 / m_t + 1 / m_m)) / (2 * math.pi)
+        f_a = math.sqrt(k / m_t) / (2 * math.pi)
         got = {(held, dt): highest_mode_hz(*two_mass(axis, motor_held=held, timestep=dt, position=position))
                for held in (False, True) for dt in (DT, DT / 2)}
         assert got[False, DT] == pytest.approx(f_r, rel=0.03), (position, got)
@@ -95,25 +102,46 @@ def test_two_mass_modes_match_the_formulas_at_both_ends_and_mid_travel(axis):
 
 
 @pytest.mark.parametrize("axis", ["x", "y", "z"])
-def test_a_force_on_the_clamped_table_deflects_it_f_over_k(axis):
+def test_a_force_on_the_clamped_table_deflects_it_f_over_k_where_the_nut_is(axis):
+    """Hooke's law with the screw's stiffness where its nut is (the chain: springs in series, the
+    shaft a bar E A / a), near both ends of the travel and mid-way, the stiffness written before
+    every physics step as the twin does; the screw is stiffer near its fixed bearing."""
     model = load_model(MACHINE)
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION | mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
     model.dof_armature[model.joint(f"{axis}_motor").dofadr[0]] = LOCK  # the motor held (its brake)
     mujoco.mj_setConst(model, mujoco.MjData(model))
-    k, r = screw(model, axis)
+    screws = setup_screws(model)
     joint = model.joint(f"{axis}_joint")
-    mid = 0.5 * (joint.range[0] + joint.range[1])  # away from the stops (Z's home is its top)
-    rest = {}
-    for force in (0.0, 2000.0, -2000.0):
-        d = mujoco.MjData(model)
-        mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
-        d.qpos[joint.qposadr[0]] += mid
-        d.qpos[model.joint(f"{axis}_motor").qposadr[0]] += mid / r
-        d.qfrc_applied[joint.dofadr[0]] = force
-        mujoco.mj_step(model, d, nstep=6000)  # 1.5 s, many times the axial mode's decay time
-        rest[force] = float(d.qpos[joint.qposadr[0]])
-    deflection = 0.5 * (rest[2000.0] - rest[-2000.0])
-    assert deflection == pytest.approx(2000.0 / k, rel=0.05)
+    lo, hi = joint.range
+    stiffness = {}
+    for position in (lo + 0.05, 0.5 * (lo + hi), hi - 0.05):  # away from the stops
+        k, r = screw(model, axis, position)
+        rest = {}
+        for force in (0.0, 2000.0, -2000.0):
+            d = mujoco.MjData(model)
+            mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+            d.qpos[joint.qposadr[0]] += position
+            d.qpos[model.joint(f"{axis}_motor").qposadr[0]] += position / r
+            d.qfrc_applied[joint.dofadr[0]] = force
+            for _ in range(6000):  # 1.5 s, many times the axial mode's decay time
+                screw_stiffness(screws, d.qpos, model.tendon_stiffness)
+                mujoco.mj_step(model, d)
+            rest[force] = float(d.qpos[joint.qposadr[0]])
+        deflection = 0.5 * (rest[2000.0] - rest[-2000.0])
+        assert deflection == pytest.approx(2000.0 / k, rel=0.05), position
+        stiffness[position] = 2000.0 / deflection
+    ends = sorted(stiffness.values())
+    assert ends[-1] > 1.25 * ends[0], stiffness  # the nut's position matters
+
+
+def test_a_screw_whose_tendon_disagrees_with_its_chain_at_home_is_refused(tmp_path):
+    """The MJCF's tendon stiffness is the chain's at home: a file where they differ is refused in
+    one line naming the tendon."""
+    bad = tmp_path / "polisher.xml"
+    bad.write_text(MACHINE.read_text().replace('<fixed name="y_screw" stiffness="5e+07"',
+                                               '<fixed name="y_screw" stiffness="6e+07"'))
+    with pytest.raises(ScenarioError, match="y_screw"):
+        load_model(bad)
 
 
 def test_harmonic_drive_follows_the_catalogue_curve_with_a_hysteresis_loop():

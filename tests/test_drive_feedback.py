@@ -105,3 +105,20 @@ def test_the_linear_machine_with_the_speed_filter_is_the_nonlinear_plants_respon
     assert np.abs(linear - nonlinear).max() <= 0.01 * peak
     unfiltered, _ = responses(0.0)
     assert np.abs(unfiltered - nonlinear).max() > 0.05 * peak
+
+
+@pytest.mark.parametrize("time_constant", [0.001, 0.0004])
+def test_the_torque_filter_answers_a_speed_error_step_as_a_first_order_lag(time_constant):
+    """The drive's torque reference filter (Yaskawa's Pn401, factory setting 1.00 ms): a constant
+    speed error through a P-only loop gives kp e (1 - exp(-k dt / tf)) at step k, the analytic
+    first-order lag sampled exactly."""
+    taps = np.zeros(1, plant.ENCODER_TAP)
+    taps["scale"] = 1.0
+    drive = DriveConfig(speed_per_volt=0.05, kp=1e3, tn=0.0, current_bandwidth=1000.0, force_limit=1e4,
+                        torque_filter=time_constant)
+    amp = amplifier.setup_amps([drive], taps, DT)[0]
+    k = np.arange(1, 41)
+    forces = np.array([amplifier.amp_force(amp, 1.0, 0.0) for _ in k])  # 1 V: 0.05 m/s of error
+    analytic = 1e3 * 0.05 * (1.0 - np.exp(-k * DT / time_constant))
+    assert forces == pytest.approx(analytic, rel=1e-9)
+    assert forces[0] < 0.5 * 50.0  # really a lag: the first step gives 22 % (1 ms) or 46 % (0.4 ms)

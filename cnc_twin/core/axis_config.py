@@ -47,6 +47,9 @@ class DriveConfig:
     feedback_counts: int = 0
     """the drive's motor feedback, counts per motor revolution: its speed is the difference of
     these counts over a step; 0: not quantised"""
+    torque_filter: float = 0.0
+    """the torque command's first-order low-pass time constant [s], before the notches (a drive's
+    torque reference filter); 0: none"""
 
 
 COMP_MAX_POINTS = 256

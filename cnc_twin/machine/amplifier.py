@@ -12,6 +12,8 @@ physics step from the DAC voltage and the motor's speed::
     e      = w* - w_act
     u      = kp e + I                               # PI
     I     += kp e dt / tn    unless u is limited and e pushes further (anti-windup)
+    u      = T += beta (u - T)                      # the torque reference filter, a first-order
+                                                    # low-pass (exact: beta = 1 - exp(-dt / tf))
     u      = notch_k(u) for each notch              # biquads, bilinear with prewarping
     force  = clamp(u, +-force_limit)                # -> ctrl; MuJoCo lags it (the current loop)
 
@@ -49,9 +51,11 @@ notch              -                       per notch: b0, b1, b2, a1, a2        
 qpos_adr           -                       the motor hinge's qpos (its feedback)        set up
 counts_per_rad     1/rad                   feedback counts per motor rad; 0: exact      set up
 alpha              -                       the speed filter's step gain; 0: no filter   set up
+beta               -                       the torque filter's step gain; 0: no filter  set up
 inv_dt             1/s                     1 / the physics step                         set up
 notch_state        -                       per notch: the biquad's two delays           :func:`amp_force`
 integral           N | N m                 the PI's integral                            :func:`amp_force`
+torque             N | N m                 the torque filter's output                   :func:`amp_force`
 last_count         -                       the feedback's count at the last step         :func:`feedback_speed`
 speed              m/s | rad/s             the filtered actual speed                     :func:`feedback_speed`
 primed             -                       ``last_count`` holds a count                  :func:`feedback_speed`
@@ -71,8 +75,8 @@ MAX_NOTCHES = 2
 AMP = np.dtype([("modelled", np.bool_), ("speed_per_volt", np.float64), ("kp", np.float64), ("ki_dt", np.float64),
                 ("limit", np.float64), ("dof_adr", np.int64), ("scale", np.float64), ("n_notches", np.int64),
                 ("notch", np.float64, (MAX_NOTCHES, 5)), ("qpos_adr", np.int64), ("counts_per_rad", np.float64),
-                ("alpha", np.float64), ("inv_dt", np.float64), ("notch_state", np.float64, (MAX_NOTCHES, 2)),
-                ("integral", np.float64), ("last_count", np.float64), ("speed", np.float64), ("primed", np.bool_)])
+                ("alpha", np.float64), ("beta", np.float64), ("inv_dt", np.float64),
+                ("notch_state", np.float64, (MAX_NOTCHES, 2)), ("integral", np.float64), ("torque", np.float64), ("last_count", np.float64), ("speed", np.float64), ("primed", np.bool_)])
 """one amplifier's record: see the module docstring"""
 
 
@@ -113,6 +117,7 @@ def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
         a["qpos_adr"], a["inv_dt"] = taps[i]["qpos_adr"], 1.0 / dt
         a["counts_per_rad"] = drive.feedback_counts / (2.0 * math.pi)
         a["alpha"] = speed_filter_alpha(drive.speed_filter, dt)
+        a["beta"] = torque_filter_beta(drive.torque_filter, dt)
         if len(drive.notches) > MAX_NOTCHES:
             raise ValueError(f"at most {MAX_NOTCHES} notch filters per drive, got {len(drive.notches)}")
         a["n_notches"] = len(drive.notches)
@@ -127,10 +132,17 @@ def speed_filter_alpha(frequency: float, dt: float) -> float:
     return 1.0 - math.exp(-2.0 * math.pi * frequency * dt) if frequency > 0.0 else 0.0
 
 
+def torque_filter_beta(time_constant: float, dt: float) -> float:
+    """The step gain of a first-order low-pass of ``time_constant`` [s] sampled at ``dt`` [s]
+    (exact: ``1 - exp(-dt / tf)``); 0 when ``time_constant`` is 0 (no filter)."""
+    return 1.0 - math.exp(-dt / time_constant) if time_constant > 0.0 else 0.0
+
+
 def reset_amps(amps: np.ndarray) -> None:
     """The amplifiers as at power-on: no integral, the filters at rest, the feedback not yet read."""
     amps["integral"] = 0.0
     amps["notch_state"] = 0.0
+    amps["torque"] = 0.0
     amps["speed"] = 0.0
     amps["primed"] = False
 
@@ -168,6 +180,9 @@ def amp_force(a, volts, speed):
     # anti-windup: the integral stops while the output is limited and the error pushes further
     if not ((u > a.limit and error > 0.0) or (u < -a.limit and error < 0.0)):
         a.integral += a.ki_dt * error
+    if a.beta > 0.0:
+        a.torque += a.beta * (u - a.torque)
+        u = a.torque
     for n in range(a.n_notches):
         c = a.notch[n]
         s = a.notch_state[n]

@@ -81,6 +81,9 @@ def _require(model: mujoco.MjModel, path: Path) -> None:
             raise ScenarioError(path, "", f"MJCF lacks sensor '{sensor}'")
     if not has(mujoco.mjtObj.mjOBJ_KEY, HOME_KEYFRAME):
         raise ScenarioError(path, "", f"MJCF lacks keyframe '{HOME_KEYFRAME}'")
+    problem = screw_chain_problem(model)
+    if problem is not None:
+        raise ScenarioError(path, "", problem)
 
 
 OBSTACLE_PARK = (0.0, 0.0, -50.0)
@@ -113,3 +116,46 @@ def current_mode(model: mujoco.MjModel, actuator: int) -> bool:
     loop, ``dyntype="filterexact"``, gain 1, no bias)."""
     return (model.actuator_dyntype[actuator] == mujoco.mjtDyn.mjDYN_FILTEREXACT
             and model.actuator_gainprm[actuator, 0] == 1.0 and model.actuator_biastype[actuator] == 0)
+
+
+def chain_name(axis: str) -> str:
+    """The custom numeric that gives ``axis``'s ball-screw chain (``x_screw_chain``; see
+    :mod:`cnc_twin.machine.screw`)."""
+    return f"{axis.lower()}_screw_chain"
+
+
+def chain_stiffness(k_rest: float, ea: float, a0: float, side: float, q: float) -> float:
+    """A ball-screw chain's stiffness [N/m] with the table at ``q`` [m]: the rest of the chain
+    ``k_rest`` [N/m] in series with the shaft between the fixed bearing and the nut, ``ea`` [N]
+    over its length ``a0 + side q`` [m] (:mod:`cnc_twin.machine.screw`)."""
+    return 1.0 / (1.0 / k_rest + (a0 + side * q) / ea)
+
+
+def screw_chain_problem(model: mujoco.MjModel) -> str | None:
+    """What is wrong with the model's ball-screw chains, in a sentence, or None: each needs its
+    ``<axis>_screw`` tendon, four values (k_rest > 0 [N/m], EA > 0 [N], a0 [m], side +-1), the nut
+    clear of the fixed bearing (a > 0) over the table's whole travel, and the tendon's stiffness
+    the chain's at the home keyframe (within 1e-6: the model as compiled is right at home)."""
+    home = model.key(HOME_KEYFRAME).qpos
+    for axis in AXES:
+        name = chain_name(axis)
+        numeric = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+        if numeric < 0:
+            continue
+        data = [float(v) for v in model.numeric(numeric).data]
+        tendon = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, f"{axis.lower()}_screw")
+        if tendon < 0:
+            return f"numeric {name}: the model has no tendon {axis.lower()}_screw for it"
+        if len(data) != 4 or not (data[0] > 0 and data[1] > 0 and abs(abs(data[3]) - 1.0) < 1e-12):
+            return f"numeric {name}: expected 4 values: k_rest > 0 [N/m], EA > 0 [N], a0 [m], side +1 or -1"
+        k_rest, ea, a0, side = data
+        joint = model.joint(joint_name(axis))
+        for q in joint.range:
+            if a0 + side * q <= 0.0:
+                return f"numeric {name}: the nut reaches the fixed bearing at {q:g} m (a0 + side q <= 0)"
+        at_home = chain_stiffness(k_rest, ea, a0, side, float(home[joint.qposadr[0]]))
+        entered = float(model.tendon_stiffness[tendon])
+        if abs(entered - at_home) > 1e-6 * at_home:
+            return (f"tendon {axis.lower()}_screw: stiffness {entered:.7g} N/m, but {name} gives {at_home:.7g} "
+                    "at the home keyframe")
+    return None

@@ -32,6 +32,7 @@ from cnc_twin.core.errors import ScenarioError
 from cnc_twin.geometry.kinematics import PIVOT_BODY, TOOL_SITE
 from cnc_twin.machine.amplifier import any_modelled, drive_amps, reset_amps, setup_amps
 from cnc_twin.machine.model_file import OBSTACLE_PARK, PAD_FORCE_SENSOR, TOOL_POS_SENSOR, current_mode
+from cnc_twin.machine.screw import screw_stiffness, setup_screws
 
 PAD_JOINT = "pad_joint"
 _SWITCH_SENSORS = (("home", SWITCH_HOME, 1.0), ("lim_pos", SWITCH_LIMIT_POS, 1.0), ("lim_neg", SWITCH_LIMIT_NEG, -1.0))
@@ -190,6 +191,11 @@ class Plant:
         """the amplifiers (:data:`~cnc_twin.machine.amplifier.AMP`, shape ``(6,)``)"""
         self.amps_modelled = any_modelled(self.amps)
         """whether any amplifier runs its loops here (then every physics step updates ``ctrl``)"""
+        self.screws = setup_screws(model)
+        """the ball screws whose stiffness follows their nut (:data:`~cnc_twin.machine.screw.SCREW`;
+        none on a rigid machine): every physics step writes it into ``model.tendon_stiffness``"""
+        self.per_step = self.amps_modelled or self.screws.size > 0
+        """whether anything runs before every physics step (amplifiers' loops, screws' stiffness)"""
         for i, drive in enumerate(drives):
             if drive is not None:  # the current loop's lag and the torque limit are the drive's
                 act = self.actuator_ids[i]
@@ -232,7 +238,26 @@ class Plant:
         self.data.ctrl[:] = 0.0
         self.volts[:] = 0.0
         reset_amps(self.amps)
+        self.update_screws()
         mujoco.mj_forward(self.model, self.data)
+
+    def move_axis(self, axis: int, distance: float) -> None:
+        """Move axis ``axis`` (index) by ``distance`` [m | rad] at rest, as if jogged there and
+        settled: its joint and its motor hinge (``distance`` / the drive's gear) together, so the
+        screw's or the harmonic drive's windup stays; the screws' stiffness and MuJoCo's derived
+        quantities follow."""
+        qpos = self._qpos
+        qpos[self.qpos_adr[axis]] += distance
+        motor = self.motor_taps[axis]
+        if motor["qpos_adr"] != self.qpos_adr[axis]:
+            qpos[motor["qpos_adr"]] += distance / motor["scale"]
+        self.update_screws()
+        mujoco.mj_forward(self.model, self.data)
+
+    def update_screws(self) -> None:
+        """The ball screws' stiffness where their tables are now (:mod:`cnc_twin.machine.screw`);
+        :meth:`step` does it before every physics step, a caller that sets ``qpos`` itself calls it."""
+        screw_stiffness(self.screws, self._qpos, self.model.tendon_stiffness)
 
     @property
     def encoder_home(self) -> tuple[float, ...]:
@@ -268,13 +293,15 @@ class Plant:
             self._ctrl[: self._n_drives] = volts
 
     def step(self, n: int) -> None:
-        """Advance the physics ``n`` steps of ``timestep`` (the amplifiers' loops before each)."""
-        if not self.amps_modelled:
+        """Advance the physics ``n`` steps of ``timestep`` (before each, the screws' stiffness where
+        their nuts are and the amplifiers' loops)."""
+        if not self.per_step:
             mujoco.mj_step(self.model, self.data, nstep=n)
             return
         model, data, amps, volts, ctrl = self.model, self.data, self.amps, self.volts, self._ctrl
-        qpos, qvel = data.qpos, data.qvel
+        qpos, qvel, screws, stiffness = data.qpos, data.qvel, self.screws, model.tendon_stiffness
         for _ in range(n):
+            screw_stiffness(screws, qpos, stiffness)
             drive_amps(amps, volts, qpos, qvel, ctrl)
             mujoco.mj_step(model, data)
 

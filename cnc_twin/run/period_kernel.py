@@ -44,7 +44,7 @@ from numba import njit
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import adc, compensation, curve_stepper, dac, encoder, feed_slew, force, pid, servo, spindle, supervisor
 from cnc_twin.geometry import kinematics, span_eval, surface_path
-from cnc_twin.machine import amplifier, plant
+from cnc_twin.machine import amplifier, plant, screw
 from cnc_twin.motion import scurve, trapezoid
 from cnc_twin.dsp.task import SOLO_LIVENESS_PERIODS
 from cnc_twin.polishing import removal_kernel
@@ -56,7 +56,8 @@ purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file_
                        servo.__file__, supervisor.__file__, plant.__file__, removal_kernel.__file__,
                        c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
                        spindle.__file__, scurve.__file__, trapezoid.__file__, amplifier.__file__,
-                       encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__])
+                       encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__,
+                       screw.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise
@@ -226,7 +227,8 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
     ``next_period``).
     """
     (model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands, use_tick_commands, qpos,
-     qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command,
+     qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness, sensordata, force_adr, site_xpos, xpos, xaxis,
+     tool_ids, rec_command,
      rec_actual, rec_dac, rec_force, rec_tool, row0, row_step) = servo_args
     ev, correct, sstate, sscratch = curve_args
     phases, times, v1 = profile
@@ -384,7 +386,8 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
         _latch_setpoint(axes, setpoint, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
         servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
-                               False, qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos,
+                               False, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness,
+                               sensordata, force_adr, site_xpos,
                                xpos, xaxis, tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, row)
         last = row + tpp - 1
         for i in range(n):

@@ -12,7 +12,7 @@ Per tick ``j`` of the period::
     positions = the encoders' positions from qpos (gather_encoders)
     servo_tick(axes, fraction[j] or the step interpolator's point, positions) -> volts
     force = read_load_cell(-sensordata[force_adr])
-    (drive_amps(volts, qpos, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
+    (screw_stiffness(qpos) -> tendon_stiffness; drive_amps(volts, qpos, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
     force at row t + j
 
 Used for analog output with the drives enabled and no injected card faults (the fault injector
@@ -27,7 +27,7 @@ import numpy as np
 
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import adc, compensation, dac, encoder, pid, servo
-from cnc_twin.machine import amplifier, mujoco_c, plant
+from cnc_twin.machine import amplifier, model_file, mujoco_c, plant, screw
 
 
 def available() -> bool:
@@ -37,7 +37,8 @@ def available() -> bool:
 
 # the kernel calls MuJoCo through mujoco_c's bindings and the servo's blocks: recompile when they change
 purge_stale(__file__, [mujoco_c.__file__, servo.__file__, encoder.__file__, pid.__file__, dac.__file__,
-                       adc.__file__, compensation.__file__, plant.__file__, amplifier.__file__])
+                       adc.__file__, compensation.__file__, plant.__file__, amplifier.__file__, screw.__file__,
+                       model_file.__file__])
 
 if mujoco_c.IMPORT_ERROR is None:
     from numba import njit
@@ -47,20 +48,23 @@ if mujoco_c.IMPORT_ERROR is None:
     _read_load_cell = servo.read_load_cell
     _gather_encoders = plant.gather_encoders
     _drive_amps = amplifier.drive_amps
+    _screw_stiffness = screw.screw_stiffness
     _mj_kinematics = mujoco_c.mj_kinematics
     _tool_pose = plant.tool_pose
 
     @njit(cache=True, nogil=True)
     def run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
-                  use_tick_commands, qpos, qvel, taps, positions, amps, volts, ctrl, sensordata, force_adr, site_xpos, xpos, xaxis,
-                  tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, t0):  # pragma: no cover - compiled
+                  use_tick_commands, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness, sensordata,
+                  force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, t0):  # pragma: no cover - compiled
         """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`; their
         pitch-error tables ``comp_tables``) and ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`,
         shape ``(1,)``) from recorder row
         ``t0``, each followed by ``substeps`` physics steps. The encoders read ``qpos`` where
         ``taps`` (:data:`~cnc_twin.machine.plant.ENCODER_TAP`) say, into ``positions``; the DACs
         write ``volts``, which the amplifiers ``amps`` (:data:`~cnc_twin.machine.amplifier.AMP`)
-        turn into MuJoCo's ``ctrl`` before every physics step. ``fractions`` are a whole period's
+        turn into MuJoCo's ``ctrl`` before every physics step, as ``screws``
+        (:data:`~cnc_twin.machine.screw.SCREW`) write their stiffness into the model's
+        ``tendon_stiffness``. ``fractions`` are a whole period's
         ticks: at the last, the tool's true pose goes into ``rec_tool`` row ``t0 // ticks``
         (:func:`~cnc_twin.machine.plant.tool_pose`, after MuJoCo's kinematics; ``tool_ids``:
         :func:`~cnc_twin.machine.plant.tool_pose_ids`)."""
@@ -76,6 +80,7 @@ if mujoco_c.IMPORT_ERROR is None:
                         rec_actual[row], rec_dac[row], volts)
             rec_force[row] = _read_load_cell(cell, -sensordata[force_adr])
             for _ in range(substeps):
+                _screw_stiffness(screws, qpos, tendon_stiffness)
                 _drive_amps(amps, volts, qpos, qvel, ctrl)
                 _mj_step(model_ptr, data_ptr)
 
@@ -99,10 +104,12 @@ class CompiledServo:
         """MuJoCo's model and data pointers and the physics steps per tick: the kernel's first arguments"""
         data = plant.data
         self.plant_arrays = (data.qpos, data.qvel, plant.encoder_taps, plant.encoders, plant.amps, plant.volts,
-                             data.ctrl, data.sensordata, plant.force_sensor_adr, data.site_xpos, data.xpos, data.xaxis,
+                             data.ctrl, plant.screws, plant.model.tendon_stiffness, data.sensordata,
+                             plant.force_sensor_adr, data.site_xpos, data.xpos, data.xaxis,
                              plant.tool_ids)
         """MuJoCo's qpos and qvel, the encoders' taps and positions, the amplifiers and their
-        voltages, MuJoCo's ctrl and sensordata, the load cell's address in sensordata, and what
+        voltages, MuJoCo's ctrl, the screws and the model's tendon stiffness, MuJoCo's sensordata,
+        the load cell's address in sensordata, and what
         the tool's pose is read from (MuJoCo's site and body positions, joint axes; the ids)"""
 
     def tick_args(self) -> tuple:

@@ -92,6 +92,10 @@ class DriveSpec(Strict):
     speed_filter: float = Field(0.0, ge=0.0, le=20000.0,
                                 description="the actual speed's first-order low-pass [Hz] (the velocity "
                                             "feedback's bandwidth, e.g. 600); 0: the motor's exact speed")
+    torque_filter: float = Field(0.0, ge=0.0, le=100.0,
+                                 description="the torque command's first-order low-pass time constant [ms], "
+                                             "before the notch filters (a drive's torque reference filter, "
+                                             "e.g. 1.0); 0: none")
     feedback_resolution: int = Field(0, ge=0, le=2**32,
                                      description="the drive's motor feedback [counts per motor revolution]: "
                                                  "its speed is their difference over a step; 0: not quantised")
@@ -326,6 +330,7 @@ def _drive(axis: str, a: AxisSpec, info: ModelInfo, label: Path) -> DriveConfig 
         motor_per_axis=ratio,
         speed_filter=d.speed_filter,
         feedback_counts=d.feedback_resolution,
+        torque_filter=d.torque_filter * units.MS,
     )
 
 

@@ -27,12 +27,13 @@ frequencies where the measurement is coherent count.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from cnc_twin.core.config import AxisConfig, DriveConfig, Notch
-from cnc_twin.machine.amplifier import AMP, notch_coefficients, speed_filter_alpha
+from cnc_twin.machine.amplifier import AMP, notch_coefficients, speed_filter_alpha, torque_filter_beta
 from cnc_twin.studies.commissioning import FrequencyResponse, resonances
 from cnc_twin.studies.linearize import amplifier_ss, frequency_response, pid_controller, speed_filter_ss
 from cnc_twin.studies.tuning import gain_grid
@@ -51,26 +52,41 @@ loop's crossover (tn = 4 / omega_c: the integral's phase lag at the crossover is
 @dataclass(frozen=True)
 class Margins:
     """A loop's margins over all its crossings: ``gain_margin_db`` (inf without a phase
-    crossing), ``phase_margin_deg``, and ``crossover_hz`` (the highest gain crossing: the
-    loop's bandwidth, about)."""
+    crossing), ``phase_margin_deg``, ``crossover_hz`` (the highest gain crossing) and
+    ``first_crossover_hz`` (the lowest: where the loop first falls below 0 dB, its bandwidth,
+    about; a loop whose response peaks above 0 dB again at a resonance crosses higher too, which
+    is no bandwidth)."""
 
     gain_margin_db: float
     phase_margin_deg: float
     crossover_hz: float
+    first_crossover_hz: float = float("nan")
 
 
-def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | None = None) -> Margins:
+def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | None = None,
+                 reference: np.ndarray | None = None) -> Margins:
     """The :class:`Margins` of an open loop's response ``loop`` at ``frequency`` [Hz], using the
     points where ``valid`` (default: all). No gain crossing: phase margin and crossover nan; still
-    above 0 dB at the last point: crossover inf (beyond the band)."""
+    above 0 dB at the last point: crossover inf (beyond the band).
+
+    The phase is followed from the lowest frequency, where these loops lag by less than a turn:
+    along ``reference`` (the same loop on the linear model's response: smooth, so its phase
+    unwraps without doubt) plus the measured loop's angle from it, or, without one, along
+    ``loop`` itself. A loop whose phase has passed -180 deg at a gain crossing has a negative
+    margin there, though its wrapped angle looks like a positive one."""
+    follow = loop if reference is None else reference
+    phase = np.unwrap(np.angle(follow))
+    phase -= 2.0 * np.pi * np.ceil(phase[0] / (2.0 * np.pi))  # a lag at the lowest frequency: (-360, 0] deg
+    if reference is not None:
+        phase = phase + np.angle(loop / reference)
+    phase = np.degrees(phase)
     if valid is not None:
-        loop, frequency = loop[valid], frequency[valid]
+        loop, frequency, phase = loop[valid], frequency[valid], phase[valid]
     mag = np.abs(loop)
-    phase = np.degrees(np.angle(loop))  # (-180, 180]
     up = mag >= 1.0
     gain_x = np.flatnonzero(up[:-1] != up[1:])
-    # at each gain crossing the loop is on the unit circle: its phase margin is its angle from -1
-    pm = [180.0 - abs(phase[i]) for i in gain_x]
+    # at each gain crossing the loop is on the unit circle: its phase margin is its phase above -180 deg
+    pm = [180.0 + phase[i] for i in gain_x]
     # a phase crossing of -180 deg (the imaginary part changes sign where the real part is
     # negative) inside the unit circle: how much more gain would reach -1 (crossings outside it
     # bound how much less gain the loop takes, a margin this tuner never spends)
@@ -80,13 +96,46 @@ def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | No
     gm = [-20.0 * np.log10(max(mag[i], mag[i + 1])) for i in phase_x]
     # a loop still above 0 dB at the band's end crosses beyond what was measured: unknown there
     crossover = float("inf") if up[-1] else float(frequency[gain_x[-1]]) if gain_x.size else float("nan")
+    first = float(frequency[gain_x[0]]) if gain_x.size else crossover
     return Margins(gain_margin_db=float(min(gm)) if gm else float("inf"),
-                   phase_margin_deg=float(min(pm)) if pm else float("nan"), crossover_hz=crossover)
+                   phase_margin_deg=float(min(pm)) if pm else float("nan"), crossover_hz=crossover,
+                   first_crossover_hz=first)
 
 
-def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void:
+Responses = FrequencyResponse | Sequence[FrequencyResponse]
+"""one measured response, or one per place the axis was measured (its ends and mid travel): a loop
+designed on several must keep its margins on each"""
+
+
+def _all(fr: Responses) -> tuple[FrequencyResponse, ...]:
+    return (fr,) if isinstance(fr, FrequencyResponse) else tuple(fr)
+
+
+def worst(margins: Sequence[Margins]) -> Margins:
+    """The least of each margin over ``margins`` (a loop on each of several measured responses),
+    and the lowest crossover; nan where any is nan (a loop that does not cross somewhere)."""
+    def least(values):
+        values = list(values)
+        return float("nan") if any(np.isnan(v) for v in values) else float(min(values))
+
+    return Margins(gain_margin_db=least(m.gain_margin_db for m in margins),
+                   phase_margin_deg=least(m.phase_margin_deg for m in margins),
+                   crossover_hz=least(m.crossover_hz for m in margins),
+                   first_crossover_hz=least(m.first_crossover_hz for m in margins))
+
+
+def margins_on(fr: FrequencyResponse, loop_of, valid: np.ndarray | None = None) -> Margins:
+    """:func:`loop_margins` of ``loop_of(fr)`` (an open loop through the measured response),
+    its phase followed along the same loop through ``fr.reference`` where the measurement has one."""
+    reference = None if fr.reference is None else loop_of(
+        FrequencyResponse(fr.frequency, fr.reference, np.ones(fr.frequency.shape)))
+    return loop_margins(loop_of(fr), fr.frequency, valid, reference)
+
+
+def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float, torque_filter: float = 0.0) -> np.void:
     a = np.zeros(1, AMP)[0]
     a["modelled"] = True
+    a["beta"] = torque_filter_beta(torque_filter, dt)
     a["kp"], a["ki_dt"] = kp, kp * dt / tn if tn > 0.0 else 0.0
     a["n_notches"] = len(notches)
     for n, notch in enumerate(notches):
@@ -95,22 +144,22 @@ def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float) -> np.void
 
 
 def velocity_open_loop(fr: FrequencyResponse, kp: float, tn: float, notches: tuple[Notch, ...],
-                       dt: float, speed_filter: float = 0.0) -> np.ndarray:
+                       dt: float, speed_filter: float = 0.0, torque_filter: float = 0.0) -> np.ndarray:
     """L_v at ``fr.frequency``: the drive's PI (``kp`` [N/(m/s) | N m/(rad/s) at the axis], ``tn``
-    [s]) and ``notches`` at the physics step ``dt`` [s], times the measured mechanics, read
-    through the drive's ``speed_filter`` [Hz] (0: none)."""
-    return _open_loop(fr, kp, tn, notches, dt, _feedback(fr, dt, speed_filter))
+    [s]), its torque filter (``torque_filter`` [s], 0: none) and ``notches`` at the physics step
+    ``dt`` [s], times the measured mechanics, read through the drive's ``speed_filter`` [Hz] (0: none)."""
+    return _open_loop(fr, kp, tn, notches, dt, _feedback(fr, dt, speed_filter), torque_filter)
 
 
-def _open_loop(fr, kp, tn, notches, dt, feedback: np.ndarray) -> np.ndarray:
+def _open_loop(fr, kp, tn, notches, dt, feedback: np.ndarray, torque_filter: float) -> np.ndarray:
     """L_v with the speed filter's response ``feedback`` at ``fr.frequency`` already evaluated
     (the same for every loop a design tries)."""
-    return _controller(fr, kp, tn, notches, dt) * fr.response * feedback
+    return _controller(fr, kp, tn, notches, dt, torque_filter) * fr.response * feedback
 
 
-def _controller(fr, kp, tn, notches, dt) -> np.ndarray:
-    """The drive's PI and notches at ``fr.frequency``: speed error -> force command."""
-    return frequency_response(amplifier_ss(_amp(kp, tn, notches, dt)), 2.0 * np.pi * fr.frequency, dt)
+def _controller(fr, kp, tn, notches, dt, torque_filter: float) -> np.ndarray:
+    """The drive's PI, torque filter and notches at ``fr.frequency``: speed error -> force command."""
+    return frequency_response(amplifier_ss(_amp(kp, tn, notches, dt, torque_filter)), 2.0 * np.pi * fr.frequency, dt)
 
 
 def _feedback(fr, dt, speed_filter) -> np.ndarray:
@@ -118,9 +167,17 @@ def _feedback(fr, dt, speed_filter) -> np.ndarray:
     return frequency_response(speed_filter_ss(speed_filter_alpha(speed_filter, dt)), 2.0 * np.pi * fr.frequency, dt)
 
 
+LOWEST_BINS = 5
+"""a measured response counts from this many of its frequency steps up (2.5 Hz for 2 s Welch
+segments): below, a segment's slow trends (the load changing along the sweep, friction) leak
+into the estimate"""
+
+
 def valid_band(fr: FrequencyResponse, dt: float, hold: int = 2) -> np.ndarray:
-    """Where the measurement counts: coherent, above 1 Hz, below the PRBS's band (1 / (2 hold dt))."""
-    return (fr.coherence >= COHERENCE_MIN) & (fr.frequency >= 1.0) & (fr.frequency <= 1.0 / (2.0 * hold * dt))
+    """Where the measurement counts: coherent, from :data:`LOWEST_BINS` frequency steps (and at
+    least 1 Hz) up, below the PRBS's band (1 / (2 hold dt))."""
+    lowest = max(1.0, LOWEST_BINS * float(fr.frequency[1] - fr.frequency[0]))
+    return (fr.coherence >= COHERENCE_MIN) & (fr.frequency >= lowest) & (fr.frequency <= 1.0 / (2.0 * hold * dt))
 
 
 @dataclass(frozen=True)
@@ -135,6 +192,8 @@ class VelocityLoop:
     margins: Margins
     speed_filter: float = 0.0
     """[Hz] the drive's filter on the actual speed the loop reads (0: none): the drive's, not tuned"""
+    torque_filter: float = 0.0
+    """[s] the drive's torque reference filter's time constant (0: none): the drive's, not tuned"""
 
 
 CURRENT_LOOP_SHARE = 1 / 3
@@ -142,33 +201,51 @@ CURRENT_LOOP_SHARE = 1 / 3
 commissioning rule of thumb: the inner loop three to five times faster)"""
 
 
-def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 45.0,
+def notch_settings(frs: Responses) -> list[tuple[Notch, ...]]:
+    """The notch settings a velocity-loop design tries: none, or one centred on the measured
+    resonance (between the lowest and the highest where several responses were measured: the
+    geometric mean) at each of :data:`NOTCH_DEPTHS`, its width each of :data:`NOTCH_WIDTHS` of
+    the centre and, where the resonance moves along the travel, wide enough for the whole spread
+    (1.5 x the highest less the lowest)."""
+    found = [resonances(fr).resonance_hz for fr in _all(frs)]
+    centre = float(np.sqrt(min(found) * max(found)))
+    widths = [width * centre for width in NOTCH_WIDTHS]
+    spread = 1.5 * (max(found) - min(found))
+    if spread > max(widths):
+        widths.append(spread)
+    return [()] + [(Notch(centre, width, depth),) for depth in NOTCH_DEPTHS for width in widths]
+
+
+def propose_velocity_loop(fr: Responses, drive: DriveConfig, dt: float, *, phase_margin: float = 45.0,
                           gain_margin: float = 8.0) -> VelocityLoop:
-    """The highest-crossover velocity loop meeting both margins on the measured response, its
-    crossover below :data:`CURRENT_LOOP_SHARE` of the current loop's bandwidth: kp on a log grid
-    (1/30 to 30 times the drive's), tn the drive's or from each kp's proportional crossover
-    (:data:`TN_CROSSOVERS`), with no notch or one at the measured resonance (depths
-    :data:`NOTCH_DEPTHS`, widths :data:`NOTCH_WIDTHS`); at equal crossover the one with fewer and
+    """The velocity loop with the highest (first) crossover meeting both margins on the measured response (on
+    each of several: their :func:`worst`), every crossing below :data:`CURRENT_LOOP_SHARE` of the
+    current loop's bandwidth: kp on a log grid (1/30 to 30 times the drive's), tn the drive's or
+    from each kp's proportional crossover (:data:`TN_CROSSOVERS`), with no notch or one at the
+    measured resonance (:func:`notch_settings`); at equal crossover the one with fewer and
     shallower notches. ValueError when none meets the margins."""
-    valid = valid_band(fr, dt)
+    frs = _all(fr)
+    valid = [valid_band(one, dt) for one in frs]
     highest = CURRENT_LOOP_SHARE * drive.current_bandwidth
-    resonance = resonances(fr).resonance_hz
-    settings: list[tuple[Notch, ...]] = [()] + [(Notch(resonance, width * resonance, depth),)
-                                                for depth in NOTCH_DEPTHS for width in NOTCH_WIDTHS]
-    feedback = _feedback(fr, dt, drive.speed_filter)
+    feedback = [_feedback(one, dt, drive.speed_filter) for one in frs]
+
+    def margins(kp, tn, notches):
+        return worst([margins_on(one, lambda r: _open_loop(r, kp, tn, notches, dt, fb, drive.torque_filter), ok)
+                      for one, fb, ok in zip(frs, feedback, valid)])
+
     best: VelocityLoop | None = None
     for kp in np.logspace(np.log10(drive.kp / 30.0), np.log10(drive.kp * 30.0), 61):
-        for notches in settings:
-            proportional = loop_margins(_open_loop(fr, kp, 0.0, notches, dt, feedback), fr.frequency, valid)
-            if not np.isfinite(proportional.crossover_hz):
+        for notches in notch_settings(frs):
+            proportional = margins(kp, 0.0, notches)
+            if not np.isfinite(proportional.first_crossover_hz):
                 continue
-            for tn in (drive.tn, *(c / (2.0 * np.pi * proportional.crossover_hz) for c in TN_CROSSOVERS)):
-                m = loop_margins(_open_loop(fr, kp, tn, notches, dt, feedback), fr.frequency, valid)
+            for tn in (drive.tn, *(c / (2.0 * np.pi * proportional.first_crossover_hz) for c in TN_CROSSOVERS)):
+                m = margins(kp, tn, notches)
                 if not (m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin
                         and m.crossover_hz <= highest):
                     continue
-                if best is None or m.crossover_hz > best.margins.crossover_hz * (1.0 + 1e-9):
-                    best = VelocityLoop(float(kp), float(tn), notches, m, drive.speed_filter)
+                if best is None or m.first_crossover_hz > best.margins.first_crossover_hz * (1.0 + 1e-9):
+                    best = VelocityLoop(float(kp), float(tn), notches, m, drive.speed_filter, drive.torque_filter)
     if best is None:
         raise ValueError(f"no velocity loop on the grid meets {phase_margin:g} deg / {gain_margin:g} dB "
                          "on the measured response")
@@ -177,7 +254,7 @@ def propose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, 
 
 def velocity_closed_loop(fr: FrequencyResponse, loop: VelocityLoop, dt: float) -> np.ndarray:
     """T_v: the motor's true speed per commanded speed, at ``fr.frequency``."""
-    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt) * fr.response
+    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt, loop.torque_filter) * fr.response
     return forward / (1.0 + forward * _feedback(fr, dt, loop.speed_filter))
 
 
@@ -203,41 +280,58 @@ class PositionLoop:
     margins: Margins
 
 
-def position_candidates(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
+def position_margins(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float, dt: float,
+                     **gains: float) -> Margins:
+    """The position loop's margins on the measured response (on each of several: their
+    :func:`worst`), the card's gains ``cfg``'s or ``gains`` (kp, ki, kd)."""
+    return worst([margins_on(one, lambda r: position_open_loop(r, velocity, cfg, servo_period, dt, **gains),
+                             valid_band(one, dt)) for one in _all(fr)])
+
+
+POSITION_LOOP_SHARE = 1 / 4
+"""a position loop's crossover stays below this share of its velocity loop's (the servo manuals'
+rule of thumb in the machine-dynamics reference: position-loop bandwidth < velocity-loop bandwidth / 4)"""
+
+
+def position_candidates(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
                         dt: float, *, phase_margin: float = 40.0, gain_margin: float = 6.0,
                         kp_range: tuple[float, float] = (5.0, 400.0)) -> list[PositionLoop]:
     """Every card (kp, ki) on the tuner's grid (:func:`~cnc_twin.studies.tuning.gain_grid`) meeting
-    both margins on the measured response, highest crossover first."""
-    valid = valid_band(fr, dt)
+    both margins on the measured response (on each of several), its (first) crossover below
+    :data:`POSITION_LOOP_SHARE` of ``velocity``'s, highest crossover first."""
+    highest = POSITION_LOOP_SHARE * velocity.margins.first_crossover_hz
     out = []
     for kp, ki in gain_grid(kp_range):
-        m = loop_margins(position_open_loop(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0),
-                         fr.frequency, valid)
-        if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin:
+        m = position_margins(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0)
+        if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin and m.first_crossover_hz <= highest:
             out.append(PositionLoop(float(kp), float(ki), m))
-    return sorted(out, key=lambda p: -p.margins.crossover_hz)
+    return sorted(out, key=lambda p: -p.margins.first_crossover_hz)
 
 
-def current_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float) -> VelocityLoop:
-    """The drive's own velocity loop, with its margins on the measured response."""
-    m = loop_margins(velocity_open_loop(fr, drive.kp, drive.tn, drive.notches, dt, drive.speed_filter), fr.frequency,
-                     valid_band(fr, dt))
-    return VelocityLoop(drive.kp, drive.tn, drive.notches, m, drive.speed_filter)
+def current_velocity_loop(fr: Responses, drive: DriveConfig, dt: float) -> VelocityLoop:
+    """The drive's own velocity loop, with its margins on the measured response (the worst over several)."""
+    m = worst([margins_on(one, lambda r: velocity_open_loop(r, drive.kp, drive.tn, drive.notches, dt, drive.speed_filter,
+                                                           drive.torque_filter), valid_band(one, dt)) for one in _all(fr)])
+    return VelocityLoop(drive.kp, drive.tn, drive.notches, m, drive.speed_filter, drive.torque_filter)
 
 
-def choose_velocity_loop(fr: FrequencyResponse, drive: DriveConfig, dt: float, *, phase_margin: float = 40.0,
+def choose_velocity_loop(fr: Responses, drive: DriveConfig, dt: float, *, phase_margin: float = 40.0,
                          gain_margin: float = 6.0) -> tuple[VelocityLoop, VelocityLoop]:
     """``(current, chosen)``: the drive's own velocity loop and the one to use, the
     :func:`propose_velocity_loop` one when the current misses a margin or the proposal crosses
     over at least 5 % higher; else the current one (the same object)."""
     current = current_velocity_loop(fr, drive, dt)
+    m = current.margins
+    meets = m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin and np.isfinite(m.first_crossover_hz)
     try:
         proposed = propose_velocity_loop(fr, drive, dt, phase_margin=phase_margin, gain_margin=gain_margin)
     except ValueError:
-        return current, current
-    m = current.margins
-    meets = m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin and np.isfinite(m.crossover_hz)
-    if meets and not proposed.margins.crossover_hz > 1.05 * m.crossover_hz:
+        if meets:
+            return current, current
+        raise ValueError(f"the drive's velocity loop has {m.phase_margin_deg:.1f} deg / {m.gain_margin_db:.1f} dB on "
+                         f"the measured response and no loop on the grid meets {phase_margin:g} deg / "
+                         f"{gain_margin:g} dB") from None
+    if meets and not proposed.margins.first_crossover_hz > 1.05 * m.first_crossover_hz:
         return current, current
     return current, proposed
 
@@ -262,7 +356,7 @@ def format_velocity_loops(axis: str, current: VelocityLoop, chosen: VelocityLoop
                             for n in d["notch_filters"]) or "none"
         m = loop.margins
         lines.append(f"{name:<18}{d['kp_speed']:>10.4g}{d['tn_speed']:>9.3g}{m.phase_margin_deg:>10.1f}"
-                     f"{m.gain_margin_db:>9.1f}{m.crossover_hz:>9.1f}  {notches}")
+                     f"{m.gain_margin_db:>9.1f}{m.first_crossover_hz:>9.1f}  {notches}")
     if chosen is current:
         lines.append("keeping the drive's velocity loop: it meets the margins and no loop on the grid crosses over "
                      "5 % higher")

@@ -39,10 +39,12 @@ from cnc_twin.machine.model_file import load_model
 from cnc_twin.machine.plant import Plant
 
 
-def linear_plant(scenario: Scenario) -> Plant:
+def linear_plant(scenario: Scenario, *, at: dict[str, float] | None = None) -> Plant:
     """The scenario's machine as it is linearised: an elastic copy (no plastic state) without the
     actuators' dead time (:func:`actuator_delays` gives it back), with Coulomb friction and the
-    joint limits off, at the home keyframe, at rest."""
+    joint limits off, at rest at the home keyframe, or with the axes ``at`` names (``{"Y": 0.2}``)
+    moved there [m | rad] (:meth:`~cnc_twin.machine.plant.Plant.move_axis`: the screws' stiffness
+    where their nuts are then)."""
     load_model(scenario.model_file)  # the file's checks, with their clear errors
     spec = mujoco.MjSpec.from_file(str(scenario.model_file))
     for tendon in spec.tendons:
@@ -53,6 +55,9 @@ def linear_plant(scenario: Scenario) -> Plant:
                   encoder_mounts=scenario.encoder_mounts)
     plant.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_LIMIT
     plant.reset()
+    for axis, position in (at or {}).items():
+        i = AXES.index(axis)
+        plant.move_axis(i, position - scenario.home[i])
     return plant
 
 
@@ -79,10 +84,12 @@ def delay_ss(steps: int) -> control.StateSpace:
 
 def amplifier_ss(amp: np.void) -> control.StateSpace:
     """One amplifier's loops (:data:`~cnc_twin.machine.amplifier.AMP`) from speed error [axis units]
-    to force command, discrete at the physics step: the PI (``u = kp e + I``, ``I += ki_dt e``)
-    and its notch biquads in series, as :func:`~cnc_twin.machine.amplifier.amp_force` runs them
-    (its limit left out)."""
+    to force command, discrete at the physics step: the PI (``u = kp e + I``, ``I += ki_dt e``),
+    the torque filter and the notch biquads in series, as
+    :func:`~cnc_twin.machine.amplifier.amp_force` runs them (its limit left out)."""
     out = control.ss([[1.0]], [[amp["ki_dt"]]], [[1.0]], [[amp["kp"]]], True)
+    if amp["beta"] > 0.0:  # y = T + beta (u - T), T' = y: the same form as the speed filter
+        out = control.series(out, speed_filter_ss(float(amp["beta"])))
     for n in range(int(amp["n_notches"])):
         b0, b1, b2, a1, a2 = amp["notch"][n]
         notch = control.ss([[-a1, 1.0], [-a2, 0.0]], [[b1 - a1 * b0], [b2 - a2 * b0]], [[1.0, 0.0]], [[b0]], True)
@@ -189,11 +196,12 @@ def axis_plant(scenario: Scenario, axis: str) -> control.StateSpace:
     return control.ss(ad, bd, c, [[0.0]], dt=timing.servo_period)
 
 
-def mechanics(scenario: Scenario, axis: str) -> control.StateSpace:
+def mechanics(scenario: Scenario, axis: str, *, at: float | None = None) -> control.StateSpace:
     """The axis's mechanics as its drive sees them: from the force command [N | N m at the axis]
     to the motor's speed [m/s | rad/s at the axis], discrete at the physics step, the other
-    drives' loops closed (:func:`machine_loop` with ``force_input``)."""
-    M, N, speed = machine_loop(linear_plant(scenario), axis, force_input=True, delays=actuator_delays(scenario))
+    drives' loops closed (:func:`machine_loop` with ``force_input``); the axis at home, or at
+    ``at`` [m | rad]."""
+    M, N, speed = machine_loop(linear_plant(scenario, at=None if at is None else {axis: at}), axis, force_input=True, delays=actuator_delays(scenario))
     return control.ss(M, N, speed[None, :], [[0.0]], dt=scenario.timing.physics_timestep)
 
 

@@ -51,5 +51,5 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
         if mechanics is not None:
             from cnc_twin.studies.commissioning import save_mechanics_plot
 
-            paths.append(save_mechanics_plot(axis, *mechanics, out))
+            paths.append(save_mechanics_plot(axis, mechanics, out, (cfg.display_unit, cfg.display_factor)))
         print("plots: " + ", ".join(str(p) for p in paths))

@@ -121,7 +121,7 @@ def check_margins(phase_margin: float, gain_margin: float) -> None:
 def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float = 45.0,
                       gain_margin: float = 6.0, step: float = 1.0, tries: int = 12,
                       measured: list[Proposal] | None = None, extra: dict[str, Any] | None = None,
-                      overrides: dict[str, Any] | None = None) -> Verdict:
+                      overrides: dict[str, Any] | None = None, current_margins: str | None = None) -> Verdict:
     """Candidates meeting the margins on the linear loop (``tries`` of them, spread over the list
     from the highest crossover down) are each run on the nonlinear twin; of those that
     :func:`beats` the current gains' own twin step and overshoot within 10 points of their linear
@@ -133,9 +133,10 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
     twin alone judges them then, with at most :data:`OVERSHOOT_MAX_PCT` of the tool's overshoot; and
     where the current gains overshoot beyond that (plus the slack), a candidate that settles within
     it beats them however long it takes (a machine tool's position loop must not overshoot), and
-    every candidate is tried, not ``tries`` of them.
-    ``extra``: scenario overrides the candidates' twin steps run with
-    (a proposed velocity loop), not the current gains' own step. ``overrides``: those ``scenario``
+    every candidate is tried, not ``tries`` of them; the same where ``current_margins`` says how
+    the current gains miss the margins on the measured response (a sentence; None: they meet them).
+    ``extra``: scenario overrides every twin step runs with, the current gains' too (a proposed
+    velocity loop: the position loop is tuned on the velocity loop it will run on). ``overrides``: those ``scenario``
     was loaded with (e.g. a bundled machine): every twin step loads ``scenario_file`` with them."""
     check_margins(phase_margin, gain_margin)
     found = measured if measured is not None else candidates(scenario, axis, phase_margin=phase_margin,
@@ -147,14 +148,15 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
         best = max(candidates(scenario, axis, phase_margin=1e-9, gain_margin=1e-9), key=lambda p: p.phase_margin_deg)
         raise ValueError(f"no gains on the search grid meet {phase_margin:g} deg / {gain_margin:g} dB on {axis}; "
                          f"the most phase margin any reaches is {best.phase_margin_deg:.1f} deg (kp {best.kp:.3g})")
-    before = twin_step(scenario_file, axis, step=step, base=overrides)
+    before = twin_step(scenario_file, axis, step=step, extra=extra, base=overrides)
     if before["fault"] is not None:
         raise ValueError(f"the {abs(step):g} {units.position_unit(scenario.axis(axis).rotary)} step with the "
                          f"current gains ends in a fault on the twin ({before['fault']}); choose a smaller --step")
     plant = axis_plant(scenario, axis) if measured is None else None
     qualified, fastest, tried = [], None, {}
     overshooting = measured is not None and before["overshoot_pct"] > OVERSHOOT_MAX_PCT + OVERSHOOT_SLACK_PCT
-    # gains that overshoot give no yardstick to stop at: every candidate is tried then
+    overshooting = overshooting or (measured is not None and current_margins is not None)
+    # gains that overshoot, or miss the margins, give no yardstick to stop at: every candidate is tried then
     picks = [int(i) for i in np.unique(np.linspace(0, len(found) - 1,
                                                    len(found) if overshooting else min(tries, len(found))).round())]
 
@@ -187,9 +189,14 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
                 try_on_twin(index)
     if qualified:
         index, twin = min(qualified, key=lambda pair: _settle_key(pair[1]))
-        reason = ("settles sooner with no more overshoot on the twin" if beats(twin, before) else
-                  f"the tool overshoots {before['overshoot_pct']:.1f} % with the current gains, beyond the "
-                  f"{OVERSHOOT_MAX_PCT:g} % a position loop may; these settle within it on the twin")
+        if current_margins is not None:
+            reason = (f"the current gains {current_margins}; these meet the margins and the rule, and settle within "
+                      f"{OVERSHOOT_MAX_PCT:g} %")
+        elif beats(twin, before):
+            reason = "settles sooner with no more overshoot on the twin"
+        else:
+            reason = (f"the tool overshoots {before['overshoot_pct']:.1f} % with the current gains, beyond the "
+                      f"{OVERSHOOT_MAX_PCT:g} % a position loop may; these settle within it on the twin")
         return Verdict(found[index], before, twin, found[index], len(tried), reason)
     return Verdict(None, before, fastest[1], fastest[0], len(tried),
                    f"none of the {len(tried)} candidates tried settled sooner than the current gains without "
@@ -231,7 +238,10 @@ def format_verdict(verdict: Verdict, scenario: Scenario, axis: str, *, phase_mar
     if saturated > 0:
         lines.append(f"note: the {abs(step):g} {unit} step holds the DAC at full scale for {saturated:.2f} ms with "
                      "the current gains; the loop's own response shows on a smaller --step")
-    if verdict.proposal is None:
+    if verdict.proposal is None and drive_use:
+        lines.append(f"to use: axes: {{{axis}: {{{drive_use[2:]}}}}}  (the proposed velocity loop; keeping the "
+                     f"current position gains: {verdict.reason})")
+    elif verdict.proposal is None:
         lines.append(f"keeping the current gains: {verdict.reason}")
     else:
         lines.append(f"to use: axes: {{{axis}: {{servo: {{kp: {verdict.proposal.kp:.4g}, "
