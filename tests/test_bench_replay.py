@@ -17,14 +17,15 @@ def _replay(scenario, result):
 
 def test_the_replay_retraces_a_run_that_only_drives_the_axes():
     """A curve run puts nothing on the model but the drive voltages: replayed open loop, the same
-    codes from the same home take the encoders where the run's ended (within a count)."""
+    codes from the same home take the encoders where the run's ended (within two counts: the trace's
+    last reading is a whole count, taken before its tick's physics steps)."""
     scenario = load_scenario(scenarios_dir() / "nurbs_circle.yaml", overrides={"max_time": 1.0})
     result = run_scenario(scenario)
     replay = _replay(scenario, result)
     counts = result.trace.counts_per_unit
     ended = result.trace.actual[-1] / counts  # encoder counts are from home
     assert np.max(np.abs(result.trace.actual[-1])) > 1000  # the axes moved
-    assert np.all(np.abs(replay.final_encoders - ended) <= 1.0 / counts)
+    assert np.all(np.abs(replay.final_encoders - ended) <= 2.0 / counts)
     assert replay.seconds > 0
 
 

@@ -92,7 +92,7 @@ def test_a_bad_table_is_refused_in_one_line_naming_the_key(tmp_path, compensatio
 @pytest.fixture(scope="module")
 def worn(tmp_path_factory):
     """A folder with the compliant machine whose X screw is worn (its MJCF: the screw tendon's
-    lead 50 um/m long, a deadband of 8 um), its parameter file with X's tuned loops, and a scenario."""
+    lead 50 um/m long, a deadband of 8 um), and a scenario on it with the bundled parameter file."""
     folder = tmp_path_factory.mktemp("worn")
     xml = (models_dir() / "polisher.xml").read_text()
     screw = ('<fixed name="x_screw" stiffness="8e+07" damping="9352.14" springlength="0">\n'
@@ -108,7 +108,6 @@ def worn(tmp_path_factory):
     shutil.copy(models_dir() / "workcell.xml", folder / "workcell.xml")
     raw = yaml.safe_load((scenarios_dir() / "jog_axes.yaml").read_text())
     raw["machine"] = {"model": "scene_worn.xml", "parameters": "polisher.yaml"}
-    raw["axes"] = {"X": {"servo": {"kp": 66.3, "ki": 0.0}}}  # the tuner's X loops (the drive's: the file's)
     (folder / "worn.yaml").write_text(yaml.safe_dump(raw))
     return folder
 
@@ -124,7 +123,10 @@ def test_a_worn_screw_measured_then_corrected_by_the_table_written_from_it(worn)
         slope = np.polyfit(targets[1:-1], errors[1:-1], 1)[0]
         assert slope == pytest.approx(LEAD_ERROR, rel=0.05)
     gap = np.mean(before.forward_error[1:-1] - before.reverse_error[1:-1])
-    assert 3e-3 < abs(gap) < BACKLASH * 1e3  # [mm] the nut's backlash shows between the directions
+    # [mm] the directions part by no more than the nut's backlash (where in it the table rests
+    # depends on how the stop settles: 3 um with the drives' loops of 2026-11-26, under 1.5 um
+    # behind the torque filter's softer loops)
+    assert 0.0 < gap < BACKLASH * 1e3
     assert np.abs(np.concatenate([before.forward_error, before.reverse_error])).max() > 0.015
     write_comp_file(before, worn / "screwcompX.dat")
     after = measure_positioning(worn / "worn.yaml", "X", targets,
@@ -158,4 +160,6 @@ def test_the_compensated_servo_gives_one_trace_batched_compiled_and_in_python(wo
     standing = np.flatnonzero(np.abs(command - 0.2) < 1e-12)
     assert standing.size > 200
     trim = -0.002e-3 + 200.0 / 300.0 * -0.013e-3
-    assert trace.following_error[standing[-1], 0] / trace.counts_per_unit[0] == pytest.approx(-trim, abs=1.5e-6)
+    # within half a DAC step: at X's 33.8 1/s one step (4.9 mV) is 7.2 um of following error, and
+    # the drive's integral walks the motor to wherever the code it gets is 0
+    assert trace.following_error[standing[-1], 0] / trace.counts_per_unit[0] == pytest.approx(-trim, abs=4e-6)

@@ -35,7 +35,8 @@ def test_the_circle_runs_three_ways_and_reports_the_passes_side_by_side(three_wa
         assert p["ran"]
         # the same S-curve feed along the same length: the passes take the same time within a period
         assert p["duration_s"] == pytest.approx(passes[0]["duration_s"], abs=2e-3)
-        assert 0.5 < p["contour_error_um"]["rms"] < p["contour_error_um"]["max"] < 30.0
+        # [um] the compliant machine's loops (X 33.8 / Y 42.3 1/s): 41 um at most on 2026-11-27
+        assert 0.5 < p["contour_error_um"]["rms"] < p["contour_error_um"]["max"] < 60.0
     nurbs, pbp, dda = passes
     assert nurbs["command_deviation_um"]["max"] <= 1.0  # chord tolerance 1 um
     # every lattice point within one pulse (1 um) of the circle; 8 R steps around a full circle

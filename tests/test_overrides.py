@@ -26,7 +26,7 @@ def test_shorthands_and_plain_paths_reach_the_scenario():
     assert all(m.feed == pytest.approx(3000 / 60e3) for m in s.program.moves)
     assert s.program.moves[1].dwell == 0.25 and s.timing.ticks_per_period == 2
     # the machine's other parameters still come from its parameter file
-    assert s.axis("X").drive.notches[0].frequency == 66.0 and s.axis("X").max_velocity == pytest.approx(0.4)
+    assert s.axis("X").drive.notches[0].frequency == 66.43 and s.axis("X").max_velocity == pytest.approx(0.4)
 
 
 def test_planner_feed_on_a_curve_program():

@@ -218,8 +218,9 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
     Coulomb friction; the card's friction feed-forward is a speed command on top. With the rigid
     machine's recipe (Coulomb / kv / speed_per_volt, per axis) the butterfly at 40 mm/s on the
     compliant machine's tuned loops runs with more contour error, max and RMS, than with it off as
-    its parameter file has it (measured 19.0 / 6.3 um against 14.8 / 3.9 before the drives' dead
-    time and the loops re-tuned for it, 2026-11-27)."""
+    its parameter file has it (measured 82.2 / 19.9 um against 80.0 / 16.6 um with the loops
+    tuned behind the drives' torque filters, 2026-11-27; 19.0 / 6.3 against 14.8 / 3.9 before the
+    drives' dead time)."""
     from cnc_twin import run_scenario
     from cnc_twin.scenario.resources import BUNDLED_MACHINES
 
@@ -231,18 +232,20 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
     assert all(scenario.axis(a).friction_ff == 0.0 for a in "XYZAB")
     off = run_scenario(scenario).metrics["path"]["contour_error_um"]
     on = run_scenario(load_scenario(path, overrides={**compliant, **recipe})).metrics["path"]["contour_error_um"]
-    assert off["max"] < on["max"] and off["rms"] < 0.8 * on["rms"], (off, on)
+    assert off["max"] < on["max"] and off["rms"] < 0.95 * on["rms"], (off, on)
 
 
 @pytest.mark.parametrize("name", ["farfalla", "mazatrol"])
-@pytest.mark.parametrize("machine, max_um, rms_um", [("rigid", 5.0, 2.0), ("compliant", 35.0, 8.0)])
+@pytest.mark.parametrize("machine, max_um, rms_um", [("rigid", 5.0, 2.0), ("compliant", 100.0, 20.0)])
 def test_contour_error_at_40_mm_per_s_with_the_tuned_gains(name, machine, max_um, rms_um):
     """What each machine holds at 40 mm/s, after the approach has settled, at its parameter file's
     gains from `cnc-twin tune`: the rigid machine (ideal drives, crossover about 50 Hz, velocity,
     acceleration and friction feed-forward) within 5 um of the curve in every period, 2 um RMS; the
-    compliant default (its drives' own loops with their dead time, position loops X 53 / Y 74 1/s,
-    the bridge's 45 Hz rocking) within 35 / 8 um (measured 2026-11-27: farfalla 28.9 / 5.7,
-    mazatrol 16.2 / 3.6). Measured from the trace: the tool's true tip against the curve."""
+    compliant default (its drives' own loops with their dead time and torque filters, velocity
+    loops crossing over at 22 / 30 Hz, position loops X 33.8 / Y 42.3 1/s, the bridge's 45 Hz
+    rocking) within 100 / 20 um (measured 2026-11-27: farfalla 80.0 / 16.6, mazatrol 57.9 / 11.4;
+    28.9 / 5.7 and 16.2 / 3.6 with the loops tuned at 146 - 214 Hz before the torque filter and
+    the commissioning at both ends). Measured from the trace: the tool's true tip against the curve."""
     from cnc_twin import run_scenario
     from cnc_twin.scenario.resources import BUNDLED_MACHINES
 

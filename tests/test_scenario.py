@@ -40,7 +40,7 @@ def test_units_converted_to_si_once(write_scenario):
     assert move.targets[1] is None
     assert move.feed == pytest.approx(0.02) and move.dwell == 0.5
     # overrides merge key by key: the rest of X's parameters come from the machine file
-    assert s.axis("X").max_acceleration == pytest.approx(2.0) and s.axis("X").kp == 52.93
+    assert s.axis("X").max_acceleration == pytest.approx(2.0) and s.axis("X").kp == 33.77
 
 
 GOOD_PROGRAM = {"type": "point_to_point", "moves": [{"X": 10}]}

@@ -24,17 +24,18 @@ SETTLE = 0.6  # s simulated after each test move
 #  A/B:   0.00036 deg/count, 8x finer than one 12-bit DAC step can steer at kp = 30/s against the
 #         harmonic drive's friction, so they rest within +/-30 counts (0.011 deg): a stick-slip
 #         band of a few DAC LSB that the integrator walks through. On the compliant machine A's
-#         position loop is 42 1/s behind a drive with loops of its own, and Y's acceleration tilts
-#         it by up to 33 counts (2026-11-27): 40.
-#  X/Y following errors: the compliant machine's position loops (X 53, Y 74 1/s) behind its drives'
-#  own loops, and its bridge rocking at 45 Hz as X accelerates (X 106, Y 63 counts measured on
-#  these rapids, 2026-11-27).
+#         position loop is 47 1/s behind a drive with loops of its own (crossing over at 33.5 Hz),
+#         and Y's acceleration tilts it by up to 65 counts (2026-11-27): 80.
+#  X/Y/Z following errors: the compliant machine's position loops (X 33.8, Y 42.3, Z 74.1 1/s)
+#  behind its drives' own loops (first crossovers 22, 30, 51 Hz, behind their 1 ms torque
+#  filters), and its bridge rocking at 45 Hz as X accelerates (X 176, Y 126, Z 67 counts
+#  measured on these rapids, 2026-11-27).
 CASES = {
-    "X": (150.0, 130, 3),
-    "Y": (-120.0, 80, 3),
-    "Z": (-100.0, 50, 3),
-    "A": (25.0, 250, 40),
-    "B": (-25.0, 250, 40),
+    "X": (150.0, 220, 3),
+    "Y": (-120.0, 160, 3),
+    "Z": (-100.0, 90, 3),
+    "A": (25.0, 250, 80),
+    "B": (-25.0, 250, 80),
     "C": (180.0, 20, 2),
 }
 
@@ -132,7 +133,9 @@ def test_jog_axes_moves_every_axis_and_keeps_the_tool_clear():
     result = run_scenario(load_scenario(default_scenario()))
     span = result.trace.actual.max(axis=0) - result.trace.actual.min(axis=0)
     assert np.all(span > 1000)  # every axis travelled more than 1000 counts
-    assert np.max(np.abs(result.trace.pad_force)) < 0.5  # never touched anything (N)
+    # never touched anything [N]: the load cell reads only the pad's inertia as the head
+    # accelerates (0.54 N at most, 2026-11-27); a touch of the pad reads tens of newtons
+    assert np.max(np.abs(result.trace.pad_force)) < 1.0
 
 
 @pytest.mark.parametrize("sig, code", [("SIGINT", 130), ("SIGTERM", 143)])
