@@ -48,16 +48,3 @@ def test_a_least_squares_fit_recovers_the_entered_inertia_and_friction(compliant
     assert fitted.inertia == pytest.approx(entered.inertia, rel=0.05)
     assert fitted.viscous == pytest.approx(entered.viscous, rel=0.05)
     assert fitted.coulomb == pytest.approx(entered.coulomb, rel=0.05)
-
-
-def test_tune_on_a_machine_with_drive_loops_measures_its_mechanics(tmp_path):
-    """`cnc-twin tune` on the compliant machine also measures the axis's mechanics on the twin and
-    plots them beside the model's (the plot: a PNG beside the Bode and step plots)."""
-    from conftest import run_cli
-
-    code, out, err = run_cli("tune", scenarios_dir() / "jog_axes.yaml", "--axis", "Y", "--step", "0.1",
-                             "--out", tmp_path)
-    assert code == 0, err
-    plot = tmp_path / "Y_mechanics.png"
-    assert plot.is_file() and plot.stat().st_size > 10_000
-    assert str(plot) in out

@@ -103,7 +103,8 @@ def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are(t
     crossover (the servo manuals' rule), its tool's 1 mm step on the twin with at most 2 %
     overshoot; kp 400 overshoots the tool by more than half the step. The velocity loop it uses
     keeps 45 deg / 6 dB too. (A 0.1 mm step is friction's: the drive's integral breaks the axis
-    free and it overshoots whatever the position gain.)"""
+    free and it overshoots whatever the position gain.) With ``--out``, the plots of what it
+    decided on."""
     import yaml
     from conftest import run_cli
 
@@ -111,8 +112,12 @@ def test_tune_on_the_compliant_machine_lands_x_where_real_ball_screw_loops_are(t
     raw["axes"] = {"X": {"servo": {"kp": 400.0, "ki": 16000.0}, "drive": {"kp_speed": 0.3, "notch_filters": []}}}
     untuned = tmp_path / "untuned.yaml"
     untuned.write_text(yaml.safe_dump(raw))
-    code, out, err = run_cli("tune", untuned, "--axis", "X")
+    code, out, err = run_cli("tune", untuned, "--axis", "X", "--out", tmp_path / "plots")
     assert code == 0, err
+    # the plots of what it decided on: the mechanics it measured, the twin's steps, the measured loops
+    for name in ("mechanics", "step", "bode"):
+        plot = tmp_path / "plots" / f"X_{name}.png"
+        assert plot.is_file() and plot.stat().st_size > 10_000 and str(plot) in out
     assert "velocity loop" in out and "to use: axes: {X: {servo: {kp: " in out, out
     velocity = _row(out, "proposed") if out.count("\nproposed") == 2 else _row(out, "before")
     assert velocity[2] >= 45.0 and velocity[3] >= 6.0, out  # PM, GM of the velocity loop used

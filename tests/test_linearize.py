@@ -115,12 +115,14 @@ def _row(text: str, name: str) -> dict[str, float]:
     return dict(zip(("kp", "ki", "pm", "gm", "fc", "rise", "overshoot", "settle"), values))
 
 
-@pytest.mark.parametrize("axis", list("XYZABC"))
+@pytest.mark.parametrize("axis", list("XAC"))
 def test_tune_never_recommends_what_the_twin_did_not_show_better(axis):
     """jog_axes, default margins and step: either gains whose printed twin step settles sooner
     (by 10 %) with no more overshoot than the current gains', or, on an axis tuned on its measured
     mechanics whose current gains overshoot the tool beyond 2 % (+0.5 for the count), gains that
-    settle within 2 %; or the current gains kept with the reason and no recommendation."""
+    settle within 2 %; or the current gains kept with the reason and no recommendation. X and A:
+    a linear axis and a rotary one tuned on their measured mechanics (each a minute of the
+    suite's time: Y, Z and B are tuned the same way); C: the linear loop's tuner."""
     code, out, err = _tune("--axis", axis)
     assert code == 0, err
     before = _row(out, "before")

@@ -74,12 +74,7 @@ def loop_margins(loop: np.ndarray, frequency: np.ndarray, valid: np.ndarray | No
     unwraps without doubt) plus the measured loop's angle from it, or, without one, along
     ``loop`` itself. A loop whose phase has passed -180 deg at a gain crossing has a negative
     margin there, though its wrapped angle looks like a positive one."""
-    follow = loop if reference is None else reference
-    phase = np.unwrap(np.angle(follow))
-    phase -= 2.0 * np.pi * np.ceil(phase[0] / (2.0 * np.pi))  # a lag at the lowest frequency: (-360, 0] deg
-    if reference is not None:
-        phase = phase + np.angle(loop / reference)
-    phase = np.degrees(phase)
+    phase = followed_phase(loop, reference)
     if valid is not None:
         loop, frequency, phase = loop[valid], frequency[valid], phase[valid]
     mag = np.abs(loop)
@@ -124,12 +119,29 @@ def worst(margins: Sequence[Margins]) -> Margins:
                    first_crossover_hz=least(m.first_crossover_hz for m in margins))
 
 
+def followed_phase(loop: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """An open loop's phase [deg] followed from its lowest frequency (a lag of less than a turn
+    there): along ``reference`` (the same loop on the linear model, smooth) plus the loop's angle
+    from it, or along ``loop`` itself (see :func:`loop_margins`)."""
+    follow = loop if reference is None else reference
+    phase = np.unwrap(np.angle(follow))
+    phase -= 2.0 * np.pi * np.ceil(phase[0] / (2.0 * np.pi))  # a lag at the lowest frequency: (-360, 0] deg
+    if reference is not None:
+        phase = phase + np.angle(loop / reference)
+    return np.degrees(phase)
+
+
+def reference_loop(fr: FrequencyResponse, loop_of) -> np.ndarray | None:
+    """``loop_of`` on ``fr``'s linear-model reference (None without one)."""
+    if fr.reference is None:
+        return None
+    return loop_of(FrequencyResponse(fr.frequency, fr.reference, np.ones(fr.frequency.shape)))
+
+
 def margins_on(fr: FrequencyResponse, loop_of, valid: np.ndarray | None = None) -> Margins:
     """:func:`loop_margins` of ``loop_of(fr)`` (an open loop through the measured response),
     its phase followed along the same loop through ``fr.reference`` where the measurement has one."""
-    reference = None if fr.reference is None else loop_of(
-        FrequencyResponse(fr.frequency, fr.reference, np.ones(fr.frequency.shape)))
-    return loop_margins(loop_of(fr), fr.frequency, valid, reference)
+    return loop_margins(loop_of(fr), fr.frequency, valid, reference_loop(fr, loop_of))
 
 
 def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float, torque_filter: float = 0.0) -> np.void:

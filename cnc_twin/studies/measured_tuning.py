@@ -15,14 +15,17 @@ from cnc_twin.core.config import Scenario
 from cnc_twin.studies import drive_tuning
 from cnc_twin.studies.commissioning import commissioning_positions, format_mechanics, measure_mechanics, model_mechanics
 from cnc_twin.studies.tuning import Proposal, format_verdict, verified_proposal
+from cnc_twin.studies.tuning_plots import OpenLoop
 
 
 def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margin: float = 45.0,
                      gain_margin: float = 6.0, step: float = 1.0, overrides: dict | None = None) -> tuple:
     """An axis with drive loops: its mechanics measured on the twin; the drive's velocity loop and
     then the position loop designed on them, the position gains verified on the twin (the tool's
-    step; proportional only: the drive's PI holds constant loads). Returns ``((measured, model)
-    responses, verdict, report text)``. ``overrides``: those ``scenario`` was loaded with, for the
+    step; proportional only: the drive's PI holds constant loads). Returns ``(responses, verdict,
+    report text, open loops)``: the open loops (:class:`~cnc_twin.studies.tuning_plots.OpenLoop`,
+    ``before`` and ``proposed`` / ``best tried``) are the position loops whose margins the report
+    prints, at every place measured. ``overrides``: those ``scenario`` was loaded with, for the
     twin's steps. The responses are per commissioning position
     (:func:`~cnc_twin.studies.commissioning.commissioning_positions`): ``(position, measured, model)``."""
     cfg, timing = scenario.axis(axis), scenario.timing
@@ -47,14 +50,24 @@ def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phas
                                 measured=[Proposal(c.kp, c.ki, c.margins.phase_margin_deg, c.margins.gain_margin_db,
                                                    c.margins.first_crossover_hz) for c in found if c.ki == 0.0])
 
-    def on_measured(loop, kp, ki):
-        m = drive_tuning.position_margins(measured, loop, cfg, timing.servo_period, dt, kp=kp, ki=ki, kd=cfg.kd)
-        return m.phase_margin_deg, m.gain_margin_db, m.first_crossover_hz
+    def open_loop(kp, ki):
+        gains = {"kp": kp, "ki": ki, "kd": cfg.kd}
 
-    margins = {"before": on_measured(velocity, cfg.kp, cfg.ki)}
+        def loop_of(fr):
+            return drive_tuning.position_open_loop(fr, velocity, cfg, timing.servo_period, dt, **gains)
+
+        responses = tuple(loop_of(one) for one in measured)
+        phases = tuple(drive_tuning.followed_phase(response, drive_tuning.reference_loop(one, loop_of))
+                       for one, response in zip(measured, responses))
+        return OpenLoop(measured[0].frequency, responses, phases,
+                        drive_tuning.position_margins(measured, velocity, cfg, timing.servo_period, dt, **gains))
+
+    loops = {"before": open_loop(cfg.kp, cfg.ki)}
     if verdict.best_candidate is not None:
         name = "proposed" if verdict.proposal is not None else "best tried"
-        margins[name] = on_measured(velocity, verdict.best_candidate.kp, verdict.best_candidate.ki)
+        loops[name] = open_loop(verdict.best_candidate.kp, verdict.best_candidate.ki)
+    margins = {name: (loop.margins.phase_margin_deg, loop.margins.gain_margin_db, loop.margins.first_crossover_hz)
+               for name, loop in loops.items()}
     drive_use = "" if extra is None else ", drive: " + yaml.safe_dump(settings, default_flow_style=True,
                                                                       sort_keys=False, width=1 << 30).strip()
     report = "\n".join([format_mechanics(axis, mechanics, scenario.axis(axis)),
@@ -62,7 +75,7 @@ def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phas
                         format_verdict(verdict, scenario, axis, phase_margin=phase_margin, gain_margin=gain_margin,
                                        step=step, margins=margins, drive_use=drive_use)]
                        + ([] if extra is None else ["(every row's margins and step: on the proposed velocity loop)"]))
-    return mechanics, verdict, report
+    return mechanics, verdict, report, loops
 
 
 def _current_misses(now, velocity, phase_margin: float, gain_margin: float) -> str | None:

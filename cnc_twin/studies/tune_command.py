@@ -18,10 +18,10 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
     verification step; ``out`` a folder for the Bode and step plots, PNG). ``scenario`` is
     ``scenario_file`` loaded with ``overrides`` (e.g. a bundled machine), which the twin's steps
     load it with too. A design that cannot meet the margins is a ScenarioError naming ``scenario_file``."""
-    from cnc_twin.studies.tuning import format_verdict, save_plots, verified_proposal
+    from cnc_twin.studies.tuning import format_verdict, verified_proposal
 
     cfg = scenario.axis(axis)
-    mechanics = None
+    mechanics = loops = None
     if cfg.drive is not None:  # a drive with loops of its own: tuned on its mechanics, measured as commissioning does
         print(f"axis {axis}: measuring its mechanics on the twin, designing the drive's velocity loop and the "
               f"position loop on them (phase margin >= {phase_margin:g} deg, gain margin >= "
@@ -29,7 +29,7 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
         try:
             from cnc_twin.studies.measured_tuning import tune_on_measured
 
-            mechanics, verdict, report = tune_on_measured(scenario_file, scenario, axis, phase_margin=phase_margin,
+            mechanics, verdict, report, loops = tune_on_measured(scenario_file, scenario, axis, phase_margin=phase_margin,
                                                           gain_margin=gain_margin, step=step, overrides=overrides)
         except ValueError as exc:
             raise ScenarioError(scenario_file, "", str(exc)) from None
@@ -44,12 +44,35 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
             raise ScenarioError(scenario_file, "", str(exc)) from None
         print(format_verdict(verdict, scenario, axis, phase_margin=phase_margin, gain_margin=gain_margin, step=step))
     if out is not None:
-        gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
-        if verdict.proposal is not None:
-            gains["proposed"] = {"kp": verdict.proposal.kp, "ki": verdict.proposal.ki}
-        paths = save_plots(scenario, axis, out, gains)
-        if mechanics is not None:
-            from cnc_twin.studies.commissioning import save_mechanics_plot
+        print("plots: " + ", ".join(str(p) for p in save_tuning_plots(scenario, axis, verdict, out, step=step,
+                                                                      mechanics=mechanics, loops=loops)))
 
-            paths.append(save_mechanics_plot(axis, mechanics, out, (cfg.display_unit, cfg.display_factor)))
-        print("plots: " + ", ".join(str(p) for p in paths))
+
+def save_tuning_plots(scenario: Scenario, axis: str, verdict, out: Path, *, step: float, mechanics=None,
+                      loops=None) -> list[Path]:
+    """The tuner's plots into ``out``: the tool's steps on the twin that the verdict read
+    (``<axis>_step.png``), the open loops whose margins it printed (``<axis>_bode.png``: the
+    measured position loops ``loops`` where the drive was tuned on its mechanics, else the linear
+    model's), and the measured mechanics where there are some (``<axis>_mechanics.png``)."""
+    from cnc_twin.studies.tuning_plots import linear_open_loops, save_bode_plot, save_step_plot
+
+    cfg = scenario.axis(axis)
+    out.mkdir(parents=True, exist_ok=True)
+    steps = {"before": verdict.before}
+    if verdict.best is not None:
+        steps["proposed" if verdict.proposal is not None else "best tried"] = verdict.best
+    paths = [save_step_plot(axis, steps, f"{abs(step):g} {cfg.display_unit}", out / f"{axis}_step.png")]
+    if loops is None:
+        gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
+        if verdict.best_candidate is not None:
+            gains[next(iter(steps.keys() - {"before"}))] = {"kp": verdict.best_candidate.kp,
+                                                            "ki": verdict.best_candidate.ki}
+        loops, title = linear_open_loops(scenario, axis, gains), "position open loop (linear model)"
+    else:
+        title = "position open loop on the measured responses (ends and mid travel)"
+    paths.append(save_bode_plot(axis, loops, title, out / f"{axis}_bode.png"))
+    if mechanics is not None:
+        from cnc_twin.studies.commissioning import save_mechanics_plot
+
+        paths.append(save_mechanics_plot(axis, mechanics, out, (cfg.display_unit, cfg.display_factor)))
+    return paths

@@ -280,7 +280,9 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
     machine), under the step's own.
 
     The step goes the other way when home + ``step`` is outside the axis's soft limits (Z's home
-    is at the top of its travel); the figures are of its size either way."""
+    is at the top of its travel); the figures are of its size either way. Besides the figures:
+    ``time_s`` [s] from the step's start and ``response``, the tool's way there as a fraction of
+    the step (shape ``(n,)`` each; empty when the step ended in a fault)."""
     i = "XYZABC".index(axis)
     step = step * step_direction(load_scenario(scenario_file, overrides=base), i, step)
     overrides: dict[str, Any] = {
@@ -300,6 +302,7 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
         fault = result.metrics.get("fault") or {}
         return {"rise_time_s": np.inf, "overshoot_pct": np.nan, "settling_time_s": np.inf,
                 "final_error_counts": np.nan, "saturated_ticks": 0, "scenario": scenario,
+                "time_s": np.zeros(0), "response": np.zeros(0),
                 "fault": f"{fault.get('code', result.status)}: {fault.get('message', '')}".rstrip(": ")}
     sign = 1.0 if step > 0 else -1.0
     command, actual, time = sign * trace.command[:, i], sign * trace.actual[:, i], trace.time
@@ -313,11 +316,13 @@ def twin_step(scenario_file: Path, axis: str, *, step: float = 1.0, kp: float | 
         actual = sign * (true[:n] - scenario.home[i]) * trace.counts_per_unit[i]
     start = max(0, int(np.argmax(command != command[0])) - 1)
     final = float(command[-1])
-    figures = step_figures(actual[start:] - actual[start], time[start:] - time[start], final - float(actual[start]))
+    response, elapsed = actual[start:] - actual[start], time[start:] - time[start]
+    figures = step_figures(response, elapsed, final - float(actual[start]))
     dac = trace.dac[:, i]
     saturated = int(np.count_nonzero((dac >= CODE_MAX) | (dac <= CODE_MIN)))
     return {**figures, "final_error_counts": float(final - actual[-1]), "saturated_ticks": saturated,
-            "scenario": scenario, "fault": None}
+            "scenario": scenario, "fault": None, "time_s": elapsed,
+            "response": response / (final - float(actual[start]))}
 
 
 def step_figures(response: np.ndarray, time: np.ndarray, final: float) -> dict[str, float]:
@@ -338,48 +343,4 @@ def step_figures(response: np.ndarray, time: np.ndarray, final: float) -> dict[s
     return figures
 
 
-def save_plots(scenario: Scenario, axis: str, out_dir: Path, gains: dict[str, dict[str, float]]) -> list[Path]:
-    """Bode (open loop) and step (closed loop) plots of each named gain set, as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    cfg = scenario.axis(axis)
-    plant = axis_plant(scenario, axis)
-    dt = scenario.timing.servo_period
-    paths = []
-    fig_bode, (ax_mag, ax_phase) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    fig_step, ax_step = plt.subplots(figsize=(7, 4))
-    omega = frequency_grid(dt, 2000)
-    plant_response = frequency_response(plant, omega, dt)
-    for name, g in gains.items():
-        pid = pid_controller(cfg, dt, **g)
-        loop = control.series(pid, plant)
-        resp = frequency_response(pid, omega, dt) * plant_response
-        hz = omega / (2 * np.pi)
-        ax_mag.semilogx(hz, 20 * np.log10(np.abs(resp)), label=name)
-        ax_phase.semilogx(hz, np.degrees(np.unwrap(np.angle(resp))), label=name)
-        t = np.arange(int(0.5 / dt)) * dt
-        ax_step.plot(t, control.step_response(control.feedback(loop, 1), T=t).outputs, label=name)
-    ax_mag.axhline(0, color="grey", lw=0.5)
-    ax_mag.set_ylabel("|L| [dB]")
-    ax_phase.axhline(-180, color="grey", lw=0.5)
-    ax_phase.set_ylabel("phase [deg]")
-    ax_phase.set_xlabel("frequency [Hz]")
-    ax_mag.legend()
-    fig_bode.suptitle(f"axis {axis}: open loop")
-    ax_step.set_xlabel("time [s]")
-    ax_step.set_ylabel("position / command")
-    ax_step.legend()
-    fig_step.suptitle(f"axis {axis}: closed-loop step (linear)")
-    for fig, name in ((fig_bode, "bode"), (fig_step, "step")):
-        path = out_dir / f"{axis}_{name}.png"
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        paths.append(path)
-    return paths
-
-
-__all__ = ["Proposal", "Verdict", "analyse", "beats", "format_verdict", "propose_gains", "save_plots", "twin_step", "verified_proposal"]
+__all__ = ["Proposal", "Verdict", "analyse", "beats", "format_verdict", "propose_gains", "twin_step", "verified_proposal"]
