@@ -18,8 +18,12 @@ def tune_axis(scenario_file: Path, scenario: Scenario, axis: str, *, phase_margi
     verification step; ``out`` a folder for the Bode and step plots, PNG). ``scenario`` is
     ``scenario_file`` loaded with ``overrides`` (e.g. a bundled machine), which the twin's steps
     load it with too. A design that cannot meet the margins is a ScenarioError naming ``scenario_file``."""
-    from cnc_twin.studies.tuning import format_verdict, verified_proposal
+    from cnc_twin.studies.tuning import check_margins, format_verdict, verified_proposal
 
+    try:  # margins no loop can be asked for: refused before any measurement
+        check_margins(phase_margin, gain_margin)
+    except ValueError as exc:
+        raise ScenarioError(scenario_file, "", str(exc)) from None
     cfg = scenario.axis(axis)
     mechanics = loops = None
     if cfg.drive is not None:  # a drive with loops of its own: tuned on its mechanics, measured as commissioning does
