@@ -76,7 +76,8 @@ AMP = np.dtype([("modelled", np.bool_), ("speed_per_volt", np.float64), ("kp", n
                 ("limit", np.float64), ("dof_adr", np.int64), ("scale", np.float64), ("n_notches", np.int64),
                 ("notch", np.float64, (MAX_NOTCHES, 5)), ("qpos_adr", np.int64), ("counts_per_rad", np.float64),
                 ("alpha", np.float64), ("beta", np.float64), ("inv_dt", np.float64),
-                ("notch_state", np.float64, (MAX_NOTCHES, 2)), ("integral", np.float64), ("torque", np.float64), ("last_count", np.float64), ("speed", np.float64), ("primed", np.bool_)])
+                ("notch_state", np.float64, (MAX_NOTCHES, 2)), ("integral", np.float64), ("torque", np.float64),
+                ("last_count", np.float64), ("speed", np.float64), ("primed", np.bool_)])
 """one amplifier's record: see the module docstring"""
 
 

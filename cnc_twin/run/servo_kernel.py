@@ -12,8 +12,8 @@ Per tick ``j`` of the period::
     positions = the encoders' positions from qpos (gather_encoders)
     servo_tick(axes, fraction[j] or the step interpolator's point, positions) -> volts
     force = read_load_cell(-sensordata[force_adr])
-    (screw_stiffness(qpos) -> tendon_stiffness; drive_amps(volts, qpos, qvel) -> ctrl; mj_step) x substeps; record command, reading, DAC code,
-    force at row t + j
+    (screw_stiffness(qpos) -> tendon_stiffness; drive_amps(volts, qpos, qvel) -> ctrl; mj_step) x substeps;
+    record command, reading, DAC code, force at row t + j
 
 Used for analog output with the drives enabled and no injected card faults (the fault injector
 changes the records between ticks from Python).
@@ -54,8 +54,9 @@ if mujoco_c.IMPORT_ERROR is None:
 
     @njit(cache=True, nogil=True)
     def run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
-                  use_tick_commands, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness, sensordata,
-                  force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command, rec_actual, rec_dac, rec_force, rec_tool, t0):  # pragma: no cover - compiled
+                  use_tick_commands, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness,
+                  sensordata, force_adr, site_xpos, xpos, xaxis, tool_ids, rec_command, rec_actual, rec_dac, rec_force,
+                  rec_tool, t0):  # pragma: no cover - compiled
         """Run ``len(fractions)`` servo ticks on ``axes`` (:data:`~cnc_twin.dsp.servo.AXIS`; their
         pitch-error tables ``comp_tables``) and ``load_cell`` (:data:`~cnc_twin.dsp.servo.LOAD_CELL`,
         shape ``(1,)``) from recorder row

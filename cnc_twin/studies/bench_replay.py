@@ -57,7 +57,7 @@ def time_replayed_steps(model: mujoco.MjModel, dac_codes: np.ndarray, *, timeste
     volts = np.asarray(dac_codes, dtype=np.float64) * VOLTS_PER_CODE
     contacts = 0
     start = time.perf_counter()
-    if plant.amps_modelled:
+    if plant.per_step:  # the amplifiers and the screws run before every step
         apply_volts, step = plant.apply_volts, plant.step
         for row in volts:
             apply_volts(row)

@@ -131,17 +131,19 @@ def followed_phase(loop: np.ndarray, reference: np.ndarray | None = None) -> np.
     return np.degrees(phase)
 
 
-def reference_loop(fr: FrequencyResponse, loop_of) -> np.ndarray | None:
-    """``loop_of`` on ``fr``'s linear-model reference (None without one)."""
-    if fr.reference is None:
-        return None
-    return loop_of(FrequencyResponse(fr.frequency, fr.reference, np.ones(fr.frequency.shape)))
+def loops_on(fr: FrequencyResponse, loop_of) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(loop_of(fr.response), loop_of(fr.reference))``: an open loop through the measured
+    response and the same loop through its linear-model reference (None without one).
+    ``loop_of`` maps a mechanics response (shape ``(n,)`` at ``fr.frequency``) to the loop's, its
+    controllers' responses evaluated once by the caller for both."""
+    return loop_of(fr.response), None if fr.reference is None else loop_of(fr.reference)
 
 
 def margins_on(fr: FrequencyResponse, loop_of, valid: np.ndarray | None = None) -> Margins:
-    """:func:`loop_margins` of ``loop_of(fr)`` (an open loop through the measured response),
-    its phase followed along the same loop through ``fr.reference`` where the measurement has one."""
-    return loop_margins(loop_of(fr), fr.frequency, valid, reference_loop(fr, loop_of))
+    """:func:`loop_margins` of the loop through the measured response, its phase followed along
+    the same loop through ``fr.reference`` where the measurement has one (:func:`loops_on`)."""
+    loop, reference = loops_on(fr, loop_of)
+    return loop_margins(loop, fr.frequency, valid, reference)
 
 
 def _amp(kp: float, tn: float, notches: tuple[Notch, ...], dt: float, torque_filter: float = 0.0) -> np.void:
@@ -160,13 +162,18 @@ def velocity_open_loop(fr: FrequencyResponse, kp: float, tn: float, notches: tup
     """L_v at ``fr.frequency``: the drive's PI (``kp`` [N/(m/s) | N m/(rad/s) at the axis], ``tn``
     [s]), its torque filter (``torque_filter`` [s], 0: none) and ``notches`` at the physics step
     ``dt`` [s], times the measured mechanics, read through the drive's ``speed_filter`` [Hz] (0: none)."""
-    return _open_loop(fr, kp, tn, notches, dt, _feedback(fr, dt, speed_filter), torque_filter)
+    return _controller(fr, kp, tn, notches, dt, torque_filter) * fr.response * _feedback(fr, dt, speed_filter)
 
 
-def _open_loop(fr, kp, tn, notches, dt, feedback: np.ndarray, torque_filter: float) -> np.ndarray:
-    """L_v with the speed filter's response ``feedback`` at ``fr.frequency`` already evaluated
-    (the same for every loop a design tries)."""
-    return _controller(fr, kp, tn, notches, dt, torque_filter) * fr.response * feedback
+def _velocity_margins(frs, feedback, valid, kp, tn, notches, dt, torque_filter) -> Margins:
+    """The :func:`worst` margins of L_v over the measured responses ``frs``, each place's speed
+    filter (``feedback``) and valid band already evaluated (the same for every loop a design
+    tries); the drive's side evaluated once per place for the response and its reference."""
+    out = []
+    for one, fb, ok in zip(frs, feedback, valid):
+        drive_side = _controller(one, kp, tn, notches, dt, torque_filter) * fb
+        out.append(margins_on(one, lambda h: drive_side * h, ok))
+    return worst(out)
 
 
 def _controller(fr, kp, tn, notches, dt, torque_filter: float) -> np.ndarray:
@@ -242,8 +249,7 @@ def propose_velocity_loop(fr: Responses, drive: DriveConfig, dt: float, *, phase
     feedback = [_feedback(one, dt, drive.speed_filter) for one in frs]
 
     def margins(kp, tn, notches):
-        return worst([margins_on(one, lambda r: _open_loop(r, kp, tn, notches, dt, fb, drive.torque_filter), ok)
-                      for one, fb, ok in zip(frs, feedback, valid)])
+        return _velocity_margins(frs, feedback, valid, kp, tn, notches, dt, drive.torque_filter)
 
     best: VelocityLoop | None = None
     for kp in np.logspace(np.log10(drive.kp / 30.0), np.log10(drive.kp * 30.0), 61):
@@ -266,21 +272,58 @@ def propose_velocity_loop(fr: Responses, drive: DriveConfig, dt: float, *, phase
 
 def velocity_closed_loop(fr: FrequencyResponse, loop: VelocityLoop, dt: float) -> np.ndarray:
     """T_v: the motor's true speed per commanded speed, at ``fr.frequency``."""
-    forward = _controller(fr, loop.kp, loop.tn, loop.notches, dt, loop.torque_filter) * fr.response
-    return forward / (1.0 + forward * _feedback(fr, dt, loop.speed_filter))
+    return _closed_velocity(fr, loop, dt)(fr.response)
+
+
+def _closed_velocity(fr: FrequencyResponse, loop: VelocityLoop, dt: float):
+    """T_v as a function of a mechanics response at ``fr.frequency`` (the drive's controller and
+    speed filter evaluated once)."""
+    controller = _controller(fr, loop.kp, loop.tn, loop.notches, dt, loop.torque_filter)
+    feedback = _feedback(fr, dt, loop.speed_filter)
+
+    def closed(h: np.ndarray) -> np.ndarray:
+        forward = controller * h
+        return forward / (1.0 + forward * feedback)
+
+    return closed
+
+
+def _position_plants(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
+                     dt: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """What the card's PID multiplies into L_p at ``fr.frequency``: the drive's closed velocity loop
+    times the speed per volt, the counts per unit and MuJoCo's step from speed to position, on the
+    measured response and on its reference (:func:`loops_on`); the same for every gain the card
+    tries."""
+    if not np.isclose(servo_period, dt):
+        raise ValueError("the position loop on the measured response needs the servo period equal to the physics step")
+    z = np.exp(2j * np.pi * fr.frequency * dt)
+    closed = _closed_velocity(fr, velocity, dt)
+    scale = cfg.counts_per_unit * cfg.drive.speed_per_volt * dt * z / (z - 1.0)
+    return loops_on(fr, lambda h: scale * closed(h))
+
+
+def _card(fr: FrequencyResponse, cfg: AxisConfig, servo_period: float, gains: dict) -> np.ndarray:
+    """The card's PID [V/count] (``cfg``'s gains, or ``gains``) at ``fr.frequency``."""
+    return frequency_response(pid_controller(cfg, servo_period, **gains), 2.0 * np.pi * fr.frequency, servo_period)
 
 
 def position_open_loop(fr: FrequencyResponse, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
                        dt: float, **gains: float) -> np.ndarray:
     """L_p at ``fr.frequency`` (see the module docstring): the card's PID (``cfg``'s gains, or
     ``gains``: kp, ki, kd) on the measured mechanics inside ``velocity``."""
-    if not np.isclose(servo_period, dt):
-        raise ValueError("the position loop on the measured response needs the servo period equal to the physics step")
-    omega = 2.0 * np.pi * fr.frequency
-    z = np.exp(1j * omega * dt)
-    card = frequency_response(pid_controller(cfg, servo_period, **gains), omega, servo_period)  # [V/count]
-    spv = cfg.drive.speed_per_volt
-    return card * cfg.counts_per_unit * spv * velocity_closed_loop(fr, velocity, dt) * dt * z / (z - 1.0)
+    return _card(fr, cfg, servo_period, gains) * _position_plants(fr, velocity, cfg, servo_period, dt)[0]
+
+
+def position_open_loops(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float, dt: float,
+                        **gains: float) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """L_p on each measured response and on its reference (:func:`loops_on`), the card's gains
+    ``cfg``'s or ``gains``."""
+    out = []
+    for one in _all(fr):
+        card = _card(one, cfg, servo_period, gains)
+        plant, reference = _position_plants(one, velocity, cfg, servo_period, dt)
+        out.append((card * plant, None if reference is None else card * reference))
+    return out
 
 
 @dataclass(frozen=True)
@@ -296,8 +339,19 @@ def position_margins(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, ser
                      **gains: float) -> Margins:
     """The position loop's margins on the measured response (on each of several: their
     :func:`worst`), the card's gains ``cfg``'s or ``gains`` (kp, ki, kd)."""
-    return worst([margins_on(one, lambda r: position_open_loop(r, velocity, cfg, servo_period, dt, **gains),
-                             valid_band(one, dt)) for one in _all(fr)])
+    frs = _all(fr)
+    plants = [_position_plants(one, velocity, cfg, servo_period, dt) for one in frs]
+    return _position_margins(frs, plants, cfg, servo_period, dt, gains)
+
+
+def _position_margins(frs, plants, cfg: AxisConfig, servo_period: float, dt: float, gains: dict) -> Margins:
+    """:func:`position_margins` with each place's :func:`_position_plants` already evaluated."""
+    out = []
+    for one, (plant, reference) in zip(frs, plants):
+        card = _card(one, cfg, servo_period, gains)
+        out.append(loop_margins(card * plant, one.frequency, valid_band(one, dt),
+                                None if reference is None else card * reference))
+    return worst(out)
 
 
 POSITION_LOOP_SHARE = 1 / 4
@@ -312,9 +366,11 @@ def position_candidates(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, 
     both margins on the measured response (on each of several), its (first) crossover below
     :data:`POSITION_LOOP_SHARE` of ``velocity``'s, highest crossover first."""
     highest = POSITION_LOOP_SHARE * velocity.margins.first_crossover_hz
+    frs = _all(fr)
+    plants = [_position_plants(one, velocity, cfg, servo_period, dt) for one in frs]  # the same for every gain
     out = []
     for kp, ki in gain_grid(kp_range):
-        m = position_margins(fr, velocity, cfg, servo_period, dt, kp=kp, ki=ki, kd=0.0)
+        m = _position_margins(frs, plants, cfg, servo_period, dt, {"kp": kp, "ki": ki, "kd": 0.0})
         if m.phase_margin_deg >= phase_margin and m.gain_margin_db >= gain_margin and m.first_crossover_hz <= highest:
             out.append(PositionLoop(float(kp), float(ki), m))
     return sorted(out, key=lambda p: -p.margins.first_crossover_hz)
@@ -322,8 +378,10 @@ def position_candidates(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, 
 
 def current_velocity_loop(fr: Responses, drive: DriveConfig, dt: float) -> VelocityLoop:
     """The drive's own velocity loop, with its margins on the measured response (the worst over several)."""
-    m = worst([margins_on(one, lambda r: velocity_open_loop(r, drive.kp, drive.tn, drive.notches, dt, drive.speed_filter,
-                                                           drive.torque_filter), valid_band(one, dt)) for one in _all(fr)])
+    frs = _all(fr)
+    m = _velocity_margins(frs, [_feedback(one, dt, drive.speed_filter) for one in frs],
+                          [valid_band(one, dt) for one in frs], drive.kp, drive.tn, drive.notches, dt,
+                          drive.torque_filter)
     return VelocityLoop(drive.kp, drive.tn, drive.notches, m, drive.speed_filter, drive.torque_filter)
 
 

@@ -52,14 +52,9 @@ def tune_on_measured(scenario_file: Path, scenario: Scenario, axis: str, *, phas
 
     def open_loop(kp, ki):
         gains = {"kp": kp, "ki": ki, "kd": cfg.kd}
-
-        def loop_of(fr):
-            return drive_tuning.position_open_loop(fr, velocity, cfg, timing.servo_period, dt, **gains)
-
-        responses = tuple(loop_of(one) for one in measured)
-        phases = tuple(drive_tuning.followed_phase(response, drive_tuning.reference_loop(one, loop_of))
-                       for one, response in zip(measured, responses))
-        return OpenLoop(measured[0].frequency, responses, phases,
+        loops = drive_tuning.position_open_loops(measured, velocity, cfg, timing.servo_period, dt, **gains)
+        return OpenLoop(measured[0].frequency, tuple(loop for loop, _ in loops),
+                        tuple(drive_tuning.followed_phase(loop, reference) for loop, reference in loops),
                         drive_tuning.position_margins(measured, velocity, cfg, timing.servo_period, dt, **gains))
 
     loops = {"before": open_loop(cfg.kp, cfg.ki)}

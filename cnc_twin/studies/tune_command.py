@@ -62,15 +62,13 @@ def save_tuning_plots(scenario: Scenario, axis: str, verdict, out: Path, *, step
 
     cfg = scenario.axis(axis)
     out.mkdir(parents=True, exist_ok=True)
-    steps = {"before": verdict.before}
-    if verdict.best is not None:
-        steps["proposed" if verdict.proposal is not None else "best tried"] = verdict.best
+    best = "proposed" if verdict.proposal is not None else "best tried"
+    steps = {"before": verdict.before} | ({} if verdict.best is None else {best: verdict.best})
     paths = [save_step_plot(axis, steps, f"{abs(step):g} {cfg.display_unit}", out / f"{axis}_step.png")]
     if loops is None:
         gains = {"before": {"kp": cfg.kp, "ki": cfg.ki}}
         if verdict.best_candidate is not None:
-            gains[next(iter(steps.keys() - {"before"}))] = {"kp": verdict.best_candidate.kp,
-                                                            "ki": verdict.best_candidate.ki}
+            gains[best] = {"kp": verdict.best_candidate.kp, "ki": verdict.best_candidate.ki}
         loops, title = linear_open_loops(scenario, axis, gains), "position open loop (linear model)"
     else:
         title = "position open loop on the measured responses (ends and mid travel)"

@@ -154,8 +154,8 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
                          f"current gains ends in a fault on the twin ({before['fault']}); choose a smaller --step")
     plant = axis_plant(scenario, axis) if measured is None else None
     qualified, fastest, tried = [], None, {}
-    overshooting = measured is not None and before["overshoot_pct"] > OVERSHOOT_MAX_PCT + OVERSHOOT_SLACK_PCT
-    overshooting = overshooting or (measured is not None and current_margins is not None)
+    overshooting = measured is not None and (before["overshoot_pct"] > OVERSHOOT_MAX_PCT + OVERSHOOT_SLACK_PCT
+                                             or current_margins is not None)
     # gains that overshoot, or miss the margins, give no yardstick to stop at: every candidate is tried then
     picks = [int(i) for i in np.unique(np.linspace(0, len(found) - 1,
                                                    len(found) if overshooting else min(tries, len(found))).round())]
