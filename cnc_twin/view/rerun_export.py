@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 import sys
 import uuid
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -45,6 +46,7 @@ from cnc_twin.core.config import Scenario
 from cnc_twin.core.axes import HOME_KEYFRAME
 from cnc_twin.machine.model_file import load_model
 from cnc_twin.trace.trace import PeriodSamples, Trace
+from cnc_twin.view.path_views import camera_on, plane_paths, planes_moved, program_strips
 from cnc_twin.whiteboard.status import DspState
 
 PLANNED = object()
@@ -54,20 +56,26 @@ POSE_INTERVAL = 0.004
 STATE_NAMES = DspState.NAMES
 
 
-def default_blueprint() -> rrb.Blueprint:
-    """3D machine view and event log on the left; time series grouped by concern on the right."""
+def default_blueprint(views: list[PathView] = (), camera: tuple[np.ndarray, np.ndarray] | None = None
+                      ) -> rrb.Blueprint:
+    """3D machine view (its camera on ``camera``: eye, target [m], if given), the plane views of
+    the path (``views``) and the event log on the left; time series grouped by concern on the
+    right."""
     position = [rrb.TimeSeriesView(name=f"{a} command / actual", origin=f"/axes/{a}",
                                    contents=[f"/axes/{a}/position"]) for a in AXES]
     ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=["/axes/ferr"])
     dac = rrb.TimeSeriesView(name="DAC [code] and saturation", origin="/axes",
                              contents=["/axes/dac", "/axes/saturated"])
+    eye = None if camera is None else rrb.EyeControls3D(position=camera[0], look_target=camera[1], eye_up=[0, 0, 1])
+    machine = rrb.Spatial3DView(name="machine", origin="/", contents=["/machine/**", "/paths/**", "/force/arrow"],
+                                eye_controls=eye)
+    plane_views = [rrb.Spatial2DView(name=f"{v.plane} path [mm], contour error x{v.factor}",
+                                     origin=f"/path_views/{v.plane}") for v in views]
+    left = [machine] + ([rrb.Horizontal(*plane_views)] if plane_views else []) + \
+        [rrb.TextLogView(name="controller", origin="/controller")]
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial3DView(name="machine", origin="/", contents=["/machine/**", "/paths/**", "/force/arrow"]),
-                rrb.TextLogView(name="controller", origin="/controller"),
-                row_shares=[3, 1],
-            ),
+            rrb.Vertical(*left, row_shares=[3, 3, 1] if plane_views else [3, 1]),
             rrb.Vertical(
                 rrb.Grid(*position),
                 rrb.Horizontal(ferr, dac),
@@ -182,16 +190,47 @@ def _log_geom(rec: rr.RecordingStream, model: mujoco.MjModel, g: int, path: str)
                                       fill_mode="solid"), static=True)
 
 
-def log_paths(rec: rr.RecordingStream, command_tips: np.ndarray, actual_tips: np.ndarray) -> None:
-    """Commanded and actual tool-tip paths."""
-    rec.log("/paths/commanded", rr.LineStrips3D([command_tips], colors=[[60, 120, 255]], radii=[0.0006]), static=True)
-    rec.log("/paths/actual", rr.LineStrips3D([actual_tips], colors=[[255, 140, 0]], radii=[0.0004]), static=True)
+COMMANDED_RGB, ACTUAL_RGB, PLANNED_RGB = (60, 120, 255), (255, 140, 0), (40, 200, 80)
+"""the paths' colours, in 3D and in the plane views"""
+
+
+@dataclass(frozen=True)
+class PathView:
+    """One plane view of the path: its plane, the contour error's magnification, the largest
+    contour error in that plane [um]."""
+
+    plane: str
+    factor: int
+    largest_um: float
+
+
+def log_paths(rec: rr.RecordingStream, command_tips: np.ndarray, actual_tips: np.ndarray,
+              on_path: np.ndarray) -> tuple[list[PathView], np.ndarray]:
+    """Commanded and actual tool-tip paths in 3D [m], and in the planes the program's path moves in
+    [mm] (``/path_views/<plane>``, the actual path's contour error magnified; ``on_path``: per tip
+    sample, whether the card was on the program's path, see
+    :func:`~cnc_twin.view.path_views.program_strips`). Returns the plane views and the commanded
+    points they draw [m] (for the camera)."""
+    rec.log("/paths/commanded", rr.LineStrips3D([command_tips], colors=[COMMANDED_RGB], radii=[0.0006]), static=True)
+    rec.log("/paths/actual", rr.LineStrips3D([actual_tips], colors=[ACTUAL_RGB], radii=[0.0004]), static=True)
+    strips = program_strips(command_tips, actual_tips, on_path)
+    drawn = np.vstack([command for command, _ in strips]) if strips else command_tips
+    views = []
+    up = np.array([1.0, -1.0])  # rerun's 2D views point their vertical axis down
+    for plane in planes_moved(drawn):
+        commands, actuals, factor, largest = plane_paths(strips, plane)
+        rec.log(f"/path_views/{plane}/commanded", rr.LineStrips2D([c * up for c in commands], colors=[COMMANDED_RGB],
+                                                                   radii=rr.Radius.ui_points(1.5)), static=True)
+        rec.log(f"/path_views/{plane}/actual", rr.LineStrips2D([a * up for a in actuals], colors=[ACTUAL_RGB],
+                                                                radii=rr.Radius.ui_points(1.5)), static=True)
+        views.append(PathView(plane, factor, largest * 1e3))
+    return views, drawn
 
 
 def log_planned_path(rec: rr.RecordingStream, points: np.ndarray | None) -> None:
     """``points`` from :func:`~cnc_twin.geometry.tip_path.planned_path`, if any."""
     if points is not None:
-        rec.log("/paths/planned", rr.LineStrips3D([points], colors=[[40, 200, 80]], radii=[0.0003]), static=True)
+        rec.log("/paths/planned", rr.LineStrips3D([points], colors=[PLANNED_RGB], radii=[0.0003]), static=True)
 
 
 WHITEBOARD_COUNTERS = ("fifo_fill", "missed_exchanges", "records_rejected")
@@ -288,6 +327,7 @@ class RunExporter:
         self._states: list[np.ndarray] = []
         self._tips: list[np.ndarray] = []
         self._command_tips: list[np.ndarray] = []
+        self._on_path: list[np.ndarray] = []
         self._last = None
 
     def start(self, *, rrd: Path | None = None, spawn: bool = False, planned=PLANNED) -> None:
@@ -295,7 +335,12 @@ class RunExporter:
         and static geometry. ``planned``: the planned path if already computed (see
         :func:`~cnc_twin.geometry.tip_path.planned_path`; a recording process gets it so that it needs
         no scipy)."""
-        blueprint = default_blueprint()
+        if planned is PLANNED:
+            from cnc_twin.geometry.tip_path import planned_path
+
+            planned = planned_path(self.scenario)
+        # framed on the planned path where there is one; :meth:`finish` frames the path as run
+        blueprint = default_blueprint(camera=None if planned is None else camera_on(planned))
         if spawn:
             from cnc_twin.view.viewer import rerun_command, viewer_environment
 
@@ -308,10 +353,6 @@ class RunExporter:
             self.rec.save(str(rrd), default_blueprint=blueprint)
         self.rec.log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         log_geometry(self.rec, self.model)
-        if planned is PLANNED:
-            from cnc_twin.geometry.tip_path import planned_path
-
-            planned = planned_path(self.scenario)
         log_planned_path(self.rec, planned)
         log_series_names(self.rec, self.scenario)
         if self.kin.compiled:  # load the compiled replay now, before the first stretch
@@ -356,12 +397,16 @@ class RunExporter:
         self._last = {"commanded": command_tips[-1:], "actual": tips[-1:], "t": t[-1:]}
         self._tips.append(tips)
         self._command_tips.append(command_tips)
+        self._on_path.append(samples.periods["path_u"][posed] >= 0)
 
     def finish(self, n_ticks: int, metrics: dict, exchange_latency=None) -> None:
         """After the last stretch: the paths, controller events and exchange latency; flush and
         close. ``n_ticks``: ticks the run recorded."""
         if self._tips:
-            log_paths(self.rec, np.vstack(self._command_tips), np.vstack(self._tips))
+            views, drawn = log_paths(self.rec, np.vstack(self._command_tips), np.vstack(self._tips),
+                                     np.concatenate(self._on_path))
+            # the layout again, now that the path is known: the camera on it, its plane views
+            self.rec.send_blueprint(default_blueprint(views, camera_on(drawn)), make_active=True, make_default=True)
         states = np.concatenate(self._states) if self._states else np.empty(0, np.int8)
         log_events(self.rec, self.scenario, states, n_ticks, metrics)
         log_latency(self.rec, self.scenario, exchange_latency)

@@ -32,6 +32,7 @@ def serve_web(recording: Path, port: int) -> int:
     if it fails to start). Returns the exit code (0 after Ctrl-C)."""
     import re
     import subprocess
+    import threading
 
     if not 1024 <= port <= 65535:
         print(f"error: --port: expected 1024 - 65535, got {port}", file=sys.stderr)
@@ -45,23 +46,31 @@ def serve_web(recording: Path, port: int) -> int:
     # browser opens rerun's Welcome page instead of the run. A free port is taken here so that
     # the address printed below holds it.
     grpc_port = _free_port()
-    command = rerun_command() + ["--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
-                                 "--port", str(grpc_port), str(recording)]
+    # The recording goes in through the server's standard input, which stays open until the end:
+    # given the file's path instead, rerun 0.41's server spins a core at 100 % from the moment the
+    # file is read (its receiver loop polls a source that has ended), idle or not.
+    command = rerun_command() + ["-", "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(port),
+                                 "--port", str(grpc_port)]
     # Its own process group: `rerun` may be a launcher whose child is the server, and both must
     # end with the command (Ctrl-C and SIGTERM here stop the whole group).
     with viewer_environment() as env:
-        child = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                 start_new_session=True)
+        child = subprocess.Popen(command, env=env, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE, start_new_session=True)
+    log: list[bytes] = []
+    readers = [threading.Thread(target=_feed, args=(recording, child.stdin), daemon=True),
+               threading.Thread(target=lambda: log.extend(child.stderr), daemon=True)]
+    for reader in readers:
+        reader.start()
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         try:  # a port in use ends it at once: say so instead of "serving"
-            _, log = child.communicate(timeout=1.0)
+            child.wait(timeout=1.0)
         except subprocess.TimeoutExpired:
             print(f"serving {recording} at {viewer_address(port, grpc_port)} (open it in a browser on this "
                   f"machine; the page is on port {port}, the recording on {grpc_port}: over ssh forward both, "
                   f"ssh -L {port}:127.0.0.1:{port} -L {grpc_port}:127.0.0.1:{grpc_port} HOST); Ctrl-C stops",
                   file=sys.stderr, flush=True)
-            _, log = child.communicate()
+            child.wait()
     except KeyboardInterrupt:
         return 0
     finally:
@@ -69,12 +78,23 @@ def serve_web(recording: Path, port: int) -> int:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(child.pid, signal.SIGTERM)
         child.wait()
+        readers[1].join(timeout=5)
     if child.returncode != 0:
-        lines = [re.sub(r"\x1b\[[0-9;]*m", "", line) for line in log.splitlines() if line.strip()]
+        text = b"".join(log).decode("utf-8", "replace")
+        lines = [re.sub(r"\x1b\[[0-9;]*m", "", line) for line in text.splitlines() if line.strip()]
         print(f"error: the web viewer did not start: {lines[-1] if lines else 'exit ' + str(child.returncode)}",
               file=sys.stderr)
         return 2
     return 0
+
+
+def _feed(recording: Path, pipe) -> None:
+    """Write ``recording`` into the server's standard input and leave the pipe open (its end tells
+    the server the source has ended: see :func:`serve_web`); a server gone early ends it quietly."""
+    with contextlib.suppress(OSError), recording.open("rb") as source:
+        while chunk := source.read(1 << 20):
+            pipe.write(chunk)
+        pipe.flush()
 
 
 def viewer_address(port: int, grpc_port: int) -> str:
