@@ -390,6 +390,23 @@ class SupervisorConfig:
 
 
 @dataclass(frozen=True)
+class BallbarTest:
+    """A circular test (ISO 230-4) measured on the run: a ballbar between the tool tip and a pivot
+    fixed at ``centre`` (:mod:`cnc_twin.run.ballbar`)."""
+
+    plane: str
+    """``XY``, ``XZ`` or ``YZ``: the plane of the circles"""
+    centre: tuple[float, float, float]
+    """the pivot, world frame [m]"""
+    radius: float
+    """the nominal radius (the bar's length) [m]"""
+    overshoot: float
+    """lead-in and lead-out arcs at each end of a pass, left out of the figures [rad]"""
+    centre_in_workpiece: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """the pivot as the scenario gives it, workpiece frame [m]"""
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A validated scenario, SI units throughout. Build with :func:`load_scenario`."""
 
@@ -419,6 +436,8 @@ class Scenario:
     machine: dict[str, str] = field(default_factory=dict)
     """the machine's files as the scenario names them or by default (``model``: the MJCF,
     ``parameters``: the parameter file), kept in the run's metrics"""
+    ballbar: BallbarTest | None = None
+    """a circular test measured on the run (``ballbar:`` in the scenario), or None"""
 
     def axis(self, name: str) -> AxisConfig:
         return self.axes[AXES.index(name)]

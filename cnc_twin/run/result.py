@@ -29,6 +29,7 @@ class RunResult:
     """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
     removal: Any = field(default=None, repr=False)
     """the removal map of a surface polishing run (:class:`cnc_twin.polishing.removal.PrestonModel`)"""
+    _figures: dict[str, bytes] | None = field(default=None, init=False, repr=False)
 
     @property
     def status(self) -> str:
@@ -60,6 +61,8 @@ class RunResult:
                 (folder / name).write_text(text, encoding="utf-8")
             if self.removal is not None:
                 self.removal.save(folder)
+            for name, png in self.figures().items():
+                (folder / f"{name}.png").write_bytes(png)
             finished = recording() if callable(recording) else None
             if finished is not None:
                 os.replace(finished, folder / RECORDING_FILE)
@@ -74,4 +77,18 @@ class RunResult:
         from cnc_twin.view.rerun_export import export_run
 
         export_run(self.trace, self.scenario, self.metrics, rrd=rrd, spawn=spawn, model=self.model,
-                   exchange_latency=self.exchange_latency)
+                   exchange_latency=self.exchange_latency, figures=self.figures())
+
+    def figures(self) -> dict[str, bytes]:
+        """The run's plots as PNG bytes by name, for the run directory (``<name>.png``) and the
+        recording: ``ballbar`` (the circular test's polar plot) when the scenario measures one."""
+        if self._figures is None:
+            self._figures = {}
+            if self.scenario.ballbar is not None and "ballbar" in self.metrics:
+                from cnc_twin.run.ballbar import ballbar_passes
+                from cnc_twin.run.ballbar_plot import polar_plot_png
+
+                test = self.scenario.ballbar
+                passes = ballbar_passes(self.trace, test, self.scenario.timing.interpolation_period)
+                self._figures["ballbar"] = polar_plot_png(passes, self.metrics["ballbar"], test)
+        return self._figures

@@ -53,6 +53,8 @@ def summary_table(metrics: dict) -> str:
     polish = metrics.get("polish")
     if polish:
         lines.append(polish_line(polish))
+    if metrics.get("ballbar"):
+        lines.append(ballbar_line(metrics["ballbar"]))
     if metrics.get("contour"):
         from cnc_twin.run.contour_metrics import format_passes
 
@@ -61,6 +63,20 @@ def summary_table(metrics: dict) -> str:
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
     return "\n".join(lines)
+
+
+def ballbar_line(ballbar: dict) -> str:
+    """The circular test's figures on one line (ISO 230-4's names; metrics.json's ``ballbar``)."""
+    head = f"circular test {ballbar['plane']} R {ballbar['radius_mm']:g} mm"
+    runs = [(d, ballbar[d]) for d in ("ccw", "cw") if d in ballbar]
+    if not runs:
+        return f"{head}: no pass went around the centre"
+    parts = [f"{d.upper()} G {f['circular_deviation_um']:.1f} um (F {f['radial_deviation_um']['min']:+.1f} .. "
+             f"{f['radial_deviation_um']['max']:+.1f}), radius error {f['radius_error_um']:+.1f} um, "
+             f"largest reversal spike {max((v for v in f['reversal_spikes_um'].values()), key=abs):+.1f} um"
+             for d, f in runs]
+    hysteresis = f"; hysteresis H {ballbar['hysteresis_um']:.1f} um" if "hysteresis_um" in ballbar else ""
+    return f"{head}: " + "; ".join(parts) + hysteresis + " (polar plot: ballbar.png)"
 
 
 def fixed(value: float, digits: int) -> str:

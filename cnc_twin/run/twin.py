@@ -261,6 +261,10 @@ class Twin:
         if sc.timing.mode == "realtime":
             metrics["late_periods"] = self.late_periods
         metrics.update(self.kind.metrics(self, trace, dsp, wall_time))
+        if sc.ballbar is not None:  # any program kind can be measured with a ballbar
+            from cnc_twin.run.ballbar import ballbar_metrics
+
+            metrics["ballbar"] = ballbar_metrics(trace, sc)
         if self.notices:
             metrics["notices"] = self.notices
         if self.stop_reason is not None:

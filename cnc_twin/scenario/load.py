@@ -28,6 +28,7 @@ from cnc_twin.core.errors import ScenarioError, format_key_path
 from cnc_twin.machine.model_file import load_model
 from cnc_twin.machine.plant import model_info
 from cnc_twin.scenario import chip, contour, curve, gcode, points, surface
+from cnc_twin.scenario.ballbar import BallbarSpec, convert_ballbar
 from cnc_twin.scenario.chip import MotionChipProgramSpec
 from cnc_twin.scenario.contour import ContourProgramSpec
 from cnc_twin.scenario.curve import NurbsCurveProgram
@@ -68,6 +69,7 @@ class ScenarioFile(Strict):
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)
     supervisor: SupervisorSpec = SupervisorSpec()
+    ballbar: BallbarSpec | None = None
     max_time: float | None = Field(None, gt=0, le=DAY, description="cap on simulated time [s]; default twice the program plus 5 s")
     command_output: Literal["analog", "pulse"] = Field(
         "analog", description="analog: +-10 V from the card's PID, drives in velocity mode; "
@@ -226,6 +228,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         max_time=spec.max_time,
         command_output=spec.command_output,
         machine={"model": machine_ref.model, "parameters": machine_ref.parameters},
+        ballbar=convert_ballbar(spec.ballbar, model, label),
     )
 
 

@@ -56,11 +56,11 @@ POSE_INTERVAL = 0.004
 STATE_NAMES = DspState.NAMES
 
 
-def default_blueprint(views: list[PathView] = (), camera: tuple[np.ndarray, np.ndarray] | None = None
-                      ) -> rrb.Blueprint:
+def default_blueprint(views: list[PathView] = (), camera: tuple[np.ndarray, np.ndarray] | None = None,
+                      figures: list[str] = ()) -> rrb.Blueprint:
     """3D machine view (its camera on ``camera``: eye, target [m], if given), the plane views of
-    the path (``views``) and the event log on the left; time series grouped by concern on the
-    right."""
+    the path (``views``) and the run's plots (``figures``: names under ``/figures``) and the
+    event log on the left; time series grouped by concern on the right."""
     position = [rrb.TimeSeriesView(name=f"{a} command / actual", origin=f"/axes/{a}",
                                    contents=[f"/axes/{a}/position"]) for a in AXES]
     ferr = rrb.TimeSeriesView(name="following error [counts]", origin="/axes", contents=["/axes/ferr"])
@@ -71,6 +71,7 @@ def default_blueprint(views: list[PathView] = (), camera: tuple[np.ndarray, np.n
                                 eye_controls=eye)
     plane_views = [rrb.Spatial2DView(name=f"{v.plane} path [mm], contour error x{v.factor}",
                                      origin=f"/path_views/{v.plane}") for v in views]
+    plane_views += [rrb.Spatial2DView(name=name, origin=f"/figures/{name}") for name in figures]
     left = [machine] + ([rrb.Horizontal(*plane_views)] if plane_views else []) + \
         [rrb.TextLogView(name="controller", origin="/controller")]
     return rrb.Blueprint(
@@ -399,14 +400,20 @@ class RunExporter:
         self._command_tips.append(command_tips)
         self._on_path.append(samples.periods["path_u"][posed] >= 0)
 
-    def finish(self, n_ticks: int, metrics: dict, exchange_latency=None) -> None:
-        """After the last stretch: the paths, controller events and exchange latency; flush and
-        close. ``n_ticks``: ticks the run recorded."""
+    def finish(self, n_ticks: int, metrics: dict, exchange_latency=None, figures: dict[str, bytes] | None = None
+               ) -> None:
+        """After the last stretch: the paths, controller events, exchange latency and the run's
+        plots (``figures``: PNG bytes by name, as ``/figures/<name>``); flush and close.
+        ``n_ticks``: ticks the run recorded."""
+        figures = figures or {}
+        for name, png in figures.items():
+            self.rec.log(f"/figures/{name}", rr.EncodedImage(contents=png, media_type="image/png"), static=True)
         if self._tips:
             views, drawn = log_paths(self.rec, np.vstack(self._command_tips), np.vstack(self._tips),
                                      np.concatenate(self._on_path))
             # the layout again, now that the path is known: the camera on it, its plane views
-            self.rec.send_blueprint(default_blueprint(views, camera_on(drawn)), make_active=True, make_default=True)
+            self.rec.send_blueprint(default_blueprint(views, camera_on(drawn), list(figures)), make_active=True,
+                                    make_default=True)
         states = np.concatenate(self._states) if self._states else np.empty(0, np.int8)
         log_events(self.rec, self.scenario, states, n_ticks, metrics)
         log_latency(self.rec, self.scenario, exchange_latency)
@@ -414,7 +421,8 @@ class RunExporter:
 
 
 def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | None = None,
-               spawn: bool = False, model: mujoco.MjModel | None = None, exchange_latency=None) -> Path | None:
+               spawn: bool = False, model: mujoco.MjModel | None = None, exchange_latency=None,
+               figures: dict[str, bytes] | None = None) -> Path | None:
     """Write the run as a recording to ``rrd`` and/or open it in a spawned viewer.
 
     ``model``: the run's compiled MJCF, if at hand (otherwise compiled again from the scenario).
@@ -422,5 +430,5 @@ def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | N
     exporter = RunExporter(scenario, model=model)
     exporter.start(rrd=rrd, spawn=spawn)
     exporter.send(PeriodSamples.take(trace, 0, trace.whole_periods))
-    exporter.finish(len(trace), metrics, exchange_latency)
+    exporter.finish(len(trace), metrics, exchange_latency, figures)
     return rrd

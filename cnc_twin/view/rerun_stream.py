@@ -121,7 +121,7 @@ class RecordingProcess:
         at once (the twin's process can write its other files meanwhile)."""
         trace = result.trace
         self._send_periods(trace, trace.whole_periods)
-        self._send(("finish", len(trace), result.metrics, result.exchange_latency))
+        self._send(("finish", len(trace), result.metrics, result.exchange_latency, result.figures()))
         try:
             self.popen.stdin.close()
         except OSError:
