@@ -33,7 +33,7 @@ def test_sweep_scaling_one_vs_two_workers(benchmark, tmp_path):
 
     (rows_one, one), (rows_two, two) = benchmark.pedantic(measure, rounds=1)
     assert all(row["status"] == "complete" for row in rows_one + rows_two)
-    assert [row["ferr_rms_X"] for row in rows_one] == [row["ferr_rms_X"] for row in rows_two]
+    assert [row["ferr_rms_X_mm"] for row in rows_one] == [row["ferr_rms_X_mm"] for row in rows_two]
     per_min = {1: len(todo) / one * 60, 2: len(todo) / two * 60}
     benchmark.extra_info.update(runs=len(todo), runs_per_min_1=per_min[1], runs_per_min_2=per_min[2],
                                 speedup=one / two)

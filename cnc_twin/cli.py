@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", type=Path, default=None, help="folder for sweep.parquet and sweep.csv")
     sweep.add_argument("--yes", action="store_true", help="run a sweep of more than 1000 cases without asking")
     sweep.add_argument("--minimize", default=None,
-                       help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_sum)")
+                       help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_xyz_mm)")
 
     tune = sub.add_parser("tune", help="propose an axis's PID gains from its linear loop and check them")
     tune.add_argument("scenario", type=input_path, help="scenario: a path, or a bundled one by name")
@@ -201,7 +201,7 @@ def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
     if args.rerun and not display_available():
         # A viewer cannot open here, and the recording would wait ~10 s for it to connect.
         print("warning: --rerun: no display (DISPLAY and WAYLAND_DISPLAY unset), no viewer opened; "
-              "open the run later with `cnc-twin view RUN_DIR`", file=sys.stderr)
+              "serve the run to a browser afterwards with `cnc-twin view RUN_DIR --web`", file=sys.stderr)
         args.rerun = False
     with PlannerPool() as planners:
         planners.prestart()
@@ -372,7 +372,7 @@ def _sweep(args: argparse.Namespace) -> int:
         print(f"{newline}interrupted ({stop.reason}) after {finished} of {len(rows)} runs; "
               f"partial table, the other runs marked {INTERRUPTED}: {parquet}, {csv}", file=sys.stderr)
         return EXIT_TERMINATED if stop.reason == "SIGTERM" else EXIT_INTERRUPTED
-    minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_sum")
+    minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_xyz_mm")
     best = best_row(rows, minimize)
     lost = [r for r in rows if r.get("status") == "lost"]
     print(f"{len(rows)} runs in {seconds:.1f} s ({len(rows) / seconds * 60:.1f} runs/min); table: {parquet}, {csv}")

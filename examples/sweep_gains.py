@@ -19,9 +19,9 @@ def main() -> None:
         rows = run_dask(str(default_scenario()), todo, scheduler=sys.argv[1])
     else:
         rows = run_local(str(default_scenario()), todo, workers=2)
-    for row in sorted(rows, key=lambda r: r["ferr_rms_X"])[:3]:
+    for row in sorted(rows, key=lambda r: r["ferr_rms_X_mm"])[:3]:
         print(f"kp {row['servo.X.kp']:5.0f}  kvff {row['servo.X.kvff']:.1f}  "
-              f"X following error rms {row['ferr_rms_X']:6.2f} counts, max {row['ferr_max_X']:6.1f}")
+              f"X following error rms {row['ferr_rms_X_mm'] * 1e3:6.2f} um, max {row['ferr_max_X_mm'] * 1e3:6.1f} um")
 
 
 if __name__ == "__main__":

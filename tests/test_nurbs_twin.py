@@ -36,6 +36,10 @@ def test_curve_run_meets_every_interpolation_figure(curve_run):
         for kind in ("velocity", "acceleration", "jerk"):
             assert peaks[kind] <= peaks[f"{kind}_limit"] * 1.01, (axis, kind)
     assert 0 < path["contour_error_um"]["rms"] <= path["contour_error_um"]["max"] < CONTOUR_BOUND[scenario.name]
+    if scenario.name == "nurbs_circle":  # in the files' units: X reaches the feed (6000 mm/min) at +-Y
+        assert path["axis_peaks"]["X"]["velocity"] == pytest.approx(6000.0, rel=0.002)
+        assert path["axis_peaks"]["X"]["velocity_limit"] == pytest.approx(24000.0)  # models/polisher.yaml's max_velocity
+        assert path["axis_peaks"]["X"]["units"]["velocity"] == "mm/min"
     # reported; whether planning stays ahead is a speed figure, measured in the benchmarks
     # (benchmarks/test_bench_interpolator.py), not asserted here: on a loaded machine it is noise
     assert path["planning"]["ratio_execution_over_planning"] > 0

@@ -71,3 +71,8 @@ def test_result_dataframe_or_a_clear_import_error():
     else:
         df = result.dataframe()
         assert len(df) == len(result.trace) and "ferr_X" in df.columns
+        # units as trace.parquet's metadata gives them, and the encoders' counts per mm or deg
+        assert df.attrs["units"]["ferr_X"] == "counts" and df.attrs["units"]["tip_x"] == "m"
+        assert set(df.attrs["units"]) == set(df.columns)
+        assert df.attrs["counts_per_unit"]["X"] == pytest.approx(1000.0)  # 1 um a count (polisher.yaml)
+        assert df.attrs["position_units"]["A"] == "deg"

@@ -69,11 +69,11 @@ def test_the_summary_warns_on_a_limit_broken_in_the_trace():
     metrics = {
         "scenario": "x", "sim_time_s": 1.0, "wall_time_s": 0.1, "real_time_factor": 10.0, "physics_steps": 4000,
         "following_error": {}, "final_following_error": {}, "dac_saturation_ticks": {},
-        "path": {"limit_violations": [{"axis": "Y", "quantity": "jerk", "peak": 881.0, "limit": 50.0,
+        "path": {"limit_violations": [{"axis": "Y", "quantity": "jerk", "peak": 881000.0, "limit": 50000.0, "unit": "mm/s^3",
                                        "ratio": 17.62, "time_s": 13.028}]},
     }
     text = summary_table(metrics)
-    assert "WARNING: commanded Y jerk 17.62x its limit" in text and "13.028 s" in text
+    assert "WARNING: commanded Y jerk 17.62x its limit" in text and "13.028 s" in text and "mm/s^3" in text
     metrics["path"]["limit_violations"] = []
     assert "WARNING" not in summary_table(metrics)
 

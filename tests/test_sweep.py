@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from cnc_twin.studies.sweep import WALL_CLOCK_COLUMNS, Param, best_row, cases, parse_param, run_case, run_local
@@ -49,14 +50,14 @@ def test_local_pool_and_dask_cluster_give_identical_tables(scenario_file):
     todo = cases([parse_param("servo.X.kp=30:50:20"), parse_param("servo.X.ki=0,400")])
     local = run_local(scenario_file, todo, workers=2)
     assert all(r["status"] == "complete" for r in local)
-    assert len({r["ferr_max_X"] for r in local}) == 4  # the gains really changed the runs
+    assert len({r["ferr_max_X_mm"] for r in local}) == 4  # the gains really changed the runs
     with dask.config.set({"distributed.worker.daemon": False}):  # each run starts a planner process
         with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                           dashboard_address=None) as cluster:
             remote = run_dask(scenario_file, todo, scheduler=cluster.scheduler_address)
     assert _deterministic(remote) == _deterministic(local)
-    best = best_row(local, "ferr_rms_sum")
-    assert best["ferr_rms_sum"] == min(r["ferr_rms_sum"] for r in local)
+    best = best_row(local, "ferr_rms_xyz_mm")
+    assert best["ferr_rms_xyz_mm"] == min(r["ferr_rms_xyz_mm"] for r in local)
 
 
 def kill_or_run(scenario_file, overrides):
@@ -78,11 +79,19 @@ def test_cli_sweep_writes_the_table_and_prints_the_best_row(tmp_path, scenario_f
     proc = subprocess.run([sys.executable, "-m", "cnc_twin", "sweep", scenario_file, "--param", "servo.X.kp=30,60",
                            "--out", str(out)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    assert "2 runs" in proc.stdout and "best by ferr_rms_sum" in proc.stdout
+    assert "2 runs" in proc.stdout and "best by ferr_rms_xyz_mm" in proc.stdout
     import pyarrow.parquet as pq
 
-    table = pq.read_table(out / "sweep.parquet").to_pylist()
+    parquet = pq.read_table(out / "sweep.parquet")
+    table = parquet.to_pylist()
     assert [r["servo.X.kp"] for r in table] == [30, 60] and (out / "sweep.csv").is_file()
+    # one set of units: each figure's unit ends its name and is in the field's metadata; no sum
+    # across unlike units
+    units = {f.name: f.metadata[b"unit"].decode() for f in parquet.schema}
+    assert units["ferr_max_X_mm"] == "mm" and units["ferr_rms_A_deg"] == "deg" and units["dac_sat_C_ticks"] == "ticks"
+    assert not [name for name in units if name.startswith("ferr_") and units[name] == "1"]
+    for r in table:
+        assert r["ferr_rms_xyz_mm"] == pytest.approx(np.sqrt(sum(r[f"ferr_rms_{a}_mm"] ** 2 for a in "XYZ")))
     bad = subprocess.run([sys.executable, "-m", "cnc_twin", "sweep", scenario_file, "--param", "servo.X.kpp=1,2"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "servo.X.kpp" in bad.stderr and "Traceback" not in bad.stderr

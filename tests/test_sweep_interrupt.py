@@ -84,7 +84,7 @@ def _interrupt_and_check(tmp_path: Path, sig: signal.Signals, *, to_group: bool,
         status = [r["status"] for r in rows]
         assert set(status) == {"complete", "interrupted"}, status
         assert status.count("complete") >= done  # those finished before the signal stay finished
-        assert "ferr_rms_sum" in rows[0] and (out / "sweep.csv").is_file()  # the normal columns
+        assert "ferr_rms_xyz_mm" in rows[0] and (out / "sweep.csv").is_file()  # the normal columns
 
         ours |= _marked(tag)
         left = _wait_gone(tree, tag, seconds=5.0)

@@ -73,7 +73,6 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
                 if values[q] > best[q]:
                     best[q], best[f"{q}_ratio"] = values[q], values[f"{q}_ratio"]
     out["axis_peaks"] = peaks
-    out["axis_peaks_units"] = measured[0][1]["axis_peaks_units"]
     out["limit_violations"] = [dict(v, line=p.line) for p, m in measured for v in m["limit_violations"]]
     pressed = [m["force_offset"] for _, m in measured if "force_offset" in m]
     if pressed:  # the force loop's own motion along the tool axis on the paths it pressed

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from cnc_twin.core import units
 from cnc_twin.core.config import Scenario
 from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
@@ -118,19 +119,21 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     out["axis_peaks"] = {}
     violations = []
     for i, name in enumerate(names):
+        # in the parameter file's units (mm/min, mm/s^2, mm/s^3; deg for A, B), limits beside them
+        per_unit, units = peak_units(name in "ABC")
         peaks = {}
         for quantity, series, limit, lag in (("velocity", v, limits[i][0], 1), ("acceleration", acc, limits[i][1], 1),
                                              ("jerk", jerk, limits[i][2], 2)):
             k = int(np.argmax(np.abs(series[:, i])))
             peak = float(abs(series[k, i]))
             ratio = peak / limit if limit > 0 else 0.0
-            peaks.update({quantity: peak, f"{quantity}_limit": limit, f"{quantity}_ratio": ratio})
+            shown, shown_limit = peak / per_unit[quantity], limit / per_unit[quantity]
+            peaks.update({quantity: shown, f"{quantity}_limit": shown_limit, f"{quantity}_ratio": ratio})
             if ratio > LIMIT_TOLERANCE:
-                violations.append({"axis": name, "quantity": quantity, "peak": peak, "limit": limit, "ratio": ratio,
-                                   "time_s": (first + k + lag) * T})
+                violations.append({"axis": name, "quantity": quantity, "peak": shown, "limit": shown_limit,
+                                   "unit": units[quantity], "ratio": ratio, "time_s": (first + k + lag) * T})
+        peaks["units"] = units
         out["axis_peaks"][name] = peaks
-    out["axis_peaks_units"] = {"velocity": "m/s | rad/s", "acceleration": "m/s^2 | rad/s^2",
-                               "jerk": "m/s^3 | rad/s^3"}
     out["limit_violations"] = violations
     if depth is not None:
         dv = np.diff(depth[seg[0] - 1:seg[-1] + 2]) / T
@@ -152,3 +155,11 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
                            "block_execution_ms": block_time * 1e3,
                            "ratio_execution_over_planning": block_time * 1e6 / max(1.0, plan_us / plan_blocks)}
     return out
+
+
+def peak_units(rotary: bool) -> tuple[dict[str, float], dict[str, str]]:
+    """Per quantity (velocity, acceleration, jerk) the SI value of one unit of the parameter
+    file's (mm/min, mm/s^2, mm/s^3; deg/min, deg/s^2, deg/s^3 on a rotary axis) and its name."""
+    length, name = (units.DEG, "deg") if rotary else (units.MM, "mm")
+    return ({"velocity": units.velocity_factor(rotary), "acceleration": length, "jerk": length},
+            {"velocity": f"{name}/min", "acceleration": f"{name}/s^2", "jerk": f"{name}/s^3"})

@@ -43,7 +43,15 @@ class RunResult:
         except ImportError:
             raise ImportError("RunResult.dataframe() needs pandas: pip install 'cnc-twin[analysis]' "
                               "(from a clone: pip install '.[analysis]')") from None
-        return pd.DataFrame(self.trace.columns())
+        from cnc_twin.trace.layout import column_unit
+
+        frame = pd.DataFrame(self.trace.columns())
+        # as trace.parquet's metadata has them: each column's unit, counts per mm or deg per axis
+        frame.attrs["units"] = {name: column_unit(name) for name in frame.columns}
+        frame.attrs["counts_per_unit"] = {a.name: a.counts_per_unit / a.display_factor for a in self.scenario.axes}
+        frame.attrs["position_units"] = {a.name: a.display_unit for a in self.scenario.axes}
+        frame.attrs["scenario"] = self.scenario.name
+        return frame
 
     def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
         """Write ``scenario.yaml`` (and the files it names that a re-run needs: a G-code program),

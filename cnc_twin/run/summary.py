@@ -46,7 +46,7 @@ def summary_table(metrics: dict) -> str:
         )
     for v in (path or {}).get("limit_violations", []):
         lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
-                     f"({v['peak']:.4g} against {v['limit']:.4g} SI) at {v['time_s']:.3f} s")
+                     f"({v['peak']:.4g} against {v['limit']:.4g} {v['unit']}) at {v['time_s']:.3f} s")
     program = metrics.get("program")
     if program and "deviation_um" in program:
         lines.append(program_line(program))

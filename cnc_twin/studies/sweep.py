@@ -119,16 +119,20 @@ def cases(params: Sequence[Param], *, random: int | None = None, seed: int = 0) 
 
 
 def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
-    """One flat row of a run's metrics (following errors in counts, path figures in um; force
-    tracking in % of the setpoint and the removal map's figures for a polishing run)."""
+    """One flat row of a run's metrics, each figure's unit at the end of its name (:func:`column_unit`):
+    following errors in mm or deg as the CLI prints them, path figures in um, force tracking in %
+    of the setpoint and the removal map's figures for a polishing run."""
     row: dict[str, Any] = {k: metrics.get(k) for k in ("status", "final_state", "sim_time_s", *WALL_CLOCK_COLUMNS)}
-    total = 0.0
+    linear_squares = 0.0
     for axis, fe in metrics["following_error"].items():
-        row[f"ferr_max_{axis}"] = fe["max_counts"]
-        row[f"ferr_rms_{axis}"] = fe["rms_counts"]
-        total += fe["rms_counts"]
-        row[f"dac_sat_{axis}"] = metrics["dac_saturation_ticks"][axis]
-    row["ferr_rms_sum"] = total
+        row[f"ferr_max_{axis}_{fe['unit']}"] = fe["max"]
+        row[f"ferr_rms_{axis}_{fe['unit']}"] = fe["rms"]
+        if fe["unit"] == "mm":
+            linear_squares += fe["rms"] ** 2
+        row[f"dac_sat_{axis}_ticks"] = metrics["dac_saturation_ticks"][axis]
+    # the RMS length of the X / Y / Z following-error vector: one figure of like units (never a
+    # sum of millimetres and degrees)
+    row["ferr_rms_xyz_mm"] = math.sqrt(linear_squares)
     path = metrics.get("path")
     if path and "contour_error_um" in path:
         row["contour_max_um"] = path["contour_error_um"]["max"]
@@ -331,10 +335,21 @@ def write_table(rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     columns = list(dict.fromkeys(k for row in rows for k in row))
     table = pa.Table.from_pylist([{k: row.get(k) for k in columns} for row in rows])
+    table = table.cast(pa.schema([field.with_metadata({"unit": column_unit(field.name)}) for field in table.schema]))
     parquet, csv = out_dir / "sweep.parquet", out_dir / "sweep.csv"
     pq.write_table(table, parquet)
     pacsv.write_csv(table, csv)
     return parquet, csv
+
+
+UNIT_SUFFIXES = {"_mm": "mm", "_deg": "deg", "_um": "um", "_s": "s", "_pct": "%", "_mm3": "mm^3", "_ticks": "ticks"}
+"""a sweep column's unit, by the end of its name"""
+
+
+def column_unit(name: str) -> str:
+    """The unit of the sweep table's column ``name`` (``1`` for counts, ratios, states and the
+    swept parameters, which are in the scenario's own units)."""
+    return next((unit for suffix, unit in UNIT_SUFFIXES.items() if name.endswith(suffix)), "1")
 
 
 def best_row(rows: list[dict[str, Any]], minimize: str) -> dict[str, Any] | None:

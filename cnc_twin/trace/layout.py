@@ -69,3 +69,8 @@ UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "f
          "path_u": "1", "path_ds": "m", "force_state": "1", "force_setpoint": "N", "force_depth": "m",
          "feed_factor": "1", "mark": "1", "events": "1", "tip": "m", "pivot": "m"}
 """the unit of each column (by its name, or the name's prefix before ``_<axis>``)"""
+
+
+def column_unit(name: str) -> str:
+    """The unit of the trace column ``name`` (``UNITS``: by its name, else its prefix)."""
+    return UNITS[name] if name in UNITS else UNITS[name.split("_")[0]]

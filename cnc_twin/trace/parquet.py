@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.trace.layout import UNITS
+from cnc_twin.trace.layout import column_unit
 from cnc_twin.trace.trace import Trace
 
 
@@ -19,9 +19,8 @@ def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:
 
     fields, arrays = [], []
     for name, values in trace.columns().items():
-        unit = UNITS[name.split("_")[0]] if name not in UNITS else UNITS[name]
         array = _arrow_array(pa, values)
-        fields.append(pa.field(name, array.type, metadata={"unit": unit}))
+        fields.append(pa.field(name, array.type, metadata={"unit": column_unit(name)}))
         arrays.append(array)
     meta = {
         "scenario": scenario_name,
