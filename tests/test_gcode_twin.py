@@ -306,16 +306,21 @@ def test_an_f_above_what_the_axes_allow_along_a_path_is_said_once_before_the_run
         trace = read_trace(tmp_path / name / "trace.parquet")
         xy = np.stack([trace["command_X"], trace["command_Y"]], axis=1) / 1000.0  # [mm], 1 um per count
         speed = np.linalg.norm(np.diff(xy, axis=0), axis=1) / np.diff(trace["time"]) * 60.0  # [mm/min]
+        speed_x = np.abs(np.diff(xy[:, 0])) / np.diff(trace["time"]) * 60.0
         on_the_path = trace["mark"][1:] == 3  # the G1's line (the G0 before it runs at the axes' own limits)
-        return notes, metrics.get("notices", []), speed[on_the_path].max()
+        return notes, metrics.get("notices", []), speed[on_the_path].max(), speed_x[on_the_path].max()
 
-    notes, kept, top = run("G21 G90\nG0 X0 Y0 Z5\nG1 X300 F40000\nM2\n", "along_x")
+    notes, kept, top, _ = run("G21 G90\nG0 X0 Y0 Z5\nG1 X300 F40000\nM2\n", "along_x")
     assert len(notes) == 1 and "line 3" in notes[0] and "24000 mm/min" in notes[0], notes
     assert kept == [notes[0].split("along_x.ngc: ", 1)[1]]  # the command names the program first
     assert 0.97 * 24000 <= top <= 24000 * 1.001
-    notes, kept, top = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F40000\nM2\n", "diagonal")
+    notes, kept, top, _ = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F40000\nM2\n", "diagonal")
     assert len(notes) == 1 and "33941 mm/min" in notes[0], notes
     assert 0.97 * 33941 <= top <= 33941 * 1.001
-    notes, kept, top = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F30000\nM2\n", "allowed")
+    notes, kept, top, _ = run("G21 G90\nG0 X-280 Y-280 Z5\nG1 X280 Y280 F30000\nM2\n", "allowed")
     assert notes == [] and kept == []
     assert 0.97 * 30000 <= top <= 30000 * 1.001
+    # a G1 that turns the head runs as one coordinated move: its cap is said too
+    notes, kept, _, top_x = run("G21 G90\nG0 X0 Y0 Z5\nG1 X300 A5 F40000\nM2\n", "turning")
+    assert len(notes) == 1 and "line 3" in notes[0] and "24000 mm/min" in notes[0], notes
+    assert 0.97 * 24000 <= top_x <= 24000 * 1.001  # X at its limit (Y turns a little with the head)

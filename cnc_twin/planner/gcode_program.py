@@ -90,6 +90,22 @@ def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[in
     return out
 
 
+def move_starts(prog: GcodeProgram, home: tuple[float, ...]) -> list[tuple[GcodeMove, tuple[float, ...]]]:
+    """Each coordinated move of the program with the six axes where it starts [m | rad] (after
+    the step before it: a move's end, or a path's end pose)."""
+    from cnc_twin.planner.curve_program import curve_setup
+
+    here, out = tuple(home), []
+    for step in prog.steps:
+        if isinstance(step, GcodeMove):
+            out.append((step, here))
+            here = step.end
+        elif isinstance(step, GcodePath):
+            curve, _, axis_path, _, _ = curve_setup(step.curve)
+            here = _end_pose(curve, axis_path, step.curve.hold)
+    return out
+
+
 class GcodePlan:
     """A G-code program, planned step by step as :meth:`chunks` is asked (``window`` [m] of curve
     per feed-planning window)."""

@@ -77,7 +77,7 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     pressed = [m["force_offset"] for _, m in measured if "force_offset" in m]
     if pressed:  # the force loop's own motion along the tool axis on the paths it pressed
         out["force_offset"] = {q: max(f[q] for f in pressed) for q in ("velocity", "acceleration", "jerk")}
-        out["force_offset"]["units"] = "m/s, m/s^2, m/s^3"
+        out["force_offset"]["units"] = pressed[0]["units"]
     out["paths"] = [{"line": p.line, "length_mm": m["length_mm"],
                      "chord_error_um": m.get("chord_error_um", {}).get("max"),
                      "contour_error_um": m.get("contour_error_um", {}).get("max"),

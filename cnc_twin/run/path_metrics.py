@@ -138,9 +138,11 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     if depth is not None:
         dv = np.diff(depth[seg[0] - 1:seg[-1] + 2]) / T
         da = np.diff(dv) / T
-        out["force_offset"] = {"velocity": float(np.abs(dv).max()), "acceleration": float(np.abs(da).max()),
-                               "jerk": float(np.abs(np.diff(da) / T).max()), "depth_range_mm":
-                               [float(depth[seg].min() * 1e3), float(depth[seg].max() * 1e3)]}
+        per_unit, names = peak_units(False)  # in the axes' units: mm/min, mm/s^2, mm/s^3
+        out["force_offset"] = {"velocity": float(np.abs(dv).max()) / per_unit["velocity"],
+                               "acceleration": float(np.abs(da).max()) / per_unit["acceleration"],
+                               "jerk": float(np.abs(np.diff(da) / T).max()) / per_unit["jerk"], "units": names,
+                               "depth_range_mm": [float(depth[seg].min() * 1e3), float(depth[seg].max() * 1e3)]}
     poly = curve.point(np.linspace(*curve.domain, 20001))
     for key, tips in (("contour_error_um", true_tip), ("encoder_contour_error_um", actual)):
         contour = point_to_polyline(tips[on], poly)

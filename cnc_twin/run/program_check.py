@@ -59,7 +59,7 @@ def pressed_paths(prog: GcodeProgram) -> set[int]:
 
 
 def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.ndarray, T: float):
-    """``(time, ideal time, time below 95 % of F)`` [s] of the G1 moves the card runs as
+    """``(time, ideal time, time below 95 % of F, length)`` [s, s, s, m] of the G1 moves the card runs as
     coordinated moves of the axes (their periods: off a curve, marked with their line), the tip's
     speed from the commanded tips; the arrays are per period (``tips`` (n, 3), ``u`` the path
     parameter, ``mark`` the program line); None without such moves."""
@@ -78,7 +78,7 @@ def _feed_moves(prog: GcodeProgram, tips: np.ndarray, u: np.ndarray, mark: np.nd
     periods = np.bincount(move, minlength=len(lines))
     length = np.bincount(move, weights=speeds, minlength=len(lines)) * T  # [m] per move
     slow = np.bincount(move, weights=speeds < FULL_FEED * rates[move], minlength=len(lines))
-    return float(periods.sum()) * T, float(np.sum(length / rates)), float(slow.sum()) * T
+    return float(periods.sum()) * T, float(np.sum(length / rates)), float(slow.sum()) * T, float(length.sum())
 
 
 def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
@@ -91,7 +91,8 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     ds = trace.period_signals["path_ds"][ends]
     depth = trace.period_signals["force_depth"][ends]
     if not prog.paths:  # no curve: nothing fed along one (and no head geometry to read)
-        return {"feed": {"time_s": 0.0, "ideal_time_s": 0.0, "below_95pct_s": 0.0, "share_at_95pct": None}}
+        return {"feed": {"time_s": 0.0, "ideal_time_s": 0.0, "below_95pct_s": 0.0, "share_at_95pct": None,
+                         "moves_length_mm": 0.0}}
     command = trace.command[ends] / trace.counts_per_unit + np.asarray(scenario.home)
     c = prog.paths[0].curve  # the head's geometry: the machine's, the same on every path
     head = HeadGeometry(pivot_home=c.pivot_home, tool_offset=c.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
@@ -113,10 +114,12 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
                 ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
             parts.append((tips, tool))
     moving = _feed_moves(prog, all_tips, u, trace.period_signals["mark"][ends], T)
+    moves_length = 0.0
     if moving is not None:  # G1 moves run as coordinated moves (exact stop, or turning the head)
-        time, ideal, below = time + moving[0], ideal + moving[1], below + moving[2]
+        time, ideal, below, moves_length = time + moving[0], ideal + moving[1], below + moving[2], moving[3]
     out: dict[str, Any] = {"feed": {"time_s": time, "ideal_time_s": ideal, "below_95pct_s": below,
-                                    "share_at_95pct": (time - below) / time if time > 0 else None}}
+                                    "share_at_95pct": (time - below) / time if time > 0 else None,
+                                    "moves_length_mm": moves_length * 1e3}}
     if not groups:
         return out
     worst = vertex_worst = 0.0

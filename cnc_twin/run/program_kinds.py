@@ -286,17 +286,28 @@ class GcodeKind(ProgramKind):
         from cnc_twin.core.units import MM_PER_MIN
         from cnc_twin.planner.gcode_program import feed_caps
 
-        by_feed: dict[float, list[tuple[int, float, int]]] = {}
+        from cnc_twin.planner.gcode_program import move_starts
+        from cnc_twin.planner.ptp import axis_scales
+
+        by_feed: dict[tuple[float, str], list[tuple[int, float, int]]] = {}
         for line, feed, cap, axis in feed_caps(scenario.program, scenario.axes):
-            by_feed.setdefault(feed, []).append((line, cap, axis))
+            by_feed.setdefault((feed, "path"), []).append((line, cap, axis))
+        # G1 moves run one by one (exact stop, or turning the head): the feed caps the tip's X/Y/Z
+        # speed, and the axes' own limits may hold the move below it
+        for move, start in move_starts(scenario.program, scenario.home):
+            if move.feed is None or move.rotary_only:
+                continue
+            v_s, _, xyz, slowest = axis_scales(start, move.end, scenario.axes)
+            if xyz > 0.0 and move.feed > v_s * xyz * (1.0 + 1e-9):
+                by_feed.setdefault((move.feed, "move"), []).append((move.line, v_s * xyz, slowest))
         said = []
-        for feed, paths in by_feed.items():
-            _, cap, axis = max(paths, key=lambda p: p[1])
-            more = len(paths) - 1
-            where = f"line {paths[0][0]}" + (f" (and {more} more feed path{'s' if more > 1 else ''} at this F)"
+        for (feed, what), steps in sorted(by_feed.items(), key=lambda item: item[1][0][0]):
+            _, cap, axis = max(steps, key=lambda p: p[1])
+            more = len(steps) - 1
+            where = f"line {steps[0][0]}" + (f" (and {more} more {what}{'s' if more > 1 else ''} at this F)"
                                              if more else "")
-            said.append(f"{where}: F{feed / MM_PER_MIN:g} mm/min is more than the axes allow along the path; it runs "
-                        f"at {cap / MM_PER_MIN:.0f} mm/min at most ({_at_max_velocity(scenario.axes[axis])})")
+            said.append(f"{where}: F{feed / MM_PER_MIN:g} mm/min is more than the axes allow along the {what}; it "
+                        f"runs at {cap / MM_PER_MIN:.0f} mm/min at most ({_at_max_velocity(scenario.axes[axis])})")
         return said
 
     def describe(self, program: GcodeProgram) -> str:

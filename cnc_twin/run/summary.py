@@ -35,15 +35,7 @@ def summary_table(metrics: dict) -> str:
         )
     path = metrics.get("path")
     if path and "contour_error_um" in path:
-        # an NC program's figures are over its feed paths only (its moves are not curves): say how many
-        what = (f"feed paths: {path['feed_paths']}, {path['length_mm']:.1f} mm" if "feed_paths" in path
-                else f"path: {path['length_mm']:.1f} mm")
-        lines.append(
-            f"{what}, contour error max {path['contour_error_um']['max']:.2f} um "
-            f"rms {path['contour_error_um']['rms']:.2f} um (by the encoders: max "
-            f"{path['encoder_contour_error_um']['max']:.2f} um), chord error max {path['chord_error_um']['max']:.3f} um, "
-            f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}"
-        )
+        lines.append(path_line(path, (metrics.get("program") or {}).get("feed") or {}))
     for v in (path or {}).get("limit_violations", []):
         lines.append(f"WARNING: commanded {v['axis']} {v['quantity']} {v['ratio']:.2f}x its limit "
                      f"({v['peak']:.4g} against {v['limit']:.4g} {v['unit']}) at {v['time_s']:.3f} s")
@@ -63,6 +55,25 @@ def summary_table(metrics: dict) -> str:
     if metrics.get("mujoco_warnings"):
         lines.append(f"MuJoCo warnings: {metrics['mujoco_warnings']}")
     return "\n".join(lines)
+
+
+def path_line(path: dict, feed: dict) -> str:
+    """The path figures on one line. An NC program's are over its feed paths only (its G1 moves run
+    one by one as coordinated moves, not curves): the line says how much that covers, and which
+    path the largest contour error is on."""
+    if "feed_paths" in path:
+        what = f"feed paths: {path['feed_paths']}, {path['length_mm']:.1f} mm"
+        moves = feed.get("moves_length_mm") or 0.0
+        if moves > 0.05:
+            what += f" (and {moves:.1f} mm of G1 moves run one by one, outside these figures)"
+        worst = max(path.get("paths") or [], key=lambda p: p.get("contour_error_um") or 0.0, default=None)
+        where = f" on the path from line {worst['line']}" if worst and len(path["paths"]) > 1 else ""
+    else:
+        what, where = f"path: {path['length_mm']:.1f} mm", ""
+    return (f"{what}, contour error max {path['contour_error_um']['max']:.2f} um{where} "
+            f"rms {path['contour_error_um']['rms']:.2f} um (by the encoders: max "
+            f"{path['encoder_contour_error_um']['max']:.2f} um), chord error max {path['chord_error_um']['max']:.3f} um, "
+            f"feed fluctuation max {path['feed_fluctuation']['max']:.2e}")
 
 
 def ballbar_line(ballbar: dict) -> str:
