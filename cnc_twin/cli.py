@@ -19,6 +19,7 @@ from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
+from cnc_twin.run.run_dir import new_run_dir
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, input_path
@@ -228,7 +229,7 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     if args.tool_table is not None:  # as the scenario key would say it (a G-code program's)
         overrides.update({"program.tool_table": _beside(args.tool_table, source), "program.tool_units": args.tool_units})
     scenario = load_scenario(source, overrides=overrides or None)
-    run_dir = args.out or _default_run_dir(args.runs_dir, scenario.name)
+    run_dir = args.out or new_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
@@ -495,15 +496,6 @@ def check_writable_parent(path: Path, option: str) -> None:
     except OSError as exc:
         raise ScenarioError(path, "", f"{option}: cannot write in {parent}: {exc.strerror or exc}") from None
 
-
-def _default_run_dir(parent: Path, name: str) -> Path:
-    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-    candidate = parent / f"{name}-{stamp}"
-    n = 2
-    while candidate.exists():
-        candidate = parent / f"{name}-{stamp}-{n}"
-        n += 1
-    return candidate
 
 
 class _NullStream:

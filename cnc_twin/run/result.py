@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import Scenario
-from cnc_twin.run.run_dir import RECORDING_FILE, write_run_dir
+from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
 
@@ -53,10 +53,12 @@ class RunResult:
         frame.attrs["scenario"] = self.scenario.name
         return frame
 
-    def write(self, run_dir: str | Path, *, recording: bool | Callable[[], Path | None] = True) -> Path:
+    def write(self, run_dir: str | Path | None = None, *, recording: bool | Callable[[], Path | None] = True,
+              runs_dir: str | Path = "runs") -> Path:
         """Write ``scenario.yaml`` (and the files it names that a re-run needs: a G-code program),
         ``trace.parquet``, ``metrics.json`` and, unless
-        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir``, exported now.
+        ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir`` (a new folder; by default
+        ``runs_dir/<name>-<UTC time>``, as the CLI names it), exported now. Returns the folder.
 
         ``recording`` may instead be a callable, called once the trace is written, that returns
         the path of a finished recording of this run to move in (one a
@@ -76,6 +78,8 @@ class RunResult:
                 os.replace(finished, folder / RECORDING_FILE)
             elif recording:
                 self.export_rerun(rrd=folder / RECORDING_FILE)
+        if run_dir is None:
+            run_dir = new_run_dir(runs_dir, self.scenario.name)
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
                                      extra=extra)
         return self.run_dir

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import time
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,19 @@ TRACE_FILE = "trace.parquet"
 METRICS_FILE = "metrics.json"
 SCENARIO_FILE = "scenario.yaml"
 RECORDING_FILE = "recording.rrd"
+
+
+def new_run_dir(parent: str | Path, name: str) -> Path:
+    """``parent/<name>-<UTC time>`` (``-2``, ``-3``, ... added if taken): a run directory's
+    default name, the CLI's and :meth:`~cnc_twin.run.result.RunResult.write`'s."""
+    parent = Path(parent)
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    candidate = parent / f"{name}-{stamp}"
+    n = 2
+    while candidate.exists():
+        candidate = parent / f"{name}-{stamp}-{n}"
+        n += 1
+    return candidate
 
 
 def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: dict[str, Any],
