@@ -224,3 +224,23 @@ def test_a_feed_above_what_the_axes_allow_is_said_once_before_the_run_and_kept(w
     x_mm = trace["command_X"] / 1000.0  # 1 um per count
     speed = np.abs(np.diff(x_mm)) / np.diff(trace["time"]) * 60.0  # [mm/min]
     assert 0.97 * 24000 <= speed.max() <= 24000 * 1.001
+
+
+def test_a_curve_feed_above_what_the_axes_allow_is_said_once_before_the_run(write_scenario, tmp_path):
+    """A straight NURBS along X at F60000: X (24000 mm/min) holds it. Said before the run with the
+    key and the speed, kept in metrics.json; the trace's X speed reaches 24000 mm/min and no more."""
+    from conftest import run_cli
+
+    path = write_scenario({"name": "fast_curve", "program": {
+        "type": "nurbs_curve", "degree": 1, "control_points": [[-150, 0, 20], [150, 0, 20]], "weights": [1, 1],
+        "knots": [0, 0, 1, 1], "feed": 60000, "chord_tolerance": 0.001, "tool_axis": {"A": 0, "B": 0},
+        "settle": 0.0}})
+    code, _, err = run_cli("run", path, "--out", tmp_path / "run", "--no-rrd", "--quiet")
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "program.feed" in notes[0] and "24000 mm/min" in notes[0], err
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["notices"] == [notes[0].split(f"{path}: ", 1)[1]]
+    trace = read_trace(tmp_path / "run" / "trace.parquet")
+    on_curve = trace["path_u"][1:] >= 0
+    speed = np.abs(np.diff(trace["command_X"] / 1000.0)) / np.diff(trace["time"]) * 60.0  # [mm/min]
+    assert 0.97 * 24000 <= speed[on_curve].max() <= 24000 * 1.001

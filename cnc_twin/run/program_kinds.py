@@ -108,6 +108,14 @@ class PointKind(ProgramKind):
         return said
 
 
+def _feed_note(key: str, feed: float, along: str, cap: float, axis: int, axes: tuple[AxisConfig, ...]) -> str:
+    """"program.feed: F mm/min is more than the axes allow along ...; it runs at ... at most (...)"."""
+    from cnc_twin.core.units import MM_PER_MIN
+
+    return (f"{key}: {feed / MM_PER_MIN:g} mm/min is more than the axes allow along {along}; it runs at "
+            f"{cap / MM_PER_MIN:.0f} mm/min at most ({_at_max_velocity(axes[axis])})")
+
+
 def _at_max_velocity(axis: AxisConfig) -> str:
     """"X at its max_velocity 24000 mm/min": the axis that holds a feed notice's speed."""
     return f"{axis.name} at its max_velocity {axis.max_velocity * axis.display_factor * 60:g} {axis.display_unit}/min"
@@ -149,6 +157,14 @@ class CurveKind(_PathKind):
     def describe(self, program: NurbsProgram) -> str:
         return f"NURBS curve, degree {program.degree}, {len(program.control_points)} control points"
 
+    def notices(self, scenario: Scenario) -> list[str]:
+        """A feed more than the axes allow anywhere along the curve."""
+        from cnc_twin.planner.gcode_program import curve_feed_cap
+
+        capped = curve_feed_cap(scenario.program, scenario.axes)
+        return [] if capped is None else [_feed_note("program.feed", scenario.program.limits.feed, "the curve",
+                                                     *capped, scenario.axes)]
+
 
 class ContourKind(_PathKind):
     """Lines and arcs, run pass by pass with each interpolation method: per-pass contour metrics."""
@@ -157,6 +173,17 @@ class ContourKind(_PathKind):
         from cnc_twin.run.contour_metrics import contour_metrics
 
         return {"contour": contour_metrics(trace, twin.scenario)}
+
+    def notices(self, scenario: Scenario) -> list[str]:
+        """A feed more than the axes allow along an element (every pass runs it at the cap)."""
+        from cnc_twin.planner.gcode_program import curve_feed_cap
+
+        for k, curve in enumerate(scenario.program.curves):
+            capped = curve_feed_cap(curve, scenario.axes)
+            if capped is not None:
+                return [_feed_note("program.feed", curve.limits.feed, f"the contour (from element {k})", *capped,
+                                   scenario.axes)]
+        return []
 
     def describe(self, program: ContourProgram) -> str:
         return (f"contour of {len(program.elements)} element(s), {len(program.methods)} pass(es): "
