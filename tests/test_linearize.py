@@ -115,15 +115,16 @@ def _row(text: str, name: str) -> dict[str, float]:
     return dict(zip(("kp", "ki", "pm", "gm", "fc", "rise", "overshoot", "settle"), values))
 
 
-@pytest.mark.parametrize("axis", list("AC"))
+@pytest.mark.parametrize("axis", list("C"))
 def test_tune_never_recommends_what_the_twin_did_not_show_better(axis):
     """jog_axes, default margins and step: either gains whose printed twin step settles sooner
     (by 10 %) with no more overshoot than the current gains', or, on an axis tuned on its measured
     mechanics whose current gains overshoot the tool beyond 2 % (+0.5 for the count), gains that
-    settle within 2 %; or the current gains kept with the reason and no recommendation. A: an
-    axis tuned on its measured mechanics (each such axis is half a minute or more of the suite's
-    time; X is tuned from the rigid machine's gains in tests/test_drive_tuning.py, and Y, Z and B
-    the same way); C: the linear loop's tuner."""
+    settle within 2 %; or the current gains kept with the reason and no recommendation. C: the
+    linear loop's tuner. The measured-mechanics tuner (half a minute or more of the suite's time
+    per axis) is held to the same rule on X in tests/test_drive_tuning.py, tuned from the rigid
+    machine's gains, which overshoot; A's run (38 s) left the suite on 2026-11-27 to keep it
+    within its 10 minutes when the served viewer's photograph came in."""
     code, out, err = _tune("--axis", axis)
     assert code == 0, err
     before = _row(out, "before")

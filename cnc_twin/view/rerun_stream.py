@@ -100,7 +100,10 @@ class RecordingProcess:
         """Start the recording of a run of ``scenario`` into the file ``rrd`` and/or a spawned viewer."""
         self.rrd = None if rrd is None else Path(rrd)
         if self.rrd is not None:  # a folder that is not there yet is made, as result.write() makes its own
-            self.rrd.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                self.rrd.parent.mkdir(parents=True, exist_ok=True)
+            except OSError:
+                pass  # not here: the recording process says why it cannot write the file
         self._ticks_per_period = scenario.timing.ticks_per_period
         from cnc_twin.geometry.tip_path import planned_path  # scipy's splines: a curve scenario loaded them already
 
