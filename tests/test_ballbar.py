@@ -80,11 +80,11 @@ def _program_maker():
 
 @pytest.mark.parametrize("plane, centre", [("xy", [0, 0, 20]), ("xz", [0, 0, 70])])
 def test_a_run_of_the_test_program_is_measured_from_the_tip_as_run(tmp_path, write_scenario, plane, centre):
-    """A short test (R 20 mm, F 2400, 30 deg overshoot): both passes found with their data arcs,
+    """A short test (R 20 mm, F 4800, 30 deg overshoot): both passes found with their data arcs,
     the figures equal the tip's distance from the pivot read back from trace.parquet, the
     polar plot is in the run directory and the recording."""
     maker = _program_maker()
-    (tmp_path / "test.ngc").write_text(maker.program(plane, radius=20.0, feed=2400.0, overshoot=30.0))
+    (tmp_path / "test.ngc").write_text(maker.program(plane, radius=20.0, feed=4800.0, overshoot=30.0))
     path = write_scenario({"name": f"ballbar_{plane}", "program": {"type": "gcode", "file": "test.ngc", "settle": 0.1},
                            "ballbar": {"plane": plane.upper(), "centre": centre, "radius": 20, "overshoot": 30}})
     code, _, err = run_cli("run", path, "--out", tmp_path / "run", "--quiet")
@@ -94,7 +94,7 @@ def test_a_run_of_the_test_program_is_measured_from_the_tip_as_run(tmp_path, wri
     assert figures["passes"] == 2 and "hysteresis_um" in figures
     for direction in ("ccw", "cw"):
         f = figures[direction]
-        assert f["data_arc_deg"] > 359.0 and f["feed_mm_min"] == pytest.approx(2400, rel=0.01)
+        assert f["data_arc_deg"] > 359.0 and f["feed_mm_min"] == pytest.approx(4800, rel=0.01)
         assert f["radial_deviation_um"]["max"] >= f["radial_deviation_um"]["min"]
     # from the file, as a reader would: the tip's distance from the pivot over the passes' data arcs
     table = pq.read_table(run / "trace.parquet").to_pandas()
