@@ -419,6 +419,17 @@ ONCE_DIFFERENT = [
     ("an inverse-time feed that overflows", "G0 X0\nG93 G1 X1" + "9" * 200 + " F1\nM2\n", None, None),
     ("a line of 252 characters", "G0 X1 (" + "a" * 244 + ")\nM2\n", "STRAIGHT_TRAVERSE",
      "1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000"),
+    # found in real CAM output (#40): the UVW planes are printed as unknown (they crashed the
+    # listing); program-number lines (Fanuc posts) are read and passed over; a file opened by %
+    # is closed by a line of % alone, whatever spaces are around it
+    ("G17.1", "G17.1\nG1 X1 F100\nM2\n", "SELECT_PLANE", "CANON_PLANE_XY"),
+    ("G18.1 G19.1", "G18.1\nG19.1\nG1 X1 F100\nG17\nM2\n", "STRAIGHT_FEED",
+     "1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000"),
+    ("program number", "O0001\nG1 X1 F100\nM2\n", "STRAIGHT_FEED", "1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000"),
+    ("program number and name", "O0001 (NAME) (MORE)\nG1 X3 F100\nO0002;x\nO<part>\nN10 O7\n/O8\nG1 X1\nM2\n",
+     "STRAIGHT_FEED", "1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000"),
+    ("% with spaces closes", "%\nG1 X1 F100\n  %  \nG1 X7\n", "STRAIGHT_FEED",
+     "1.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000"),
 ]
 
 
@@ -495,6 +506,10 @@ BAD = [
         "You must specify a number of control points at least equal to the order L = 3", 4),
     Bad("G5.3 alone", "G5.3\nM2\n", "Cannot use G5.3 without G5.2 first", 1),
     Bad("missing program end", "G21\nG0 X1\n", "File ended with no percent sign or program end", 2),
+    # a % with more on its line is no closing % (a Fusion MPCNC post's "% vfd enable" ran nothing)
+    Bad("% with text after an opening %", "%\n% vfd enable\nG1 X1 F100\n%\n", "Bad character '%' used", 2),
+    Bad("% with text after motion", "%\nG1 X1 F100\n%rest\nG1 X7\n%\n", "Bad character '%' used", 3),
+    Bad("a program number with words", "O0001 G1 X2 F100\nM2\n", "Unknown control command in o word", 1),
     Bad("unclosed if", "o100 if [1]\nG0 X1\n", "File ended with no percent sign or program end", 2),
     Bad("unclosed repeat", "o1 repeat [2]\nG0 X1\no1 endrepeat\n", "File ended with no percent sign or program end", 3),
     Bad("call to an unknown subroutine", "o<nothere> call\nM2\n",

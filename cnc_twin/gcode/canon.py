@@ -14,7 +14,9 @@ from dataclasses import dataclass
 from cnc_twin.gcode.arcs import arc_feed_text
 from cnc_twin.gcode.modal import G
 
-PLANES = {G.G17: "CANON_PLANE_XY", G.G18: "CANON_PLANE_XZ", G.G19: "CANON_PLANE_YZ"}
+PLANES = {G.G17: "CANON_PLANE_XY", G.G18: "CANON_PLANE_XZ", G.G19: "CANON_PLANE_YZ",
+          # the UVW machine's planes: rs274 prints them as unknown (this machine has no U V W)
+          G.G17_1: "CANON_PLANE_UNKNOWN", G.G18_1: "CANON_PLANE_UNKNOWN", G.G19_1: "CANON_PLANE_UNKNOWN"}
 """G17 / G18 / G19 (tenths) -> rs274's plane name"""
 UNITS = {G.G20: "CANON_UNITS_INCHES", G.G21: "CANON_UNITS_MM"}
 """G20 / G21 (tenths) -> rs274's unit name"""

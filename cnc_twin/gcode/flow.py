@@ -86,6 +86,8 @@ class Flow:
     def _keyword(self, o_line: OLine) -> tuple[str, str]:
         """The keyword and the argument text after it (LinuxCNC reads the longest keyword)."""
         text = o_line.keyword + o_line.rest
+        if not text:  # a program number (O0001, O0001 (NAME)): read and passed over
+            return "", ""
         keyword = max((k for k in KEYWORDS if text.startswith(k)), key=len, default=None)
         if keyword is None:
             raise BlockError("Unknown control command in o word")
@@ -130,6 +132,8 @@ class Flow:
             raise BlockError(f"more than {MAX_ITERATIONS} loop passes: the program does not end")
         o_line = self.source.o_lines[index]
         keyword, rest = self._keyword(o_line)
+        if not keyword:  # a Fanuc-style program number line: nothing to run
+            return index + 1
         name = o_line.name
         shown = self.source.lines[index].strip()
         if keyword in OPENERS:

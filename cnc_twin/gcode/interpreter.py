@@ -20,6 +20,7 @@ because the whole program is read before any motion.
 from __future__ import annotations
 
 import bisect
+import re
 
 from dataclasses import dataclass
 
@@ -107,6 +108,9 @@ class Interpreter:
                     continue
                 block = read_block(self.source.lines[index], index + 1, self.params)
                 if block.o_word is not None:
+                    if re.fullmatch(r"(<[^>]*>|\d+)", block.o_word):  # "/O0001": a program number, passed over
+                        index += 1
+                        continue
                     raise BlockError("Unknown control command in o word")
                 apply_assignments(block, self.params)
                 if self._execute(block):

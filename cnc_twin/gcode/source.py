@@ -1,7 +1,7 @@
 """A program's text as LinuxCNC's interpreter walks it: its lines, where it ends, and its O-word
 lines, so control flow can jump without reading the program twice.
 
-- A program whose first non-blank line is ``%`` ends at the next ``%`` line (the interpreter's
+- A program whose first non-blank line is ``%`` ends at the next line of ``%`` alone (the interpreter's
   ``FINISH``); lines after it are never read. Without a leading ``%``, the program must end with
   M2 / M30 before the file does (``File ended with no percent sign or program end``).
 - An O-word line is ``o<name> keyword [argument...]`` or ``o123 keyword ...``: the name is lower
@@ -73,8 +73,9 @@ class Source:
             if line.strip():
                 if line.strip() == "%":
                     self.first, self.percent_start = k + 1, True
-                    closing = next((j for j in range(k + 1, len(self.lines)) if self.lines[j].strip().startswith("%")),
-                                   None)
+                    # closed by a line of "%" alone; a "%" with more on its line is read as a block
+                    # (and refused there, "Bad character '%' used", as LinuxCNC does)
+                    closing = next((j for j in range(k + 1, len(self.lines)) if self.lines[j].strip() == "%"), None)
                     if closing is not None:
                         self.end, self.percent_end = closing, True
                 break
