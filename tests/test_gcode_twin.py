@@ -324,3 +324,27 @@ def test_an_f_above_what_the_axes_allow_along_a_path_is_said_once_before_the_run
     notes, kept, _, top_x = run("G21 G90\nG0 X0 Y0 Z5\nG1 X300 A5 F40000\nM2\n", "turning")
     assert len(notes) == 1 and "line 3" in notes[0] and "24000 mm/min" in notes[0], notes
     assert 0.97 * 24000 <= top_x <= 24000 * 1.001  # X at its limit (Y turns a little with the head)
+
+
+def test_cam_output_that_selects_a_tool_and_a_router_speed_runs_on_the_bundled_machine(tmp_path):
+    """T5 M6 / G43 H5 read from the machine's own tool table (models/polisher.tbl: T1-T99, length 0,
+    the pad's face is the tool point); M3 S15000 on the 2700 rpm spindle is said once at load with
+    its line and turns at 2700 rpm, as LinuxCNC's motion holds it, instead of a C following-error
+    fault: the trace's C speed reaches 2700 rpm and no more."""
+    import json
+
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.trace.parquet import read_trace
+
+    program = tmp_path / "router.ngc"
+    program.write_text("G21 G90\nT5 M6\nG43 H5\nM3 S15000\nG0 X10 Y10 Z20\nG4 P1\nG1 X20 F600\nM5\nM2\n")
+    code, _, err = run_cli("run", program, "--out", tmp_path / "run", "--no-rrd", "--quiet")
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "line 4" in notes[0] and "S15000" in notes[0] and "2700 rpm" in notes[0], err
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert metrics["status"] == "complete" and metrics["final_state"] == "FINISHED"
+    trace = read_trace(tmp_path / "run" / "trace.parquet")
+    per_rad = load_scenario(program).axis("C").counts_per_unit
+    rpm = np.abs(np.diff(trace["command_C"])) / per_rad / np.diff(trace["time"]) * 60.0 / (2.0 * np.pi)
+    assert 0.99 * 2700 <= rpm.max() <= 2700 * 1.001

@@ -72,6 +72,8 @@ class GcodeSpindle:
     speed: float
     """[rad/s], signed (M4 negative); 0 = stopped"""
     line: int
+    asked: float | None = None
+    """[rad/s] the program's S when more than the spindle turns (``speed`` is then its limit), else None"""
 
 
 @dataclass(frozen=True)

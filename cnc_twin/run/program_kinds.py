@@ -108,6 +108,29 @@ class PointKind(ProgramKind):
         return said
 
 
+def spindle_notes(scenario: Scenario) -> list[str]:
+    """An NC program's S more than the spindle turns, once per S value: its first line, how many
+    more, and the speed it turns at."""
+    from cnc_twin.core.gcode_config import GcodeSpindle
+    from cnc_twin.core.units import RPM
+
+    by_speed: dict[float, list[int]] = {}
+    for step in scenario.program.steps:
+        if isinstance(step, GcodeSpindle) and step.asked is not None:
+            lines = by_speed.setdefault(abs(step.asked), [])
+            if step.line not in lines:  # an S and its M3 / M4 on one line change the spindle twice
+                lines.append(step.line)
+    c = scenario.axes[5]
+    said = []
+    for asked, lines in by_speed.items():
+        more = len(lines) - 1
+        where = f"line {lines[0]}" + (f" (and {more} more line{'s' if more > 1 else ''} with this S)" if more else "")
+        said.append(f"{where}: S{abs(asked) / RPM:g} rpm is more than the spindle turns; it turns at "
+                    f"{c.max_velocity / RPM:.0f} rpm ({_at_max_velocity(c)}), as LinuxCNC's motion holds a spindle "
+                    "to its [SPINDLE_0]MAX_FORWARD_VELOCITY")
+    return said
+
+
 def _feed_note(key: str, feed: float, along: str, cap: float, axis: int, axes: tuple[AxisConfig, ...]) -> str:
     """"program.feed: F mm/min is more than the axes allow along ...; it runs at ... at most (...)"."""
     from cnc_twin.core.units import MM_PER_MIN
@@ -327,7 +350,7 @@ class GcodeKind(ProgramKind):
             v_s, _, xyz, slowest = axis_scales(start, move.end, scenario.axes)
             if xyz > 0.0 and move.feed > v_s * xyz * (1.0 + 1e-9):
                 by_feed.setdefault((move.feed, "move"), []).append((move.line, v_s * xyz, slowest))
-        said = []
+        said = spindle_notes(scenario)
         for (feed, what), steps in sorted(by_feed.items(), key=lambda item: item[1][0][0]):
             _, cap, axis = max(steps, key=lambda p: p[1])
             more = len(steps) - 1

@@ -127,14 +127,19 @@ def _find(name: str, folder: Path | None, label: Path, key: str) -> Path:
     return path
 
 
-def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: Path, folder: Path | None) -> GcodeProgram:
-    """Read the program and turn its operations into machine steps (SI, axis space)."""
+def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: Path, folder: Path | None,
+            machine_tools: Path | None = None) -> GcodeProgram:
+    """Read the program and turn its operations into machine steps (SI, axis space), with the
+    scenario's tool table, else the machine's (``machine_tools``, in mm)."""
     from cnc_twin.gcode import toolpath as tp
     from cnc_twin.geometry.kinematics import HeadGeometry
 
     path = _find(spec.file, folder, label, "program.file")
     table = _find(spec.tool_table, folder, label, "program.tool_table") if spec.tool_table else None
-    calls, source = read_calls(path, table, spec.tool_units, label)
+    if table is None and machine_tools is not None:
+        calls, source = read_calls(path, machine_tools, "mm", label)
+    else:
+        calls, source = read_calls(path, table, spec.tool_units, label)
     where = _Where(path)
     try:
         ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance)
@@ -161,7 +166,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
-            steps.append(GcodeSpindle(op.rpm * 2.0 * math.pi / 60.0, op.line))
+            asked = op.rpm * units.RPM
+            # as LinuxCNC's motion holds a spindle command to [SPINDLE_0]MAX_FORWARD_VELOCITY:
+            # the spindle (C) turns at its limit, and the run says so at load
+            top = axes[5].max_velocity
+            steps.append(GcodeSpindle(max(-top, min(top, asked)), op.line, asked if abs(asked) > top else None))
         elif op.setpoint is not None:
             if force_on is not None:
                 raise where(op.line, f"M100 while the grinding-force loop is on (M100 at line {force_on.line}): "

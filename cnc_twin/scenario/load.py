@@ -200,7 +200,8 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     axes = convert_axes(spec.axes, info, label, folder)
     if spec.command_output == "pulse":
         check_pulse_rates(axes, label)
-    program = convert_program(spec.program, axes, model, model_path, info, label, folder)
+    machine_tools = None if params.tool_table is None else params_path.parent / params.tool_table
+    program = convert_program(spec.program, axes, model, model_path, info, label, folder, machine_tools)
     if source_text is None:
         source_text = yaml.safe_dump(raw, sort_keys=False)
     return Scenario(
@@ -232,9 +233,11 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     )
 
 
-def convert_program(spec, axes, model, model_path: Path, info, label: Path, folder: Path | None = None):
+def convert_program(spec, axes, model, model_path: Path, info, label: Path, folder: Path | None = None,
+                    machine_tools: Path | None = None):
     """The program in SI, by its kind: the one place a program kind's schema meets the loader
-    (``folder``: the scenario's, where files it names are looked for)."""
+    (``folder``: the scenario's, where files it names are looked for; ``machine_tools``: the
+    machine's tool table, for an NC program that names none)."""
     if isinstance(spec, PointToPointProgram):
         return points.convert(spec, axes, info, label)
     if isinstance(spec, NurbsCurveProgram):
@@ -249,7 +252,7 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path, fold
 
         return chip.convert(spec, axes, has_home_switch, label)
     if isinstance(spec, GcodeProgramSpec):
-        return gcode.convert(spec, axes, model, label, folder)
+        return gcode.convert(spec, axes, model, label, folder, machine_tools)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
 
 

@@ -163,6 +163,8 @@ class MachineParameters(Strict):
 
     axes: AxesSpec
     force_sensor: ForceSensorSpec
+    tool_table: str | None = Field(None, description="the machine's LinuxCNC tool table (mm), next to this file: "
+                                                     "NC programs use it unless their scenario names one")
 
 
 class TimingSpec(Strict):
