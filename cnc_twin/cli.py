@@ -497,7 +497,6 @@ def check_writable_parent(path: Path, option: str) -> None:
         raise ScenarioError(path, "", f"{option}: cannot write in {parent}: {exc.strerror or exc}") from None
 
 
-
 class _NullStream:
     def write(self, _text: str) -> None:
         pass

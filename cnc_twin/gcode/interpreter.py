@@ -33,7 +33,7 @@ from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.modal import G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
-from cnc_twin.gcode.source import Source
+from cnc_twin.gcode.source import O_NAME, Source
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
 
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
@@ -108,7 +108,7 @@ class Interpreter:
                     continue
                 block = read_block(self.source.lines[index], index + 1, self.params)
                 if block.o_word is not None:
-                    if re.fullmatch(r"(<[^>]*>|\d+)", block.o_word):  # "/O0001": a program number, passed over
+                    if re.fullmatch(O_NAME, block.o_word):  # "/O0001": a program number, passed over
                         index += 1
                         continue
                     raise BlockError("Unknown control command in o word")

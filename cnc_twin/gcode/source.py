@@ -22,7 +22,9 @@ from cnc_twin.gcode.blocks import BlockError, normalise
 KEYWORDS = ("sub", "endsub", "call", "return", "if", "elseif", "else", "endif", "while", "endwhile", "do",
             "repeat", "endrepeat", "break", "continue")
 """O-word keywords, LinuxCNC's set"""
-_O_LINE = re.compile(r"^(?:n[\d.]*)?o(<[^>]*>|\d+)([a-z]*)(.*)$")
+O_NAME = r"<[^>]*>|\d+"
+"""an O-word's name as normalised: ``<name>`` or a number"""
+_O_LINE = re.compile(rf"^(?:n[\d.]*)?o({O_NAME})([a-z]*)(.*)$")
 _BLOCK_DELETE = re.compile(r"^\s*/")
 
 

@@ -41,11 +41,12 @@ import hashlib
 import math
 import pickle
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_twin.core.config import PathLimits
+from cnc_twin.core.config import AxisConfig, PathLimits
 from cnc_twin.motion.scurve import SCurve, ramp_distance, reachable
 from cnc_twin.geometry.nurbs import NurbsCurve
 
@@ -161,6 +162,30 @@ def axis_velocity_caps(q1: np.ndarray, v_lim) -> np.ndarray:
     axes' derivatives with respect to arc length (N, k) (the unit tangent for X/Y/Z), ``v_lim``
     their velocity limits (k,)."""
     return np.asarray(v_lim, dtype=np.float64)[None, :] / np.maximum(np.abs(q1), 1e-300)
+
+
+FEED_CAP_SAMPLES = 257
+"""points per curve at which :func:`curve_feed_cap` reads the tangent"""
+
+
+def curve_feed_cap(c, axes: Sequence[AxisConfig]) -> tuple[float, int] | None:
+    """``(cap [m/s], axis)`` when the curve program ``c``'s feed is more than X/Y/Z's velocity limits
+    allow anywhere along it (the planner's axis-velocity term, :func:`axis_velocity_caps`, at
+    :data:`FEED_CAP_SAMPLES` points): ``cap`` the fastest it may go at its best point and ``axis``
+    (0..2) the one that holds it there; else None. A curve with a varying tool axis is left out (its axes are not the tip's); a feed at or
+    below every linear axis's limit is never capped, so most programs cost nothing here."""
+    limits = np.array([a.max_velocity for a in axes[:3]])
+    if c.axis_curve is not None or c.limits.feed <= limits.min():
+        return None
+    curve = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
+    d1 = curve.derivatives(np.linspace(*curve.domain, FEED_CAP_SAMPLES), 1)[1]
+    tangent = d1 / np.maximum(np.linalg.norm(d1, axis=1), 1e-300)[:, None]
+    per_axis = axis_velocity_caps(tangent, limits)  # (samples, 3) [m/s]
+    caps = per_axis.min(axis=1)
+    best = int(np.argmax(caps))
+    if c.limits.feed > caps[best] * (1.0 + 1e-9):
+        return float(caps[best]), int(np.argmin(per_axis[best]))
+    return None
 
 
 def _arc_length_derivatives(d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
-
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
 from cnc_twin.geometry.kinematics import tool_axis
@@ -59,43 +57,17 @@ def _end_pose(curve, axis_path, hold: tuple[float, ...]) -> tuple[float, ...]:
     return (*(float(x) for x in axis_path([u1])[0]), hold[2])
 
 
-FEED_CAP_SAMPLES = 257
-"""points per feed path at which :func:`feed_caps` reads the tangent"""
-
-
 def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[int, float, float, int]]:
     """The feed paths whose programmed feed is more than X/Y/Z's velocity limits allow anywhere
-    along them (:func:`curve_feed_cap`): ``(line, feed [m/s], cap [m/s], axis)`` each."""
+    along them (:func:`~cnc_twin.planner.feed.curve_feed_cap`): ``(line, feed [m/s], cap [m/s], axis)`` each."""
+    from cnc_twin.planner.feed import curve_feed_cap
+
     out = []
     for path in prog.paths:
         capped = curve_feed_cap(path.curve, axes)
         if capped is not None:
             out.append((path.line, path.curve.limits.feed, *capped))
     return out
-
-
-def curve_feed_cap(c, axes: tuple[AxisConfig, ...]) -> tuple[float, int] | None:
-    """``(cap [m/s], axis)`` when the curve program ``c``'s feed is more than X/Y/Z's velocity limits
-    allow anywhere along it (the planner's axis-velocity term,
-    :func:`~cnc_twin.planner.feed.axis_velocity_caps`, at :data:`FEED_CAP_SAMPLES` points): ``cap``
-    the fastest it may go at its best point and ``axis`` (0..2) the one that holds it there; else
-    None. A curve with a varying tool axis is left out (its axes are not the tip's); a feed at or
-    below every linear axis's limit is never capped, so most programs cost nothing here."""
-    from cnc_twin.geometry.nurbs import NurbsCurve
-    from cnc_twin.planner.feed import axis_velocity_caps
-
-    limits = np.array([a.max_velocity for a in axes[:3]])
-    if c.axis_curve is not None or c.limits.feed <= limits.min():
-        return None
-    curve = NurbsCurve(c.control_points, c.weights, c.knots, c.degree)
-    d1 = curve.derivatives(np.linspace(*curve.domain, FEED_CAP_SAMPLES), 1)[1]
-    tangent = d1 / np.maximum(np.linalg.norm(d1, axis=1), 1e-300)[:, None]
-    per_axis = axis_velocity_caps(tangent, limits)  # (samples, 3) [m/s]
-    caps = per_axis.min(axis=1)
-    best = int(np.argmax(caps))
-    if c.limits.feed > caps[best] * (1.0 + 1e-9):
-        return float(caps[best]), int(np.argmin(per_axis[best]))
-    return None
 
 
 def move_starts(prog: GcodeProgram, home: tuple[float, ...]) -> list[tuple[GcodeMove, tuple[float, ...]]]:

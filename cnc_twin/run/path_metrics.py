@@ -120,7 +120,7 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     violations = []
     for i, name in enumerate(names):
         # in the parameter file's units (mm/min, mm/s^2, mm/s^3; deg for A, B), limits beside them
-        per_unit, units = peak_units(name in "ABC")
+        per_unit, unit_names = peak_units(name in "ABC")
         peaks = {}
         for quantity, series, limit, lag in (("velocity", v, limits[i][0], 1), ("acceleration", acc, limits[i][1], 1),
                                              ("jerk", jerk, limits[i][2], 2)):
@@ -131,17 +131,17 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
             peaks.update({quantity: shown, f"{quantity}_limit": shown_limit, f"{quantity}_ratio": ratio})
             if ratio > LIMIT_TOLERANCE:
                 violations.append({"axis": name, "quantity": quantity, "peak": shown, "limit": shown_limit,
-                                   "unit": units[quantity], "ratio": ratio, "time_s": (first + k + lag) * T})
-        peaks["units"] = units
+                                   "unit": unit_names[quantity], "ratio": ratio, "time_s": (first + k + lag) * T})
+        peaks["units"] = unit_names
         out["axis_peaks"][name] = peaks
     out["limit_violations"] = violations
     if depth is not None:
         dv = np.diff(depth[seg[0] - 1:seg[-1] + 2]) / T
         da = np.diff(dv) / T
-        per_unit, names = peak_units(False)  # in the axes' units: mm/min, mm/s^2, mm/s^3
+        per_unit, unit_names = peak_units(False)  # in the axes' units: mm/min, mm/s^2, mm/s^3
         out["force_offset"] = {"velocity": float(np.abs(dv).max()) / per_unit["velocity"],
                                "acceleration": float(np.abs(da).max()) / per_unit["acceleration"],
-                               "jerk": float(np.abs(np.diff(da) / T).max()) / per_unit["jerk"], "units": names,
+                               "jerk": float(np.abs(np.diff(da) / T).max()) / per_unit["jerk"], "units": unit_names,
                                "depth_range_mm": [float(depth[seg].min() * 1e3), float(depth[seg].max() * 1e3)]}
     poly = curve.point(np.linspace(*curve.domain, 20001))
     for key, tips in (("contour_error_um", true_tip), ("encoder_contour_error_um", actual)):

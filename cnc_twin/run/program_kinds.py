@@ -182,7 +182,7 @@ class CurveKind(_PathKind):
 
     def notices(self, scenario: Scenario) -> list[str]:
         """A feed more than the axes allow anywhere along the curve."""
-        from cnc_twin.planner.gcode_program import curve_feed_cap
+        from cnc_twin.planner.feed import curve_feed_cap
 
         capped = curve_feed_cap(scenario.program, scenario.axes)
         return [] if capped is None else [_feed_note("program.feed", scenario.program.limits.feed, "the curve",
@@ -199,7 +199,7 @@ class ContourKind(_PathKind):
 
     def notices(self, scenario: Scenario) -> list[str]:
         """A feed more than the axes allow along an element (every pass runs it at the cap)."""
-        from cnc_twin.planner.gcode_program import curve_feed_cap
+        from cnc_twin.planner.feed import curve_feed_cap
 
         for k, curve in enumerate(scenario.program.curves):
             capped = curve_feed_cap(curve, scenario.axes)
@@ -334,9 +334,7 @@ class GcodeKind(ProgramKind):
         """A programmed F more than the axes allow along a feed path, once per F value: how many
         paths, the first line, and the fastest they run at (the axis that holds them)."""
         from cnc_twin.core.units import MM_PER_MIN
-        from cnc_twin.planner.gcode_program import feed_caps
-
-        from cnc_twin.planner.gcode_program import move_starts
+        from cnc_twin.planner.gcode_program import feed_caps, move_starts
         from cnc_twin.planner.ptp import axis_scales
 
         by_feed: dict[tuple[float, str], list[tuple[int, float, int]]] = {}

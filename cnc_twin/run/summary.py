@@ -84,7 +84,7 @@ def ballbar_line(ballbar: dict) -> str:
         return f"{head}: no pass went around the centre"
     parts = [f"{d.upper()} G {f['circular_deviation_um']:.1f} um (F {f['radial_deviation_um']['min']:+.1f} .. "
              f"{f['radial_deviation_um']['max']:+.1f}), radius error {f['radius_error_um']:+.1f} um, "
-             f"largest reversal spike {max((v for v in f['reversal_spikes_um'].values()), key=abs):+.1f} um"
+             f"largest reversal spike {max(f['reversal_spikes_um'].values(), key=abs):+.1f} um"
              for d, f in runs]
     hysteresis = f"; hysteresis H {ballbar['hysteresis_um']:.1f} um" if "hysteresis_um" in ballbar else ""
     return f"{head}: " + "; ".join(parts) + hysteresis + " (polar plot: ballbar.png)"

@@ -15,7 +15,6 @@ goes around it (:mod:`cnc_twin.run.ballbar`).
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -37,7 +36,7 @@ class BallbarSpec(Strict):
                              description="[deg] lead-in and lead-out arc at each end of a pass, not measured")
 
 
-def convert_ballbar(spec: BallbarSpec | None, model, label: Path) -> BallbarTest | None:
+def convert_ballbar(spec: BallbarSpec | None, model) -> BallbarTest | None:
     """The test in SI, its centre in the world frame (the workpiece origin added)."""
     if spec is None:
         return None

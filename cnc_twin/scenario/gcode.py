@@ -30,7 +30,6 @@ face of the scene's block as a flat plate, with the removal map on it.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Literal
 
@@ -135,11 +134,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     from cnc_twin.geometry.kinematics import HeadGeometry
 
     path = _find(spec.file, folder, label, "program.file")
-    table = _find(spec.tool_table, folder, label, "program.tool_table") if spec.tool_table else None
-    if table is None and machine_tools is not None:
-        calls, source = read_calls(path, machine_tools, "mm", label)
+    if spec.tool_table:
+        table, tool_units = _find(spec.tool_table, folder, label, "program.tool_table"), spec.tool_units
     else:
-        calls, source = read_calls(path, table, spec.tool_units, label)
+        table, tool_units = machine_tools, "mm"
+    calls, source = read_calls(path, table, tool_units, label)
     where = _Where(path)
     try:
         ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance)
@@ -186,7 +185,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
         workpiece = GcodeWorkpieceSpec()
-    kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if table is not None else None
+    # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
+    kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table)
 

@@ -229,7 +229,7 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         max_time=spec.max_time,
         command_output=spec.command_output,
         machine={"model": machine_ref.model, "parameters": machine_ref.parameters},
-        ballbar=convert_ballbar(spec.ballbar, model, label),
+        ballbar=convert_ballbar(spec.ballbar, model),
     )
 
 

@@ -26,6 +26,7 @@ decides (it stops at the next period and finishes the recording).
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import pickle
@@ -100,10 +101,8 @@ class RecordingProcess:
         """Start the recording of a run of ``scenario`` into the file ``rrd`` and/or a spawned viewer."""
         self.rrd = None if rrd is None else Path(rrd)
         if self.rrd is not None:  # a folder that is not there yet is made, as result.write() makes its own
-            try:
+            with contextlib.suppress(OSError):  # not here: the recording process says why it cannot write
                 self.rrd.parent.mkdir(parents=True, exist_ok=True)
-            except OSError:
-                pass  # not here: the recording process says why it cannot write the file
         self._ticks_per_period = scenario.timing.ticks_per_period
         from cnc_twin.geometry.tip_path import planned_path  # scipy's splines: a curve scenario loaded them already
 

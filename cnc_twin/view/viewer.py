@@ -91,9 +91,10 @@ def serve_web(recording: Path, port: int) -> int:
 def _feed(recording: Path, pipe) -> None:
     """Write ``recording`` into the server's standard input and leave the pipe open (its end tells
     the server the source has ended: see :func:`serve_web`); a server gone early ends it quietly."""
+    import shutil
+
     with contextlib.suppress(OSError), recording.open("rb") as source:
-        while chunk := source.read(1 << 20):
-            pipe.write(chunk)
+        shutil.copyfileobj(source, pipe, 1 << 20)
         pipe.flush()
 
 
