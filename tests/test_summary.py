@@ -29,3 +29,19 @@ def test_the_summary_names_the_machine_the_run_ran_on(write_scenario):
     metrics = run_scenario(load_scenario(write_scenario(single_move("X", 1.0, settle=0.1)))).metrics
     lines = [line for line in summary_table(metrics).splitlines() if line.startswith("machine: ")]
     assert lines == ["machine: scene.xml with polisher.yaml"]
+
+
+def test_a_program_path_line_names_the_line_of_the_path_with_the_largest_contour_error():
+    """Whether the program has one feed path or several (a CAM program's only one is often its
+    plunge, whose error the reader must be able to place)."""
+    from cnc_twin.run.summary import path_line
+
+    def path(*paths):
+        worst = max(p["contour_error_um"] for p in paths)
+        return {"feed_paths": len(paths), "length_mm": 10.0, "paths": [dict(p) for p in paths],
+                "contour_error_um": {"max": worst, "rms": 1.0}, "encoder_contour_error_um": {"max": worst},
+                "chord_error_um": {"max": 0.0}, "feed_fluctuation": {"max": 0.0}}
+
+    assert "line 8" in path_line(path({"line": 8, "contour_error_um": 221.9}), {})
+    several = path_line(path({"line": 8, "contour_error_um": 3.0}, {"line": 40, "contour_error_um": 9.0}), {})
+    assert "line 40" in several and "line 8" not in several

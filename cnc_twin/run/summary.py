@@ -67,7 +67,8 @@ def path_line(path: dict, feed: dict) -> str:
         if moves > 0.05:
             what += f" (and {moves:.1f} mm of G1 moves run one by one, outside these figures)"
         worst = max(path.get("paths") or [], key=lambda p: p.get("contour_error_um") or 0.0, default=None)
-        where = f" on the path from line {worst['line']}" if worst and len(path["paths"]) > 1 else ""
+        # named even when it is the only one: a CAM program's only feed path is often its plunge
+        where = f" on the path from line {worst['line']}" if worst else ""
     else:
         what, where = f"path: {path['length_mm']:.1f} mm", ""
     return (f"{what}, contour error max {path['contour_error_um']['max']:.2f} um{where} "
