@@ -31,18 +31,23 @@ def require() -> None:
         pytest.skip(ABSENT)
 
 
-def run(program: str, folder: Path) -> tuple[list[tuple[str, str]], list[str]]:
+def run(program: str, folder: Path, parameters: dict[int, float] | None = None) -> tuple[list[tuple[str, str]], list[str]]:
     """``program`` (text) through ``rs274 -g``: its calls as ``(name, arguments)`` and the other
-    lines it printed (its error messages), in order."""
+    lines it printed (its error messages), in order. ``parameters``: a parameter file's (``-v``)
+    numbered parameters, in rs274's machine units (inches)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "tool.tbl").write_text(TOOL_TABLE)
     (folder / "program.ngc").write_text(program)
+    options = []
+    if parameters:
+        (folder / "program.var").write_text("".join(f"{k}\t{v:.6f}\n" for k, v in sorted(parameters.items())))
+        options = ["-v", "program.var"]
     env = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT / 'usr' / 'lib'}:{ROOT / 'usr' / 'lib' / 'x86_64-linux-gnu'}")
     # One rs274 at a time on the machine: instances running at once share state and some die
     # with a bus error (seen with the suite's parallel workers), their messages lost.
     with open(Path(tempfile.gettempdir()) / "cnc_twin_rs274.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        out = subprocess.run([str(RS274), "-t", "tool.tbl", "-g", "program.ngc"], cwd=folder, env=env,
+        out = subprocess.run([str(RS274), "-t", "tool.tbl", *options, "-g", "program.ngc"], cwd=folder, env=env,
                              stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
     if out.returncode < 0 or out.returncode > 128:
         raise RuntimeError(f"rs274 died (exit {out.returncode}): {out.stderr.strip()[-200:]}")

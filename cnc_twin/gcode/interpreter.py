@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import bisect
 import re
+from collections.abc import Mapping, Sequence
 
 from dataclasses import dataclass
 
@@ -66,10 +67,13 @@ class Reading:
 class Interpreter:
     """Runs one program; see :func:`read_program`."""
 
-    def __init__(self, source: Source, tools: ToolTable):
+    def __init__(self, source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
+                 parameters: Mapping[int, float] | None = None):
         self.source = source
         self.params = Parameters()
+        self.params.numbered.update(parameters or {})
         self.state = State(self.params, tools)
+        self.state.begin(start)
         self.flow = Flow(source, self.params)
         self.calls: list[Call] = []
         self.printed: list[str] = []
@@ -444,6 +448,12 @@ class Interpreter:
             self.emit("COMMENT", "interpreter: percent sign missing from end of file")
 
 
-def read_program(source: Source, tools: ToolTable) -> Reading:
-    """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused."""
-    return Interpreter(source, tools).run()
+def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
+                 parameters: Mapping[int, float] | None = None) -> Reading:
+    """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused.
+
+    ``parameters``: numbered parameters as LinuxCNC's parameter file (``.var``) holds them at the
+    start, in machine units (the work offsets #5221.., the active system #5220, G92's #5210..);
+    ``start``: where the machine stands, x y z a b c in machine coordinates and units (LinuxCNC's
+    interpreter starts from the machine's position; rs274 alone, and None here, from 0)."""
+    return Interpreter(source, tools, start=start, parameters=parameters).run()

@@ -14,6 +14,7 @@ offset keeps its number across G20 / G21, as LinuxCNC's does.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from cnc_twin.gcode.comments import DEBUG_SWITCH
@@ -139,6 +140,19 @@ class State:
         for vector in (self.position, self.g5x, self.g92, self.tool_shift):
             for axis in range(LINEAR):
                 vector[axis] *= k
+
+    # -- the start ---------------------------------------------------------------------------
+    def begin(self, start: Sequence[float] | None) -> None:
+        """The state a program starts in, as LinuxCNC's interpreter takes it from its parameter
+        file and its machine when it opens a program: the active system (#5220) with its offsets,
+        the saved G92 offsets when #5210 is set, and the current point where the machine stands:
+        ``start`` (x y z a b c in machine coordinates and machine units; everywhere 0 when None,
+        where rs274 alone starts) less those offsets, in program units."""
+        self.system = round(self.params.number(ACTIVE_SYSTEM))
+        self.g5x = self.system_offsets(self.system)
+        self.g92 = self.stored_g92() if self.params.number(G92_ENABLED) else [0.0] * 6
+        machine = [self.user_to_program(axis, value) for axis, value in enumerate(start or [0.0] * 6)]
+        self.position = [machine[axis] - self.g5x[axis] - self.g92[axis] for axis in range(6)]
 
     # -- work offsets ------------------------------------------------------------------------
     def system_offsets(self, system: int) -> list[float]:
