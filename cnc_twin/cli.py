@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--tool-table", type=Path, default=None,
                      help="an NC program's LinuxCNC tool table, for G43 H (a scenario's program.tool_table)")
     run.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
+    run.add_argument("--in-air", type=float, default=None, metavar="MM",
+                     help="prove an NC program in the air: run it this far above where it is written, the pad never "
+                          "reaching the work (a scenario's program.in_air)")
     run.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
                      help="run on this bundled machine instead of the one the scenario names (its model and "
                           "parameter file; the scenario's own axes: keys still apply)")
@@ -228,6 +231,8 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else {}
     if args.tool_table is not None:  # as the scenario key would say it (a G-code program's)
         overrides.update({"program.tool_table": _beside(args.tool_table, source), "program.tool_units": args.tool_units})
+    if args.in_air is not None:
+        overrides["program.in_air"] = args.in_air
     scenario = load_scenario(source, overrides=overrides or None)
     run_dir = args.out or new_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():

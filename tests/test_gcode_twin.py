@@ -245,7 +245,6 @@ def test_run_takes_a_tool_table_and_keeps_it_so_the_run_directory_runs_again(tmp
 
 
 @pytest.mark.parametrize("program, line, words", [
-    ("G21\nG2 X1 Y1 R1 F100\nM2\n", 2, "first motion"),
     ("G21\nG0 X0 Y0 Z5\nG1 X900 F100\nM2\n", 3, "soft limits"),
     ("G21\nG0 X0 Y0 Z5\nM100 P20\nM2\n", 3, "no feed move follows"),
     ("G21\nG0 X0 Y0 Z5\nM100 P20\nG1 X5 F100\nG0 Z9\nM2\n", 5, "M101 first"),

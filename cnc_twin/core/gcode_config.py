@@ -116,6 +116,8 @@ class GcodeProgram:
     tool_table: tuple[str, str] | None = None
     """``(name as the scenario gives it, text)`` of its LinuxCNC tool table (the run directory
     keeps it beside the program); None without one"""
+    air: float = 0.0
+    """[m] how far above where it is written the program runs (``program.in_air``: a dry run)"""
 
     @property
     def paths(self) -> tuple[GcodePath, ...]:

@@ -136,6 +136,9 @@ class _Canon:
     control: tuple = ("CANON_CONTINUOUS", 0.0)
     spindle_speed: float = 0.0
     spindle_direction: int = 0
+    air: float = 0.0
+    """[mm] every point raised this far along Z (a run in the air), outside the program's sight as
+    LinuxCNC's external offsets are"""
 
     def to_mm(self, values) -> np.ndarray:
         """Program values x y z a b c -> mm / deg, unoffset."""
@@ -149,21 +152,25 @@ class _Canon:
 
     @property
     def offset(self) -> np.ndarray:
-        """G92 + G5x + tool length offset, x y z a b c [mm / deg]."""
-        return self.g92 + self.g5x + self.tool
+        """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg]."""
+        return self.g92 + self.g5x + self.tool + np.array([0.0, 0.0, self.air, 0.0, 0.0, 0.0])
 
 
 def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
-               axis_tolerance: float = DEFAULT_AXIS_TOLERANCE) -> list[Operation]:
+               axis_tolerance: float = DEFAULT_AXIS_TOLERANCE, start=None, air: float = 0.0) -> list[Operation]:
     """The operations of a program read whole (:func:`~cnc_twin.gcode.interpreter.read_program`);
-    ``axis_tolerance`` [deg]: how far a fitted tool axis may turn from the programmed one.
+    ``axis_tolerance`` [deg]: how far a fitted tool axis may turn from the programmed one;
+    ``start``: where the machine stands when the program starts (x y z a b c, machine point in mm /
+    deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
+    ``air`` [mm]: every point raised this far along Z (the program proved in the air).
 
     Raises :class:`ToolpathError` for what reads but cannot run: an arc or a curve as the first
-    motion (the tool's place is not known to the program before its first G0 / G1).
+    motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
     """
-    canon = _Canon()
+    canon = _Canon(air=air)
     ops: list[Operation] = []
-    here: np.ndarray | None = None  # machine point, mm / deg; None until the first move
+    # machine point, mm / deg (raised with the program); None until the first move when not known
+    here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset
     path: list[tuple[Element, tuple]] = []  # elements of the open feed path, with their modes
     tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
 

@@ -333,7 +333,7 @@ class GcodeKind(ProgramKind):
     def notices(self, scenario: Scenario) -> list[str]:
         """A programmed F more than the axes allow along a feed path, once per F value: how many
         paths, the first line, and the fastest they run at (the axis that holds them)."""
-        from cnc_twin.core.units import MM_PER_MIN
+        from cnc_twin.core.units import MM, MM_PER_MIN
         from cnc_twin.planner.gcode_program import feed_caps, move_starts
         from cnc_twin.planner.ptp import axis_scales
 
@@ -349,6 +349,9 @@ class GcodeKind(ProgramKind):
             if xyz > 0.0 and move.feed > v_s * xyz * (1.0 + 1e-9):
                 by_feed.setdefault((move.feed, "move"), []).append((move.line, v_s * xyz, slowest))
         said = spindle_notes(scenario)
+        if scenario.program.air:
+            said.append(f"in the air: every point runs {scenario.program.air / MM:g} mm above where the program puts "
+                        "it (program.in_air)")
         for (feed, what), steps in sorted(by_feed.items(), key=lambda item: item[1][0][0]):
             _, cap, axis = max(steps, key=lambda p: p[1])
             more = len(steps) - 1

@@ -66,6 +66,21 @@ class GcodeWorkpieceSpec(Strict):
     friction: float | None = Field(None, gt=0, description="pad-workpiece sliding friction coefficient; default the model's")
 
 
+WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+"""the work systems in LinuxCNC's order (system 1 .. 9: parameters #5221 + 20 (n - 1) ..)"""
+
+
+class WorkOffsetSpec(Strict):
+    """A work system's origin in the workpiece frame, as a touch-off sets it [mm; deg for A B C]."""
+
+    X: float = 0.0
+    Y: float = 0.0
+    Z: float = 0.0
+    A: float = 0.0
+    B: float = 0.0
+    C: float = 0.0
+
+
 class GcodeProgramSpec(Strict):
     """An NC program (RS274/NGC, LinuxCNC's dialect) run on the machine."""
 
@@ -82,6 +97,11 @@ class GcodeProgramSpec(Strict):
     settle: float = Field(0.3, ge=0, le=DAY, description="time simulated after the program end [s]")
     force: ForceLoopSpec = ForceLoopSpec()
     workpiece: GcodeWorkpieceSpec | None = Field(None, description="default: the scene's block top when the program uses M100")
+    work_offsets: dict[Literal[WORK_SYSTEMS], WorkOffsetSpec] = Field(
+        default_factory=dict, description="where each work system's zero sits in the workpiece frame [mm, deg] (G54: "
+        "the program's zero unless it selects another), as LinuxCNC's parameter file holds them after a touch-off")
+    in_air: float = Field(0.0, ge=0, le=1000, description="[mm] run the whole program this far above where it is "
+                          "written (a dry run: the machine moves as programmed, the pad never reaches the work)")
 
 
 class _Where:
@@ -94,9 +114,11 @@ class _Where:
         return ScenarioError(f"{self.path}:{line}", "", message)
 
 
-def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path):
+def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path, *, start=None,
+               parameters=None):
     """The canonical calls of the program at ``path`` and its :class:`~cnc_twin.gcode.source.Source`,
-    or a ScenarioError at its line."""
+    or a ScenarioError at its line (``start``, ``parameters``: as
+    :func:`~cnc_twin.gcode.interpreter.read_program` takes them, in the tool table's units)."""
     from cnc_twin.gcode.interpreter import ProgramError, read_program
     from cnc_twin.gcode.listing import read_tool_table
     from cnc_twin.gcode.source import Source, SourceError
@@ -112,7 +134,7 @@ def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path
     except OSError as exc:
         raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
     try:
-        return read_program(source, tools).calls, source
+        return read_program(source, tools, start=start, parameters=parameters).calls, source
     except ProgramError as exc:
         raise _Where(path)(exc.line, exc.message) from None
 
@@ -127,9 +149,10 @@ def _find(name: str, folder: Path | None, label: Path, key: str) -> Path:
 
 
 def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: Path, folder: Path | None,
-            machine_tools: Path | None = None) -> GcodeProgram:
+            machine_tools: Path | None = None, home: tuple[float, ...] | None = None) -> GcodeProgram:
     """Read the program and turn its operations into machine steps (SI, axis space), with the
-    scenario's tool table, else the machine's (``machine_tools``, in mm)."""
+    scenario's tool table, else the machine's (``machine_tools``, in mm); the program starts where
+    the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose)."""
     from cnc_twin.gcode import toolpath as tp
     from cnc_twin.geometry.kinematics import HeadGeometry
 
@@ -138,15 +161,24 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         table, tool_units = _find(spec.tool_table, folder, label, "program.tool_table"), spec.tool_units
     else:
         table, tool_units = machine_tools, "mm"
-    calls, source = read_calls(path, table, tool_units, label)
+    head = HeadGeometry.from_model(model)
+    start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
+    # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
+    per_mm = 1.0 / 25.4 if tool_units == "inch" else 1.0
+    calls, source = read_calls(path, table, tool_units, label, start=_in_units(start, per_mm),
+                               parameters=work_offset_parameters(spec.work_offsets, per_mm))
     where = _Where(path)
     try:
-        ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance)
+        ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,
+                            start=start, air=spec.in_air)
     except tp.ToolpathError as exc:
         raise where(exc.line, exc.message) from None
     if not any(isinstance(op, (tp.Traverse, tp.FeedPath)) for op in ops):
         raise ScenarioError(label, "program.file", f"{path} moves nothing")
-    head = HeadGeometry.from_model(model)
+    pressing = next((op for op in ops if isinstance(op, tp.ForceChange) and op.setpoint is not None), None)
+    if spec.in_air and pressing is not None:
+        raise ScenarioError(label, "program.in_air", f"the program presses on the workpiece (M100 at {path.name} line "
+                            f"{pressing.line}): a run in the air cannot; leave in_air out to polish")
     steps = []
     force_on = None  # the M100 op while the force loop is on
     for op in ops:
@@ -188,7 +220,34 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
-                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table)
+                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
+                        air=spec.in_air * units.MM)
+
+
+def start_point(head, home: tuple[float, ...] | None, air: float) -> tuple[float, ...]:
+    """Where the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose) as a
+    program sees it: the tool tip in the workpiece frame [mm] less the run's raise ``air`` [mm]
+    in Z, and A B C [deg]."""
+    q = np.zeros(6) if home is None else np.asarray(home, dtype=float)
+    tip = head.tip_from_axes(q[:3], q[3], q[4]) - np.asarray(head.workpiece_origin)
+    return (*(float(v) / units.MM for v in tip[:2]), float(tip[2]) / units.MM - air,
+            *(float(v) / units.DEG for v in q[3:]))
+
+
+def work_offset_parameters(offsets: dict[str, WorkOffsetSpec], per_mm: float) -> dict[int, float]:
+    """The work systems' origins as LinuxCNC's parameter file holds them: #5221 + 20 (n - 1) + k,
+    lengths in machine units (``per_mm`` of them in a mm), angles in deg."""
+    out = {}
+    for name, offset in offsets.items():
+        base = 5221 + 20 * WORK_SYSTEMS.index(name)
+        for k, value in enumerate((offset.X, offset.Y, offset.Z, offset.A, offset.B, offset.C)):
+            out[base + k] = value * per_mm if k < 3 else value
+    return out
+
+
+def _in_units(point: tuple[float, ...], per_mm: float) -> tuple[float, ...]:
+    """A machine point [mm, deg] with its lengths in machine units."""
+    return (*(v * per_mm for v in point[:3]), *point[3:])
 
 
 def _check_force_paths(steps: list, where: _Where) -> None:

@@ -252,7 +252,7 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path, fold
 
         return chip.convert(spec, axes, has_home_switch, label)
     if isinstance(spec, GcodeProgramSpec):
-        return gcode.convert(spec, axes, model, label, folder, machine_tools)
+        return gcode.convert(spec, axes, model, label, folder, machine_tools, info.home)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
 
 
