@@ -135,6 +135,8 @@ def _full_block(norm: str, block: Block, params: Parameters) -> Block:
                 value, pos = read_real(norm, pos + 1, params)
                 if value < 0.0 and c in NEGATIVE_REFUSED:
                     raise BlockError(NEGATIVE_REFUSED[c])
+                if c == "l":
+                    _check_l_word(value, "l" in block.words)
                 if c in REPEATABLE:
                     (block.g if c == "g" else block.m).append(value)
                 elif c in block.words:
@@ -146,6 +148,26 @@ def _full_block(norm: str, block: Block, params: Parameters) -> Block:
     except ExpressionError as exc:
         raise BlockError(str(exc)) from None
     return block
+
+
+def _whole(value: float) -> bool:
+    """``value`` reads as a whole number of at least 0 (LinuxCNC's read_integer_value: within
+    1e-4 of one)."""
+    if not math.isfinite(value):
+        return False
+    frac = value - math.floor(value)
+    return (frac > 0.9999 or frac <= 0.0001) and round(value) >= 0
+
+
+def _check_l_word(value: float, repeated: bool) -> None:
+    """An L word (repeats, a G10 mode, a NURBS order) as LinuxCNC reads it (its read_l), in its
+    order: a second L, a value that is not a whole number, a negative one."""
+    if repeated:
+        raise BlockError("Multiple l words on one line")
+    if not math.isfinite(value) or 0.0001 < value - math.floor(value) <= 0.9999:
+        raise BlockError("Non integer value for integer")
+    if round(value) < 0:
+        raise BlockError("Negative l word used")
 
 
 # The common line, read by one regular expression: an optional N word, then words whose value
@@ -208,7 +230,8 @@ def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str],
                 g.append(value)
             elif letter == "m":
                 m.append(value)
-            elif letter in words or (value < 0.0 and letter in NEGATIVE_REFUSED):
+            elif (letter in words or (value < 0.0 and letter in NEGATIVE_REFUSED)
+                  or (letter == "l" and not _whole(value))):
                 return None
             else:
                 words[letter] = value

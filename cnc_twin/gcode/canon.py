@@ -54,6 +54,7 @@ _FORMATS = {
     "SET_MOTION_CONTROL_MODE": lambda v: v[0] if len(v) == 1 else f"{v[0]}, {v[1]:.6f}",
     "SET_SPINDLE_SPEED": lambda v: f"0, {v[0]:.4f}",
     "SET_SPINDLE_MODE": lambda v: f"0 {v[0]:.4f}",
+    "ORIENT_SPINDLE": lambda v: f"{v[0]}, {v[1]:.4f}, {v[2]}",
     "SET_FEED_MODE": lambda v: f"0, {v[0]}",
     "USE_TOOL_LENGTH_OFFSET": lambda v: ", ".join(" ".join(f"{x:.4f}" for x in v[k:k + 3]) for k in (0, 3, 6)),
     "COMMENT": _quoted,

@@ -1,7 +1,7 @@
 """A block's codes and words checked before it runs, as LinuxCNC checks a block it has read
 (its enhance_block, check_g_codes and check_other_codes, in that order), with its wording; and
 what the twin's machine does not have, refused in one line naming it (probing, cutter radius
-compensation, canned cycles, threading, lathe modes...).
+compensation, threading, lathe modes...).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from cnc_twin.gcode.arcs import turns_of
 from cnc_twin.gcode.blocks import Block, BlockError
-from cnc_twin.gcode.modal import G, GGroup, M, MGroup
+from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup
 
 if TYPE_CHECKING:  # the interpreter's state, read here for its modes only
     from cnc_twin.gcode.state import State
@@ -23,9 +23,8 @@ UNSUPPORTED_G = {
     383: "G38.3 (probing)", 384: "G38.4 (probing)", 385: "G38.5 (probing)", 410: "G41 (cutter radius compensation)",
     411: "G41.1 (cutter radius compensation)", 420: "G42 (cutter radius compensation)",
     421: "G42.1 (cutter radius compensation)", 432: "G43.2 (additional tool length offset)",
-    730: "G73 (canned cycle)", 740: "G74 (canned cycle)", 760: "G76 (threading cycle)", 950: "G95 (feed per revolution)",
-    960: "G96 (constant surface speed)",
-    **{c: f"G{c / 10:g} (lathe cycle)" for c in (700, 710, 711, 712, 720, 721, 722)}, **{c: f"G{c // 10} (canned cycle)" for c in range(810, 900, 10)},
+    760: "G76 (threading cycle)", 950: "G95 (feed per revolution)", 960: "G96 (constant surface speed)",
+    **{c: f"G{c / 10:g} (lathe cycle)" for c in (700, 710, 711, 712, 720, 721, 722)},
 }
 """G codes (tenths) the twin's machine cannot run -> what they are, for the refusal"""
 UNSUPPORTED_M = {19: "M19 (spindle orientation)", 48: "M48 (override switches)", 49: "M49 (override switches)",
@@ -78,11 +77,19 @@ def check_words(block: Block, g: dict[int, int], m: dict[int, int], motion: int 
 def _check_axis_words(block: Block, g: dict[int, int], state: State) -> None:
     words = block.words
     g0 = g.get(GGroup.NON_MODAL)
+    if "@" in words or "^" in words:
+        if state.plane != G.G17:  # the plane before the block's own plane code
+            raise BlockError("Cannot use polar coordinate except in G17 plane")
+        for letter in "xy":
+            if letter in words:
+                raise BlockError(f"Cannot specify both polar coordinate and {letter.upper()} word")
     if g0 == G.G92 and GGroup.MOTION not in g and not any(letter in words for letter in AXIS_LETTERS):
         raise BlockError("All axes missing with g52 or g92")
     moving = any(a in words for a in MOVE_WORDS)
     if g.get(GGroup.MOTION) == G.G80 and moving and g0 not in AXIS_CODES:
         raise BlockError("Cannot use axis values with g80")
+    if g.get(GGroup.MOTION) in CANNED_CYCLES and not moving:  # a G1 alone is allowed, a cycle is not
+        raise BlockError("All axes missing with motion code")
     owned = g0 in AXIS_CODES or g.get(GGroup.TOOL_LENGTH_OFFSET) == G.G43_1 or GGroup.MOTION in g
     if not owned and state.motion == G.G80 and moving:
         raise BlockError("Cannot use axis values without a g code that uses them")
@@ -120,33 +127,39 @@ def _check_other_words(block: Block, g: dict[int, int], m: dict[int, int], motio
     arc = motion in (G.G2, G.G3)
     g0 = g.get(GGroup.NON_MODAL)
     user_m = MGroup.USER_DEFINED in m
-    if ("i" in words or "j" in words) and not arc:
+    cycle = motion in CANNED_CYCLES
+    for letter in "abc":
+        if letter in words and cycle:
+            raise BlockError(f"Cannot put {'an' if letter == 'a' else 'a'} {letter} in canned cycle")
+    if "d" in words:
+        raise BlockError("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it")
+    if "$" in words:
+        _check_spindle_number(words["$"], "s" in words or m.get(MGroup.SPINDLE) in (M.M3, M.M4, M.M5)
+                              or GGroup.SPINDLE_MODE in g)
+    if "h" in words and g.get(GGroup.TOOL_LENGTH_OFFSET) != G.G43:
+        raise BlockError("H word with no G43 or G76 to use it")
+    if ("i" in words or "j" in words) and not (arc or motion == G.G87 or g0 == G.G10):
         letter = "I" if "i" in words else "J"
         raise BlockError(f"{letter} word with no G2, G3, G5, G5.1, G10, G33.1, G76, or G87 to use it")
-    if "k" in words and not (arc or motion == G.G6_2):
+    if "k" in words and not (arc or motion in (G.G6_2, G.G87)):
         raise BlockError("K word with no G2, G3, G33, G33.1, G76, or G87 to use it")
-    if "r" in words and not (arc or g0 == G.G10 or motion == G.G6_2):
-        raise BlockError("R word with no g code that uses it")
+    if "l" in words and not (g0 == G.G10 or motion in (G.G5_2, G.G6_2) or (cycle and motion != G.G74)):
+        raise BlockError("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 "
+                         "or NURBS code")
     if "p" in words and not (arc or g0 in (G.G4, G.G10) or g.get(GGroup.CONTROL_MODE) == G.G64 or user_m
-                              or motion in (G.G5_2, G.G6_2)):
+                              or motion in (G.G5_2, G.G6_2, G.G74, G.G82, G.G84, G.G86, G.G88, G.G89)):
         raise BlockError("P word with no G2 G3 G4 G10 G64 G5 G5.2 G76 G82 G86 G88 G89 or M50 M51 M52 M53 "
                          "M62 M63 M64 M65 M66 M98 or user M code to use it")
     if "p" in words and arc:
         turns_of(words["p"])  # refused here, before the block's F and S take effect
-    if "q" in words and not (g.get(GGroup.CONTROL_MODE) == G.G64 or g0 == G.G10 or user_m
-                              or m.get(MGroup.TOOL_CHANGE) == M.M61 or motion == G.G6_2):
+    # Q -1 is LinuxCNC's "no Q"
+    if words.get("q", -1.0) != -1.0 and not (g.get(GGroup.CONTROL_MODE) == G.G64 or g0 == G.G10 or user_m
+                                             or m.get(MGroup.TOOL_CHANGE) == M.M61
+                                             or motion in (G.G6_2, G.G73, G.G83)):
         raise BlockError("Q word with no G5, G10, G64, G73, G76, G83, M19, M66, M67, M68 or user M code "
                          "that uses it")
-    if "h" in words and g.get(GGroup.TOOL_LENGTH_OFFSET) != G.G43:
-        raise BlockError("H word with no G43 or G76 to use it")
-    if "l" in words and not (g0 == G.G10 or motion in (G.G5_2, G.G6_2)):
-        raise BlockError("L word with no G10, cutter compensation, canned cycle, digital/analog input, M98 "
-                         "or NURBS code")
-    if "$" in words:
-        _check_spindle_number(words["$"], "s" in words or m.get(MGroup.SPINDLE) in (M.M3, M.M4, M.M5)
-                              or GGroup.SPINDLE_MODE in g)
-    if "d" in words:
-        raise BlockError("D word with no G41, G41.1, G42, G42.1, G71, G71.1, G71.2 or G96 to use it")
+    if "r" in words and not (arc or g0 == G.G10 or motion == G.G6_2 or cycle):
+        raise BlockError("R word with no g code that uses it")
 
 
 def _check_spindle_number(value: float, used: bool) -> None:

@@ -11,7 +11,7 @@ work system, path control, distance modes, retract mode, G10 / G28 / G30 / G92, 
 O-word lines go to :mod:`~cnc_twin.gcode.flow`.
 
 What the twin's machine does not have is refused in one line naming it (probing, cutter radius
-compensation, canned cycles, threading, lathe modes...), never read differently: the reader
+compensation, threading, lathe modes...), never read differently: the reader
 either makes the calls LinuxCNC makes or says why it will not. A refused or wrong program raises
 :class:`ProgramError` with the line and LinuxCNC's wording; nothing of it reaches the machine,
 because the whole program is read before any motion.
@@ -32,7 +32,7 @@ from cnc_twin.gcode.checks import (AXIS_CODES, AXIS_LETTERS, FORCE_ON, MOVE_WORD
 from cnc_twin.gcode.comments import CALLS, read_comment
 from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
-from cnc_twin.gcode.modal import G, GGroup, M, MGroup, modal_codes
+from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
 from cnc_twin.gcode.source import O_NAME, Source
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
@@ -156,7 +156,8 @@ class Interpreter:
         """Run ``block``; True when it ends the program."""
         if block.number is not None:
             self._number = block.number_text
-        if not (block.g or block.m or block.comments) and PLAIN_WORDS.issuperset(block.words):
+        if (not (block.g or block.m or block.comments) and PLAIN_WORDS.issuperset(block.words)
+                and self.state.motion not in CANNED_CYCLES):  # a cycle's words are checked whole
             return self._plain_move(block)
         g, m = modal_codes(block)
         refuse_unsupported(block, g, m)
@@ -170,10 +171,9 @@ class Interpreter:
             self._comment(block.comments[-1])
         if GGroup.FEED_MODE in g:
             self._feed_mode(g[GGroup.FEED_MODE])
-        if "f" in block.words:
+        if "f" in block.words and s.feed_mode != G.G93:  # in inverse time each move sets its own rate
             s.feed = block.words["f"]
-            if s.feed_mode != G.G93:  # in inverse time each move sets its own rate
-                self.emit("SET_FEED_RATE", s.feed)
+            self.emit("SET_FEED_RATE", s.feed)
         if "s" in block.words:
             s.speed = block.words["s"]
             self.emit("SET_SPINDLE_SPEED", s.speed)
@@ -229,8 +229,8 @@ class Interpreter:
             s.motion = G.G80
             self.emit("COMMENT", "interpreter: motion mode set to none")
         if motion is not None and motion != G.G80:
-            s.motion = motion
             self.motion.move(motion, block, g.get(GGroup.NON_MODAL) == G.G53)
+            s.motion = motion  # after the move, as LinuxCNC: a canned cycle reads the mode before it
         if m.get(MGroup.TOOL_CHANGE) == M.M6:
             s.resynchronise()
         return self._stop(m.get(MGroup.STOPPING))
@@ -243,10 +243,9 @@ class Interpreter:
         moving = len(words) > ("f" in words)
         if moving and s.motion == G.G80:
             raise BlockError("Cannot use axis values without a g code that uses them")
-        if "f" in words:
+        if "f" in words and s.feed_mode != G.G93:  # in inverse time each move sets its own rate
             s.feed = words["f"]
-            if s.feed_mode != G.G93:  # in inverse time each move sets its own rate
-                self.emit("SET_FEED_RATE", s.feed)
+            self.emit("SET_FEED_RATE", s.feed)
         if moving:
             self.motion.move(s.motion, block, False)
         return False
@@ -366,7 +365,8 @@ class Interpreter:
             s.control = ("CANON_CONTINUOUS", tolerance)
         self.emit("SET_MOTION_CONTROL_MODE", *s.control)
         if code == G.G64:
-            self.emit("SET_NAIVECAM_TOLERANCE", block.words.get("q", s.control[1]))
+            s.naivecam = block.words.get("q", s.control[1])
+            self.emit("SET_NAIVECAM_TOLERANCE", s.naivecam)
 
     def _non_modal(self, code: int, block: Block) -> None:
         s = self.state

@@ -92,7 +92,18 @@ class G(enum.IntEnum):
     G61 = 610
     G61_1 = 611
     G64 = 640
+    G73 = 730
+    G74 = 740
     G80 = 800
+    G81 = 810
+    G82 = 820
+    G83 = 830
+    G84 = 840
+    G85 = 850
+    G86 = 860
+    G87 = 870
+    G88 = 880
+    G89 = 890
     G90 = 900
     G90_1 = 901
     G91 = 910
@@ -172,6 +183,9 @@ MAX_M_CODES = 4
 """most M codes one block may hold"""
 CANCEL_CYCLE = G.G80
 """G80, which may share group 1 with another motion code"""
+CANNED_CYCLES = frozenset((G.G73, G.G74, G.G81, G.G82, G.G83, G.G84, G.G85, G.G86, G.G87, G.G88, G.G89))
+"""the canned cycles (:mod:`~cnc_twin.gcode.cycles`): modal motion codes that stay in force,
+repeating at each new position, until G80 or another motion code"""
 AXIS_USERS = frozenset((G.G10, G.G28, G.G30, G.G52, G.G92))
 """non-modal codes whose axis words are their own (G10, G28, G30, G52, G92): not with a motion code"""
 

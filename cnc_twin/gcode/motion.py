@@ -1,7 +1,7 @@
 """The motion step of a block, as LinuxCNC's interpreter makes it: the end point from the axis
 words (absolute, incremental or, with G53, machine coordinates), then a traverse, a feed, an
-arc, a NURBS curve (G5.2 ... G5.3, or the Fanuc-style G6.2), a dwell or a return to a stored
-position (G28 / G30).
+arc, a NURBS curve (G5.2 ... G5.3, or the Fanuc-style G6.2), a canned cycle
+(:mod:`~cnc_twin.gcode.cycles`), a dwell or a return to a stored position (G28 / G30).
 
 Positions are program coordinates in the program's units (see :mod:`~cnc_twin.gcode.state`).
 """
@@ -16,7 +16,8 @@ import numpy as np
 from cnc_twin.gcode.arcs import arc_move, glibc_hypot
 from cnc_twin.gcode.blocks import Block, BlockError
 from cnc_twin.gcode.expressions import PI_LONG
-from cnc_twin.gcode.modal import G
+from cnc_twin.gcode.cycles import CycleRunner
+from cnc_twin.gcode.modal import CANNED_CYCLES, G
 from cnc_twin.gcode.nurbs import G52Collector, G62Collector, NurbsBlock, g53
 from cnc_twin.gcode.state import HOME_PARAMETERS
 
@@ -40,6 +41,7 @@ class MotionRunner:
         self.state = interpreter.state
         self.nurbs = None
         self.nurbs_kind = None
+        self.cycles = CycleRunner(interpreter)
 
     def ends(self, block: Block, machine: bool = False) -> list[float]:
         """The programmed end point: axes without a word keep the current value."""
@@ -110,6 +112,9 @@ class MotionRunner:
             self.nurbs = self.nurbs_kind = None  # LinuxCNC drops an unfinished G5.2 curve silently
         if motion in NURBS_STARTS or motion == NURBS_END:
             self._nurbs(motion, block)
+            return
+        if motion in CANNED_CYCLES:
+            self.cycles.run(motion, block)
             return
         end = self.ends(block, machine)
         if motion == G.G0:

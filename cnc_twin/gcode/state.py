@@ -82,6 +82,9 @@ class State:
     speed: float = 0.0
     motion: int = G.G80
     control: tuple = ("CANON_CONTINUOUS", 0.0)
+    naivecam: float = 0.0
+    """the path tolerance of the last G64 (its Q, else its P): a canned cycle gives it back to
+    the canon with the path mode it restores"""
     system: int = 1
     g5x: list[float] = field(default_factory=lambda: [0.0] * 6)
     g92: list[float] = field(default_factory=lambda: [0.0] * 6)
