@@ -22,7 +22,7 @@ from cnc_twin.run.progress import ProgressBar
 from cnc_twin.run.run_dir import new_run_dir
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
-from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, input_path
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, folder_list, input_path
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -30,6 +30,7 @@ EXIT_FAULT = 3
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
 EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
+SUB_HELP = "folders of an NC program's subroutine files (o<name> call: name.ngc), after its own (SUBROUTINE_PATH)"
 """the reader of stdout went away (``cnc-twin gcode part.ngc --canon | head``): the status a C
 tool killed by SIGPIPE ends with"""
 
@@ -59,6 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--tool-table", type=Path, default=None,
                      help="an NC program's LinuxCNC tool table, for G43 H (a scenario's program.tool_table)")
     run.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
+    run.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
     run.add_argument("--in-air", type=float, default=None, metavar="MM",
                      help="prove an NC program in the air: run it this far above where it is written, the pad never "
                           "reaching the work (a scenario's program.in_air)")
@@ -106,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="print the canonical machine calls in the text form of LinuxCNC's rs274 -g")
     gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: none)")
     gcode.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
+    gcode.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
 
     bench = sub.add_parser("bench", help="twin wall time against bare MuJoCo stepping, in one process")
     bench.add_argument("scenario", nargs="?", type=input_path,
@@ -233,6 +236,8 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
         overrides.update({"program.tool_table": _beside(args.tool_table, source), "program.tool_units": args.tool_units})
     if args.in_air is not None:
         overrides["program.in_air"] = args.in_air
+    if args.subroutine_path:  # as the scenario key would say it (a G-code program's)
+        overrides["program.subroutine_path"] = [_beside(folder, source) for folder in args.subroutine_path]
     scenario = load_scenario(source, overrides=overrides or None)
     run_dir = args.out or new_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
@@ -451,7 +456,7 @@ def _validate(args: argparse.Namespace) -> int:
 def _gcode(args: argparse.Namespace) -> int:
     from cnc_twin.gcode.listing import list_program
 
-    lines, error = list_program(args.program, args.tool_table, args.tool_units, args.canon)
+    lines, error = list_program(args.program, args.tool_table, args.tool_units, args.canon, args.subroutine_path)
     print("\n".join(lines))
     if error:
         print(f"error: {error}", file=sys.stderr)

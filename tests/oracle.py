@@ -31,28 +31,43 @@ def require() -> None:
         pytest.skip(ABSENT)
 
 
-def run(program: str, folder: Path, parameters: dict[int, float] | None = None) -> tuple[list[tuple[str, str]], list[str]]:
-    """``program`` (text) through ``rs274 -g``: its calls as ``(name, arguments)`` and the other
-    lines it printed (its error messages), in order. ``parameters``: a parameter file's (``-v``)
-    numbered parameters, in rs274's machine units (inches)."""
+def run(program: str | bytes, folder: Path, parameters: dict[int, float] | None = None, *,
+        files: dict[str, str] | None = None, subroutine_path: str | None = None) -> tuple[list[tuple[str, str]], list[str]]:
+    """``program`` (text, or the file's bytes) through ``rs274 -g``: its calls as ``(name,
+    arguments)`` and the other lines it printed (its error messages), in order. ``parameters``: a
+    parameter file's (``-v``) numbered parameters, in rs274's machine units (inches); ``files``:
+    more files to write, by path relative to ``folder`` (subroutine files); ``subroutine_path``:
+    an INI file's ``[RS274NGC]SUBROUTINE_PATH`` (``-i``; rs274 then prints one ON_RESET fewer at
+    its end)."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "tool.tbl").write_text(TOOL_TABLE)
-    (folder / "program.ngc").write_text(program)
+    if isinstance(program, bytes):
+        (folder / "program.ngc").write_bytes(program)
+    else:
+        (folder / "program.ngc").write_text(program)
+    for name, text in (files or {}).items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_text(text)
     options = []
+    if subroutine_path is not None:
+        (folder / "program.ini").write_text(f"[RS274NGC]\nSUBROUTINE_PATH = {subroutine_path}\n")
+        options = ["-i", "program.ini"]
     if parameters:
         (folder / "program.var").write_text("".join(f"{k}\t{v:.6f}\n" for k, v in sorted(parameters.items())))
-        options = ["-v", "program.var"]
+        options += ["-v", "program.var"]
     env = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT / 'usr' / 'lib'}:{ROOT / 'usr' / 'lib' / 'x86_64-linux-gnu'}")
     # One rs274 at a time on the machine: instances running at once share state and some die
     # with a bus error (seen with the suite's parallel workers), their messages lost.
     with open(Path(tempfile.gettempdir()) / "cnc_twin_rs274.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         out = subprocess.run([str(RS274), "-t", "tool.tbl", *options, "-g", "program.ngc"], cwd=folder, env=env,
-                             stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+                             stdin=subprocess.DEVNULL, capture_output=True, timeout=60)
+    # bytes, decoded here: its lines end at a newline only, as a program's do (a CR is kept)
+    printed = (out.stdout + out.stderr).decode("utf-8", errors="replace")
     if out.returncode < 0 or out.returncode > 128:
-        raise RuntimeError(f"rs274 died (exit {out.returncode}): {out.stderr.strip()[-200:]}")
+        raise RuntimeError(f"rs274 died (exit {out.returncode}): {printed.strip()[-200:]}")
     calls, other = [], []
-    for line in (out.stdout + out.stderr).splitlines():
+    for line in printed.split("\n"):
         match = CALL.match(line)
         if match:
             calls.append((match.group(1), match.group(2)))

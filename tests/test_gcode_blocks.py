@@ -97,3 +97,41 @@ def test_motion_lines_read_as_linuxcnc_moves(tmp_path):
     calls, said = oracle.run("\n".join(MOTION) + "\nM2\n", tmp_path)
     theirs = [", ".join(feed[:3]) for feed in oracle.straight_feeds(calls)]
     assert said == [] and theirs == expected
+
+
+# a character no word starts with: LinuxCNC names a printable ASCII one, any other (a control
+# character, one above 'z', a byte of a UTF-8 sequence) by its first byte in octal
+BAD_CHARACTERS = ["{", "|", "}", "~", "\x7f", "\x01", "\x1b", "\x0b", "\x0c", "\x1c", "\x85", "\u2028", "\u00e9",
+                  "\u00c9", "\u0130", "\ufeff", "\u20ac", "\u00a0", "`", "!", "'", "_", "\\", ":"]
+
+
+def test_bad_characters_are_named_as_linuxcnc_names_them(tmp_path):
+    """Each character mid-line, and at the end of a line (LinuxCNC strips only C's white space
+    there, and ends lines at a newline only: a vertical tab or U+2028 is no line break), and a
+    byte-order mark first in a file, through both readers."""
+    oracle.require()
+    from gcode_conformance import compare
+
+    programs = [f"G21 G90\nG0 X1 {c} Y2\nM2\n" for c in BAD_CHARACTERS]
+    programs += [f"G21 G90\nG0 X1 {c}\nG0 X2\nM2\n" for c in BAD_CHARACTERS]
+    programs += ["\ufeffG21 G90\nG0 X1\nM2\n", "G21\nG0 X\u00e9\nM2\n", "G21\nG0 X1\u00e9\nM2\n",
+                 "G21\nG0 X1\rG1 X2\nM2\n", "#<\u00c9>=1\nG0 X#<\u00e9>\nM2\n", "#<\u00c9>=1\nG0 X#<\u00c9>\nM2\n"]
+    for k, text in enumerate(programs):
+        verdict = compare(text, tmp_path / str(k))
+        assert verdict.kind == "matched", (text, verdict)
+
+
+def test_a_byte_that_is_not_utf8_is_named_by_its_own_value(tmp_path):
+    """A Latin-1 file: its bytes are not UTF-8 (we read U+FFFD), and LinuxCNC names the byte
+    itself, ``'\\351'`` for an ``é``; a comment may hold such bytes."""
+    oracle.require()
+    from cnc_twin.gcode.interpreter import ProgramError, read_program
+    from cnc_twin.gcode.source import Source
+    from gcode_conformance import TOOLS
+
+    program = "G21 (d\xe9but)\nG0 X1 Y2 \xe9\nM2\n".encode("latin-1")
+    _, said = oracle.run(program, tmp_path / "oracle")
+    (tmp_path / "ours.ngc").write_bytes(program)
+    with pytest.raises(ProgramError) as info:
+        read_program(Source.read(tmp_path / "ours.ngc"), TOOLS)
+    assert (info.value.line, info.value.message) == (2, said[0]) == (2, "Bad character '\\351' used")

@@ -41,6 +41,20 @@ TABLE = [
     ("2 mod 0 ge 1", 0.0), ("[2 mod 0] ge 1", "Calculation resulted in 'not a number'"),
     ("exp[1000] gt 1", "Calculation resulted in 'infinity'"), ("1 ax 2", "Unknown operation name starting with a"),
     ("1 q 2", "Unknown operation"),
+    # a name LinuxCNC does not know where a value starts (first, after a sign or an operator):
+    # named by its first letter when a function starts with it, as a binary operator is
+    ("foo[1]", "Unknown word starting with f"), ("1 + rnd[2]", "Unknown word starting with r"),
+    ("abc[1]", "Unknown word starting with a"), ("aco[1]", "Unknown word starting with a"),
+    ("csc[1]", "Unknown word starting with c"), ("2 * exits[#1]", "Unknown word starting with e"),
+    ("lg[2]", "Unknown word starting with l"), ("-sqr[4]", "Unknown word starting with s"),
+    ("1 - tn[1]", "Unknown word starting with t"), ("bar[1]", "Unknown word where unary operation could be"),
+    ("1 / pi", "Unknown word where unary operation could be"), ("1 and x", "Unknown word where unary operation could be"),
+    ("cosh[1]", "Left bracket missing after unary operation name"), ("1 gtx 2", "Unknown word where unary operation could be"),
+    ("1 am 2", "Unknown operation name starting with a"), ("1 md 2", "Unknown operation name starting with m"),
+    ("1 on 2", "Unknown operation name starting with o"), ("1 xr 2", "Unknown operation name starting with x"),
+    ("1 en 2", "Unknown operation name starting with e"), ("1 nq 2", "Unknown operation name starting with n"),
+    ("1 gq 2", "Unknown operation name starting with g"), ("1 lq 2", "Unknown operation name starting with l"),
+    ("1 b 2", "Unknown operation"), ("1 # 2", "Unknown operation"),
 ]
 SETUP = "#1=2\n#<v>=3\n"
 """parameters the table's rows read, set the same way for both readers"""

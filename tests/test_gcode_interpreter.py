@@ -747,7 +747,7 @@ def _rs274_stdout(program: str, folder, monkeypatch) -> list[str]:
 
     monkeypatch.setattr(oracle, "subprocess", SimpleNamespace(run=run, DEVNULL=subprocess.DEVNULL))
     oracle.run(program, folder)
-    return [line for line in kept[0].splitlines() if oracle.CALL.match(line)]
+    return [line for line in kept[0].decode("utf-8", errors="replace").splitlines() if oracle.CALL.match(line)]
 
 
 @pytest.mark.parametrize("program, options", [

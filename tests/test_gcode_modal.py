@@ -87,3 +87,28 @@ def test_the_cases_and_random_pairs_are_what_linuxcnc_says(tmp_path):
             assert theirs == ours, (text, ours, said)
         else:
             assert theirs is None or not any(w in theirs for w in reading_words), (text, said)
+
+
+# LinuxCNC checks each G and M code as it reads it, left to right: a bad code is refused before
+# what follows it on the line, and before the checks of the line read whole (too many M codes)
+READ_ORDER = ["M40", "M150", "M200", "M40 M3", "M3 M40", "M40 M150", "M150 M40", "M40 G0 X1 \u00e9",
+              "G0 X1 M40 \u00e9", "M40 M41 M42 M43 M44", "M3 M4 M40", "M40 M3 M4", "M-1.5", "M40.5", "M40 G999",
+              "G999 M40", "M40 #<_x>=1", "M40 X#<undefined>", "M40 G0 X1 Y1 X2", "G0 X1 X2 M40", "M101 M40",
+              "M40 (print,hello)", "G-1.05", "M40 G0 G1", "G0 G1 M40", "M3 M7 M48 M0 M5", "M40 G1 G80 X1",
+              "G0 M98", "M99 M30", "G0 X1\nM99\nG0 X2", "G0 X1\nM99 G0 X3", "M98 P100",
+              "o<s> sub\nG0 X1\nM99\no<s> endsub\no<s> call", "o<s> sub\nG0 X1\nN10 M99 (back)\no<s> endsub\no<s> call",
+              "o<s> sub\nG0 X1\nM[99]\no<s> endsub\no<s> call", "o<s> sub\nG0 X1\nG0 X2 M99\no<s> endsub\no<s> call",
+              "o<s> sub\nG0 X1\n(first) M99\no<s> endsub\no<s> call", "o<s> sub\nG0 X1\n/ n5 m099\no<s> endsub\no<s> call"]
+
+
+def test_codes_are_refused_in_the_order_linuxcnc_reads_them(tmp_path):
+    """Each line in a program through both readers: the same calls and the same first message
+    (``Unknown m code used: M40``); M99 outside a subroutine ends the program as M2 does, M98
+    (a Fanuc-style call) is refused as not supported."""
+    oracle.require()
+    from gcode_conformance import compare
+
+    for k, text in enumerate(READ_ORDER):
+        verdict = compare(f"G21 F100\n{text}\nM2\n", tmp_path / str(k))
+        expected = "refused" if text.startswith("M98") else "matched"
+        assert verdict.kind == expected, (text, verdict)

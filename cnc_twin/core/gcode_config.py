@@ -118,6 +118,10 @@ class GcodeProgram:
     keeps it beside the program); None without one"""
     air: float = 0.0
     """[m] how far above where it is written the program runs (``program.in_air``: a dry run)"""
+    subroutine_files: tuple[tuple[str, str], ...] = ()
+    """``(name, text)`` of the subroutine files the program called that the run directory keeps:
+    the name relative to the scenario's folder (beside the program, or in a folder of
+    ``program.subroutine_path`` under it); files elsewhere are found there again"""
 
     @property
     def paths(self) -> tuple[GcodePath, ...]:

@@ -8,6 +8,9 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
   groups and codes by name (``GGroup``, ``MGroup``, ``G``, ``M``)
 - :mod:`~cnc_twin.gcode.checks`        a block's words checked before it runs; what the machine lacks refused
 - :mod:`~cnc_twin.gcode.source`        a file's lines, ``%`` markers, O-word lines for jumps
+- :mod:`~cnc_twin.gcode.reading`       a line read with the refusals LinuxCNC makes while reading (codes in
+  order, a bad byte named, M98 / M99 lines)
+- :mod:`~cnc_twin.gcode.subfiles`      subroutine files found as LinuxCNC finds them (``name.ngc``)
 - :mod:`~cnc_twin.gcode.flow`          O-word control flow: subroutines, branches, loops
 - :mod:`~cnc_twin.gcode.comments`      ``(msg,...)``, ``(debug,...)``, ``(print,...)``, ``(log,...)``
 - :mod:`~cnc_twin.gcode.state`         modes, current point, work offsets, tool table, read-only parameters

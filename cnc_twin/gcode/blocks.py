@@ -34,7 +34,40 @@ REPEATABLE = frozenset("gm")
 
 
 class BlockError(ValueError):
-    """A line LinuxCNC would refuse; the message is its wording."""
+    """A line LinuxCNC would refuse; the message is its wording. ``block``: what of the line
+    was read before the refusal (set by the word reader), else None."""
+
+    block: "Block | None" = None
+
+
+class BadCharacter(BlockError):
+    """A character no word starts with, ``char``; LinuxCNC names a printable ASCII one as it
+    is, any other by its first byte in octal (``'\\357'``: a UTF-8 byte-order mark)."""
+
+    def __init__(self, char: str):
+        self.char = char
+        if "!" <= char <= "z":
+            super().__init__(f"Bad character '{char}' used")
+        else:
+            super().__init__(f"Bad character '\\{first_byte(char):03o}' used")
+
+
+def first_byte(char: str) -> int:
+    """The first byte of ``char`` in the file: UTF-8, or the byte itself for one that was not
+    UTF-8 (read as a surrogate escape, :meth:`~cnc_twin.gcode.source.Source.read`)."""
+    try:
+        return char.encode("utf-8", "surrogateescape")[0]
+    except UnicodeEncodeError:  # a lone surrogate that is no escaped byte
+        return char.encode("utf-8", "surrogatepass")[0]
+
+
+_ASCII_LOWER = {c: c + 32 for c in range(ord("A"), ord("Z") + 1)}
+
+
+def _lower(text: str) -> str:
+    """``text`` with its ASCII capitals in lower case, the only ones LinuxCNC lowers (``É``
+    stays, and a parameter ``#<É>`` is not ``#<é>``)."""
+    return text.lower() if text.isascii() else text.translate(_ASCII_LOWER)
 
 
 @dataclass
@@ -59,6 +92,9 @@ class Block:
     o_word: str | None = None
     number_text: str | None = None
     """the N word's digits as written (``N0030`` -> ``0030``), for the call lines; None without N"""
+    codes: str = ""
+    """the letters of the G and M words in the order written (``"mg"``): LinuxCNC checks each
+    code as it reads it (:func:`~cnc_twin.gcode.modal.read_codes`)"""
 
     @property
     def empty(self) -> bool:
@@ -71,7 +107,7 @@ def normalise(text: str) -> tuple[str, list[str]]:
     if "(" not in text and ";" not in text:  # most lines: no comment, one pass of replaces
         if ")" in text:
             raise BlockError("Bad character ')' used")
-        return text.replace(" ", "").replace("\t", "").replace("\r", "").lower(), []
+        return _lower(text.replace(" ", "").replace("\t", "").replace("\r", "")), []
     comments: list[str] = []
     out: list[str] = []
     k, n = 0, len(text)
@@ -93,7 +129,7 @@ def normalise(text: str) -> tuple[str, list[str]]:
             raise BlockError("Nested comment found")
         comments.append(inner.lstrip(" \t"))
         k = close + 1
-    return "".join(out).replace(" ", "").replace("\t", "").replace("\r", "").lower(), comments
+    return _lower("".join(out).replace(" ", "").replace("\t", "").replace("\r", "")), comments
 
 
 def read_block(text: str, line: int, params: Parameters) -> Block:
@@ -139,14 +175,20 @@ def _full_block(norm: str, block: Block, params: Parameters) -> Block:
                     _check_l_word(value, "l" in block.words)
                 if c in REPEATABLE:
                     (block.g if c == "g" else block.m).append(value)
+                    block.codes += c
                 elif c in block.words:
                     raise BlockError(f"Multiple {c} words on one line")
                 else:
                     block.words[c] = value
             else:
-                raise BlockError(f"Bad character '{c}' used" if c.isprintable() else "Bad character used")
+                raise BadCharacter(c)
     except ExpressionError as exc:
-        raise BlockError(str(exc)) from None
+        error = BlockError(str(exc))
+        error.block = block
+        raise error from None
+    except BlockError as exc:
+        exc.block = block
+        raise
     return block
 
 
@@ -207,6 +249,7 @@ def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str],
     words: dict[str, float] = {}
     g: list[float] = []
     m: list[float] = []
+    codes = ""
     name_of = params.name
     try:
         for (letter, plain, a_plain, a_sign, a_name, a_index, op, b_plain, b_sign, b_name, b_index, sign, name,
@@ -228,8 +271,10 @@ def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str],
                     return None
             if letter == "g":
                 g.append(value)
+                codes += "g"
             elif letter == "m":
                 m.append(value)
+                codes += "m"
             elif (letter in words or (value < 0.0 and letter in NEGATIVE_REFUSED)
                   or (letter == "l" and not _whole(value))):
                 return None
@@ -237,7 +282,7 @@ def _simple_block(norm: str, line: int, block_delete: bool, comments: list[str],
                 words[letter] = value
     except ExpressionError:
         return None
-    return Block(line, number, block_delete, words, g, m, comments, [])
+    return Block(line, number, block_delete, words, g, m, comments, [], codes=codes)
 
 
 def _numbered(index: str, params: Parameters) -> float:

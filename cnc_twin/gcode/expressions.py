@@ -40,6 +40,7 @@ _OPERATORS = (("**", 4), ("*", 3), ("/", 3), ("mod", 3), ("+", 2), ("-", 2), ("e
 _OPERATOR_INITIALS = frozenset(name[0] for name, _ in _OPERATORS if name[0].isalpha())
 _FUNCTIONS = ("abs", "acos", "asin", "atan", "cos", "exists", "exp", "fix", "fup", "ln", "round", "sin", "sqrt",
               "tan")
+_FUNCTION_INITIALS = frozenset(name[0] for name in _FUNCTIONS)
 
 
 class ExpressionError(ValueError):
@@ -195,7 +196,7 @@ class _Reader:
             return (-value if c == "-" else value), pos
         if c == "#":
             return self.parameter(pos)
-        if c.isalpha():
+        if "a" <= c <= "z":  # LinuxCNC reads a lower-case ASCII letter as a function's name
             return self.function(pos)
         return self.number(pos)
 
@@ -231,7 +232,11 @@ class _Reader:
         text = self.text
         name = next((f for f in _FUNCTIONS if text.startswith(f, pos)), None)
         if name is None:
-            raise ExpressionError(f"Unknown operation name starting with {text[pos]}")
+            # LinuxCNC names the first letter when a function starts with it, as its binary
+            # operators do theirs (``Unknown operation name starting with ...``)
+            if text[pos] in _FUNCTION_INITIALS:
+                raise ExpressionError(f"Unknown word starting with {text[pos]}")
+            raise ExpressionError("Unknown word where unary operation could be")
         pos += len(name)
         if pos >= len(text) or text[pos] != "[":
             raise ExpressionError("Left bracket missing after unary operation name")

@@ -7,8 +7,8 @@ as in LinuxCNC. A call saves the caller's ``#1`` .. ``#30`` and its local named 
 (names without a leading ``_``), sets ``#1`` .. ``#n`` to the call's arguments (the rest 0),
 and restores them on return; ``endsub [v]`` / ``return [v]`` set ``#<_value>`` and
 ``#<_value_returned>``. A subroutine is known once execution has passed its definition or, when
-called before it, by searching the rest of the file (LinuxCNC also searches subroutine files
-named after it; the twin reads one file). Errors carry LinuxCNC's wording.
+called before it, by looking for a file named after it (:mod:`~cnc_twin.gcode.subfiles`), then
+by searching the rest of the calling file, as LinuxCNC does. Errors carry LinuxCNC's wording.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from cnc_twin.gcode.blocks import BlockError
 from cnc_twin.gcode.expressions import ExpressionError, Parameters, evaluate
 from cnc_twin.gcode.source import KEYWORDS, OLine, Source
+from cnc_twin.gcode.subfiles import SubroutineFiles
 
 LOCALS = 30
 """``#1`` .. ``#30`` are a subroutine's own"""
@@ -51,6 +52,8 @@ class Frame:
     numbered: dict[int, float]
     named: dict[str, float]
     loops: int
+    source: Source | None = None
+    """the caller's file, which the return goes back to"""
 
 
 @dataclass
@@ -65,13 +68,17 @@ class Loop:
 
 @dataclass
 class Flow:
-    """Control-flow state of one run: call frames, open loops, known subroutines."""
+    """Control-flow state of one run: call frames, open loops, known subroutines. ``source``:
+    the file being run (the program's, or a subroutine file's while it runs); ``files``: where
+    subroutine files are looked for (None: nowhere)."""
 
     source: Source
     params: Parameters
     frames: list[Frame] = field(default_factory=list)
     loops: list[Loop] = field(default_factory=list)
-    subroutines: dict[str, int] = field(default_factory=dict)
+    subroutines: dict[str, tuple[Source, int]] = field(default_factory=dict)
+    """name -> the file and 0-based index of its ``sub`` line"""
+    files: SubroutineFiles | None = None
     passes: int = 0
     labels: list[dict[str, tuple[int, str]]] = field(default_factory=lambda: [{}])
     """per call level (the program, then each call in progress): the labels of the ``if``,
@@ -82,6 +89,7 @@ class Flow:
         for name in RETURNED:
             self.params.named.setdefault(name, 0.0)
         self.params.read_only_named.update(RETURNED)
+        self.main = self.source
 
     def _keyword(self, o_line: OLine) -> tuple[str, str]:
         """The keyword and the argument text after it (LinuxCNC reads the longest keyword)."""
@@ -175,10 +183,10 @@ class Flow:
         """A ``sub`` line met in the flow: its body is skipped to its ``endsub``, as LinuxCNC
         reads it, refusing a definition inside it or a file that ends first."""
         known = self.subroutines.get(name)
-        if known is not None and known != index:
+        if known is not None and known != (self.source, index):
             raise BlockError(f"File:{self.source.name} line:{index + 1} redefining sub: o|{name.strip('<>')}| "
-                             f"already defined in file:{self.source.name}")
-        self.subroutines[name] = index
+                             f"already defined in file:{known[0].name}")
+        self.subroutines[name] = (self.source, index)
         for o_line in self.source.o_lines_after(index):
             if o_line.keyword == "sub":
                 raise SeekError("Nested subroutine definition", o_line.index + 1)
@@ -255,14 +263,9 @@ class Flow:
         args = self._arguments(rest)
         if len(args) > LOCALS:
             raise BlockError("Too many subroutine parameters")
-        start = self.subroutines.get(name)
-        if start is None:
-            found = self.source.find_forward(index, name, ("sub",))
-            if found is None:
-                shown = name if name.startswith("<") else f"<{name}>"
-                raise SeekError(f"EOF in file:{self.source.name} seeking o-word: o{shown} from line: {index + 1}",
-                                self.source.end)
-            start = self.subroutines[name] = found.index
+        known = self.subroutines.get(name)
+        if known is None:
+            known = self.subroutines[name] = self._find_sub(index, name)
         if len(self.frames) >= MAX_CALL_DEPTH:
             raise BlockError("Too many nested subroutine calls")  # LinuxCNC's limit, its wording differs
         numbered = self.params.numbered
@@ -272,9 +275,25 @@ class Flow:
             del self.params.named[k]
         for k, value in enumerate(args, start=1):
             numbered[k] = value
-        self.frames.append(Frame(name, index + 1, saved_numbered, saved_named, len(self.loops)))
+        self.frames.append(Frame(name, index + 1, saved_numbered, saved_named, len(self.loops), self.source))
         self.labels.append({})
+        self.source, start = known
         return start + 1
+
+    def _find_sub(self, index: int, name: str) -> tuple[Source, int]:
+        """Where subroutine ``name``, not met yet, is: in its file when one is found (searched
+        from its start), else in the rest of the calling file; refused at the last line read,
+        in the file searched (which LinuxCNC has opened by then)."""
+        here, start = self.source, index
+        found_file = self.files.find(name) if self.files is not None else None
+        if found_file is not None:
+            here, start = found_file, -1
+        found = here.find_forward(start, name, ("sub",))
+        if found is None:
+            self.source = here
+            shown = name if name.startswith("<") else f"<{name}>"
+            raise SeekError(f"EOF in file:{here.name} seeking o-word: o{shown} from line: {start + 1}", here.end)
+        return here, found.index
 
     def _return(self, index: int, name: str, rest: str, shown: str) -> int | str:
         if not self.frames:
@@ -282,6 +301,7 @@ class Flow:
         value = self._condition(rest) if rest else None
         frame = self.frames.pop()
         self.labels.pop()
+        self.source = frame.source
         numbered = self.params.numbered
         for k in range(1, LOCALS + 1):
             numbered.pop(k, None)

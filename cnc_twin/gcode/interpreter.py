@@ -23,9 +23,10 @@ import bisect
 import re
 from collections.abc import Mapping, Sequence
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
-from cnc_twin.gcode.blocks import Block, BlockError, apply_assignments, read_block
+from cnc_twin.gcode.blocks import Block, BlockError, apply_assignments
 from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.checks import (AXIS_CODES, AXIS_LETTERS, FORCE_ON, MOVE_WORDS, UNSUPPORTED_MARK,
                                    check_words, refuse_unsupported)
@@ -34,7 +35,9 @@ from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
+from cnc_twin.gcode.reading import read_line
 from cnc_twin.gcode.source import O_NAME, Source
+from cnc_twin.gcode.subfiles import SubroutineFiles
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
 
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
@@ -46,40 +49,50 @@ NON_MODAL_STEPS = (G.G10, G.G28, G.G28_1, G.G30, G.G30_1, G.G92, G.G92_1, G.G92_
 
 class ProgramError(ValueError):
     """A program the reader refuses: ``line`` (1-based; 0 for the file as a whole), the message
-    in LinuxCNC's wording where it has one, and ``calls`` made before it (for comparisons)."""
+    in LinuxCNC's wording where it has one, and ``calls`` made before it (for comparisons);
+    ``file``: the subroutine file ``line`` is in, None for the program's own."""
 
-    def __init__(self, line: int, message: str, calls: list[Call] | None = None, printed: list[str] | None = None):
+    def __init__(self, line: int, message: str, calls: list[Call] | None = None, printed: list[str] | None = None,
+                 file: Path | None = None):
         self.line = line
         self.message = message
         self.calls = calls or []
         self.printed = printed or []
+        self.file = file
         super().__init__(f"line {line}: {message}")
 
 
 @dataclass
 class Reading:
-    """A program read whole: its calls in order and what ``(print,...)`` comments printed."""
+    """A program read whole: its calls in order, what ``(print,...)`` comments printed, and
+    the subroutine files it called (path -> text as read)."""
 
     calls: list[Call]
     printed: list[str]
+    files: dict[Path, str] = field(default_factory=dict)
 
 
 class Interpreter:
     """Runs one program; see :func:`read_program`."""
 
     def __init__(self, source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
-                 parameters: Mapping[int, float] | None = None):
-        self.source = source
+                 parameters: Mapping[int, float] | None = None, subroutine_path: Sequence[Path] = ()):
         self.params = Parameters()
         self.params.numbered.update(parameters or {})
         self.state = State(self.params, tools)
         self.state.begin(start)
-        self.flow = Flow(source, self.params)
+        folder = source.path.parent if source.path is not None else None
+        self.flow = Flow(source, self.params, files=SubroutineFiles(folder, subroutine_path))
         self.calls: list[Call] = []
         self.printed: list[str] = []
         self.motion = MotionRunner(self)
         self._line, self._number = 0, None
         self.state.install_live_parameters(lambda: self._line)
+
+    @property
+    def source(self) -> Source:
+        """The file being run: the program's, or a subroutine file's while it runs."""
+        return self.flow.source
 
     def emit(self, name: str, *values, payload=None) -> None:
         self.calls.append(Call(name, values, self._line, self._number, payload))
@@ -110,7 +123,7 @@ class Interpreter:
                         self._check_length(index + 1, after)
                     index = after
                     continue
-                block = read_block(self.source.lines[index], index + 1, self.params)
+                block = read_line(self.source, index, self.params, in_call=bool(self.flow.frames))
                 if block.o_word is not None:
                     if re.fullmatch(O_NAME, block.o_word):  # "/O0001": a program number, passed over
                         index += 1
@@ -123,9 +136,10 @@ class Interpreter:
         except BlockError as exc:
             line = getattr(exc, "line", self._line)
             self._reset()
-            raise ProgramError(line, str(exc), self.calls, self.printed) from None
+            file = None if self.source is self.flow.main else (self.source.path or Path(self.source.name))
+            raise ProgramError(line, str(exc), self.calls, self.printed, file) from None
         self._reset()
-        return Reading(self.calls, self.printed)
+        return Reading(self.calls, self.printed, self.flow.files.texts())
 
     def _check_length(self, start: int, stop: int) -> None:
         """Refuse the first line in ``start`` ..< ``stop`` (0-based) that is too long to read."""
@@ -411,7 +425,9 @@ class Interpreter:
         elif code == M.M60:
             self.emit("PALLET_SHUTTLE")
             self.emit("PROGRAM_STOP")
-        elif code in (M.M2, M.M30):
+        elif code in (M.M2, M.M30, M.M99):
+            if code == M.M99 and self.flow.frames:  # LinuxCNC's own words (an M99 first on a line: reading.py)
+                raise BlockError("Bug:  Reached convert_stop() from M99 as subprogram return")
             self._program_end(code)
             return True
         return False
@@ -449,11 +465,13 @@ class Interpreter:
 
 
 def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
-                 parameters: Mapping[int, float] | None = None) -> Reading:
+                 parameters: Mapping[int, float] | None = None, subroutine_path: Sequence[Path] = ()) -> Reading:
     """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused.
 
     ``parameters``: numbered parameters as LinuxCNC's parameter file (``.var``) holds them at the
     start, in machine units (the work offsets #5221.., the active system #5220, G92's #5210..);
     ``start``: where the machine stands, x y z a b c in machine coordinates and units (LinuxCNC's
-    interpreter starts from the machine's position; rs274 alone, and None here, from 0)."""
-    return Interpreter(source, tools, start=start, parameters=parameters).run()
+    interpreter starts from the machine's position; rs274 alone, and None here, from 0);
+    ``subroutine_path``: folders a called subroutine's file is looked for in after the program's
+    own (:mod:`~cnc_twin.gcode.subfiles`)."""
+    return Interpreter(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path).run()

@@ -8,6 +8,7 @@ A refused program lists the calls made before the refusal (as rs274 does) and it
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 
 from cnc_twin.gcode.interpreter import ProgramError, read_program
@@ -32,8 +33,13 @@ def read_tool_table(path: Path | None, units: str) -> ToolTable:
         raise ValueError(f"{path}: not a LinuxCNC tool table (expected lines like 'T1 P1 Z0.5 D2')") from None
 
 
-def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bool) -> tuple[list[str], str | None]:
-    """The listing's lines and the error line (None when the program was read whole)."""
+def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bool,
+                 subroutine_path: Sequence[Path] = ()) -> tuple[list[str], str | None]:
+    """The listing's lines and the error line (None when the program was read whole);
+    ``subroutine_path``: folders to look for called subroutines' files in after the program's."""
+    missing = next((folder for folder in subroutine_path if not Path(folder).is_dir()), None)
+    if missing is not None:
+        return [], f"{missing}: no such folder (--subroutine-path)"
     try:
         tools = read_tool_table(tool_table, tool_units)
         source = Source.read(path)
@@ -44,10 +50,10 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
     except OSError as exc:
         return [], f"{path}: cannot read the program ({exc.strerror})"
     try:
-        reading = read_program(source, tools)
+        reading = read_program(source, tools, subroutine_path=subroutine_path)
         calls, printed, error = reading.calls, reading.printed, None
     except ProgramError as exc:
-        calls, printed, error = exc.calls, exc.printed, f"{path}:{exc.line}: {exc.message}"
+        calls, printed, error = exc.calls, exc.printed, f"{exc.file or path}:{exc.line}: {exc.message}"
     if canon:
         return [call.text(k) for k, call in enumerate(calls, start=1)] + printed, error
     counts = Counter(call.name for call in calls)

@@ -133,6 +133,7 @@ class M(enum.IntEnum):
     M9 = 9
     M30 = 30
     M60 = 60
+    M99 = 99
     M61 = 61
     M100 = 100
     M101 = 101
@@ -169,7 +170,7 @@ G_GROUPS.update(EXTENSIONS)
 M_GROUPS: dict[int, int] = {}
 """M code -> its modal group (:class:`MGroup`)"""
 for _group, _codes in {
-    MGroup.STOPPING: (0, 1, 2, 30, 60),
+    MGroup.STOPPING: (0, 1, 2, 30, 60, 99),  # M99 outside a subroutine ends the program as M2 does
     MGroup.IO: (62, 63, 64, 65, 66, 67, 68),
     MGroup.TOOL_CHANGE: (6, 61),
     MGroup.SPINDLE: (3, 4, 5, 19, 70, 71, 72, 73),
@@ -191,37 +192,53 @@ AXIS_USERS = frozenset((G.G10, G.G28, G.G30, G.G52, G.G92))
 
 
 def g_code(value: float) -> int:
-    """A G word's value in tenths, or LinuxCNC's refusal."""
-    if value < 0:
-        raise BlockError("Negative g code used")
+    """A G word's value in tenths, or LinuxCNC's refusal (in its order: a value between
+    tenths or over G99.9, then a negative one)."""
     tenths = round(value * 10.0)
     if abs(value * 10.0 - tenths) > 1e-3 or tenths > 999:
         raise BlockError("G-code out of range")
+    if tenths < 0:
+        raise BlockError("Negative g code used")
     if tenths not in G_GROUPS:
         raise BlockError("Unknown g code used")
     return tenths
 
 
 def m_code(value: float) -> int:
-    """An M word's value, or LinuxCNC's refusal."""
-    if value < 0:
-        raise BlockError("Negative m code used")
+    """An M word's value, or LinuxCNC's refusal (in its order: not a whole number, then
+    negative, over 199, unknown)."""
     code = round(value)
     if abs(value - code) >= 1e-4:
         raise BlockError("Non integer value for integer")
+    if code < 0:
+        raise BlockError("Negative m code used")
     if code > M.M199:
         raise BlockError(f"M-code greater than 199: M{code}")
     if code not in M_GROUPS:
-        raise BlockError("Unknown m code used")
+        raise BlockError(f"Unknown m code used: M{code}")
     return code
 
 
-def modal_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
-    """``(g, m)``: group -> code of the block's G codes (tenths) and M codes."""
-    if len(block.m) > MAX_M_CODES:
-        raise BlockError("Too many m codes on line")
+def read_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
+    """``(g, m)``: group -> code of the block's G codes (tenths) and M codes, each checked in
+    the order written, as LinuxCNC checks them while it reads the line (``M40 G999`` is refused
+    for M40). A block read only up to a refusal (:attr:`BlockError.block`) holds the codes read
+    before it, which LinuxCNC has checked by then."""
+    order = block.codes
+    if len(order) != len(block.g) + len(block.m):  # a block made otherwise than read
+        order = "g" * len(block.g) + "m" * len(block.m)
     g: dict[int, int] = {}
-    for value in block.g:
+    m: dict[int, int] = {}
+    values = {"g": iter(block.g), "m": iter(block.m)}
+    for letter in order:
+        value = next(values[letter])
+        if letter == "m":
+            code = m_code(value)
+            group = M_GROUPS[code]
+            if group in m:
+                raise BlockError("Two m codes used from same modal group")
+            m[group] = code
+            continue
         code = g_code(value)
         group = G_GROUPS[code]
         if group in g:
@@ -230,13 +247,15 @@ def modal_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
                 continue
             raise BlockError("Two g codes used from same modal group")
         g[group] = code
+    return g, m
+
+
+def modal_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
+    """``(g, m)``: group -> code of the block's G codes (tenths) and M codes: the checks made
+    while reading (:func:`read_codes`), then those of the block read whole."""
+    g, m = read_codes(block)
     if g.get(GGroup.NON_MODAL) in AXIS_USERS and g.get(GGroup.MOTION, CANCEL_CYCLE) != CANCEL_CYCLE:
         raise BlockError("Cannot use two g codes that both use axis values")
-    m: dict[int, int] = {}
-    for value in block.m:
-        code = m_code(value)
-        group = M_GROUPS[code]
-        if group in m:
-            raise BlockError("Two m codes used from same modal group")
-        m[group] = code
+    if len(block.m) > MAX_M_CODES:
+        raise BlockError("Too many m codes on line")
     return g, m

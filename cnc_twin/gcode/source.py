@@ -47,6 +47,17 @@ class OLine:
     index: int
 
 
+C_SPACE = " \t\n\v\f\r"
+"""white space as C's ``isspace`` has it, which LinuxCNC strips from the end of a line"""
+_ESCAPED = re.compile("[\udc80-\udcff]")
+"""a byte that is not UTF-8, decoded as a surrogate escape"""
+
+
+def _byte_length(line: str) -> int:
+    """Bytes of ``line`` in the file (a surrogate escape is its one byte)."""
+    return len(line.encode("utf-8", "surrogateescape")) if not line.isascii() else len(line)
+
+
 MAX_LINE = 253
 """characters (bytes) in a line, newline not counted, that LinuxCNC refuses as too long"""
 
@@ -64,11 +75,27 @@ class Source:
 
     def __init__(self, text: str, name: str = "program.ngc"):
         self.name = name
-        self.lines = text.splitlines()
+        self.path: Path | None = None
+        """the file read (:meth:`read`), else None"""
+        # LinuxCNC's lines end at a newline only (a CR, a form feed... are characters of the
+        # line), without the white space that ends them
+        raw = text.split("\n")
+        if raw[-1] == "":
+            raw.pop()
+        self.lines = [line.rstrip(C_SPACE) for line in raw]
+        self.escaped: dict[int, str] = {}
+        """0-based index -> the line with its bytes that are not UTF-8 as surrogate escapes (the
+        text :meth:`read` gives), for the lines that have some: ``lines`` holds them as U+FFFD,
+        one for one"""
+        if not text.isascii():
+            for k, line in enumerate(self.lines):
+                if _ESCAPED.search(line):
+                    self.escaped[k] = line
+                    self.lines[k] = _ESCAPED.sub("\ufffd", line)
         # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
         # (a CR counts) is "Command too long" wherever it is read, a line passed over too
-        self.too_long = [k for k, line in enumerate(text.splitlines(keepends=True))
-                         if len(line) >= MAX_LINE and len(line.rstrip("\n").encode("utf-8", "replace")) >= MAX_LINE]
+        self.too_long = [k for k, line in enumerate(raw)
+                         if len(line) >= MAX_LINE and _byte_length(line) >= MAX_LINE]
         self.first, self.end, self.percent_end = 0, len(self.lines), False
         self.percent_start = False
         for k, line in enumerate(self.lines):
@@ -110,11 +137,15 @@ class Source:
 
     @classmethod
     def read(cls, path: Path) -> "Source":
-        """The program in ``path``; a file that is not text is refused in one line."""
+        """The program in ``path``; a file that is not text is refused in one line. A byte
+        that is not UTF-8 reads as U+FFFD (LinuxCNC's messages name the byte itself:
+        :attr:`escaped`)."""
         data = Path(path).read_bytes()
         if b"\0" in data:
             raise SourceError(0, "not a text file (it contains NUL bytes)")
-        return cls(data.decode("utf-8", errors="replace"), Path(path).name)
+        source = cls(data.decode("utf-8", errors="surrogateescape"), Path(path).name)
+        source.path = Path(path)
+        return source
 
     def _o_line(self, k: int) -> OLine | None:
         text = self.lines[k]

@@ -328,6 +328,7 @@ class GcodeKind(ProgramKind):
         if program.tool_table is not None and Path(program.tool_table[0]).name == program.tool_table[0]:
             # named beside the scenario: kept beside it (a path elsewhere is named as it was)
             files[program.tool_table[0]] = program.tool_table[1]
+        files.update(program.subroutine_files)  # where the scenario's folder had them
         return files
 
     def notices(self, scenario: Scenario) -> list[str]:

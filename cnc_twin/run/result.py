@@ -68,6 +68,7 @@ class RunResult:
             from cnc_twin.run.program_kinds import kind_of
 
             for name, text in kind_of(self.scenario.program).run_files(self.scenario.program).items():
+                (folder / name).parent.mkdir(parents=True, exist_ok=True)  # a subroutine file's folder
                 (folder / name).write_text(text, encoding="utf-8")
             if self.removal is not None:
                 self.removal.save(folder)

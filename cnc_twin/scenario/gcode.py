@@ -87,6 +87,9 @@ class GcodeProgramSpec(Strict):
     type: Literal["gcode"]
     file: str = Field(min_length=1, description="the program (.ngc), next to the scenario")
     tool_table: str | None = Field(None, description="LinuxCNC tool table next to the scenario, for G43 H")
+    subroutine_path: list[str] = Field(default_factory=list, max_length=10,
+                                       description="folders (relative to the scenario) of subroutine files: "
+                                       "o<name> call looks for name.ngc beside the program, then in these in order")
     tool_units: Literal["mm", "inch"] = Field("mm", description="units of the tool table's lengths")
     blend_tolerance: float = Field(0.01, gt=0, le=10, description="corner blend tolerance under G64 without P [mm]")
     axis_tolerance: float = Field(0.05, gt=0, le=10, description="how far a fitted tool axis (G1 runs turning A / B "
@@ -115,9 +118,10 @@ class _Where:
 
 
 def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path, *, start=None,
-               parameters=None):
-    """The canonical calls of the program at ``path`` and its :class:`~cnc_twin.gcode.source.Source`,
-    or a ScenarioError at its line (``start``, ``parameters``: as
+               parameters=None, subroutine_path=()):
+    """The canonical calls of the program at ``path``, its :class:`~cnc_twin.gcode.source.Source`
+    and the subroutine files it called (path -> text), or a ScenarioError at its line (a
+    subroutine file's own; ``start``, ``parameters``, ``subroutine_path``: as
     :func:`~cnc_twin.gcode.interpreter.read_program` takes them, in the tool table's units)."""
     from cnc_twin.gcode.interpreter import ProgramError, read_program
     from cnc_twin.gcode.listing import read_tool_table
@@ -134,9 +138,37 @@ def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path
     except OSError as exc:
         raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
     try:
-        return read_program(source, tools, start=start, parameters=parameters).calls, source
+        reading = read_program(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path)
+        return reading.calls, source, reading.files
     except ProgramError as exc:
-        raise _Where(path)(exc.line, exc.message) from None
+        raise _Where(exc.file or path)(exc.line, exc.message) from None
+
+
+def _find_folder(name: str, folder: Path | None, label: Path, key: str) -> Path:
+    path = Path(name)
+    if not path.is_absolute() and folder is not None:
+        path = folder / path
+    if not path.is_dir():
+        raise ScenarioError(label, key, f"folder '{name}' not found next to the scenario")
+    return path
+
+
+def _kept_subroutines(files: dict[Path, str], program_folder: Path, names: list[str],
+                      folders: list[Path]) -> tuple[tuple[str, str], ...]:
+    """The called subroutine files a run directory keeps, by their name beside the program
+    there: those beside the program, and those in a ``subroutine_path`` folder named relative
+    to the scenario, inside its folder (a folder elsewhere is named as it was, and read again)."""
+    kept = []
+    for path, text in files.items():
+        if path.parent == program_folder:
+            kept.append((path.name, text))
+            continue
+        for name, folder in zip(names, folders):
+            relative = Path(name)
+            if path.parent == folder and not relative.is_absolute() and ".." not in relative.parts:
+                kept.append(((relative / path.name).as_posix(), text))
+                break
+    return tuple(kept)
 
 
 def _find(name: str, folder: Path | None, label: Path, key: str) -> Path:
@@ -165,8 +197,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
     # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
     per_mm = 1.0 / 25.4 if tool_units == "inch" else 1.0
-    calls, source = read_calls(path, table, tool_units, label, start=_in_units(start, per_mm),
-                               parameters=work_offset_parameters(spec.work_offsets, per_mm))
+    sub_folders = [_find_folder(name, folder, label, f"program.subroutine_path[{k}]")
+                   for k, name in enumerate(spec.subroutine_path)]
+    calls, source, sub_files = read_calls(path, table, tool_units, label, start=_in_units(start, per_mm),
+                                          parameters=work_offset_parameters(spec.work_offsets, per_mm),
+                                          subroutine_path=sub_folders)
     where = _Where(path)
     try:
         ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,
@@ -221,7 +256,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
-                        air=spec.in_air * units.MM)
+                        air=spec.in_air * units.MM,
+                        subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
 def start_point(head, home: tuple[float, ...] | None, air: float) -> tuple[float, ...]:

@@ -56,6 +56,12 @@ BUNDLED_SUFFIXES = (".yaml", ".ngc")
 """what a bundled input's name may leave off: a scenario's, a program's"""
 
 
+def folder_list(text: str) -> tuple[Path, ...]:
+    """Folders named on the command line as LinuxCNC's ``SUBROUTINE_PATH`` names them: a
+    colon-separated list, in order, ``~`` expanded as LinuxCNC expands it (``subs:~/lib``)."""
+    return tuple(Path(part).expanduser() for part in text.split(":") if part)
+
+
 def input_path(text: str) -> Path:
     """A scenario or NC program named on the command line: the file, where one exists at that path;
     else, for a bare name (no folder in it), the bundled scenario or program of that name, with or
