@@ -538,9 +538,9 @@ BAD = [
     Bad("cutter compensation", "G41 D1\nM2\n", MARK, 1),
     Bad("tapping outside G17", "G18 G84 X1 Y-1 Z1 R1 F10 S100 M3\nM2\n", MARK, 1),
     Bad("canned cycle without R", "G81 X1 Z-1 F10\nM2\n", "R clearance plane unspecified in cycle", 1),
-    Bad("probing", "G38.2 Z-1 F10\nM2\n", MARK, 1),
+    Bad("probing at zero feed", "G38.2 Z-1\nM2\n", "Cannot probe with zero feed rate", 1),
     Bad("input wait", "M66 P0 L0\nM2\n", MARK, 1),
-    Bad("tool table edit", "G10 L1 P1 Z1\nM2\n", MARK, 1),
+    Bad("tool table edit of an unknown tool", "G10 L1 P9 Z1\nM2\n", "Requested tool 9 not found in the tool table", 1),
     Bad("feed per revolution", "G95 F1\nM2\n", MARK, 1),
     # rows below: ours once read these or worded the refusal otherwise
     Bad("read-only named parameter", "#<_x> = 1\nM2\n", "Cannot assign to read-only parameter #<_x>", 1),

@@ -43,6 +43,10 @@ def _plain(values) -> str:
 _FORMATS = {
     "STRAIGHT_TRAVERSE": _f4,
     "STRAIGHT_FEED": _f4,
+    "STRAIGHT_PROBE": _f4,
+    # tool index, tool number, the nine offsets (machine units), front and back angles, orientation
+    "SET_TOOL_TABLE_ENTRY": lambda v: f"{v[0]}, {v[1]}, " + " ".join(f"{x:.4f}" for x in v[2:11])
+                                      + f", {v[11]:.4f}, {v[12]:.4f}, {v[13]}",
     "SET_FEED_RATE": _f4,
     "DWELL": _f4,
     "SET_XY_ROTATION": _f4,

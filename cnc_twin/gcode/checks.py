@@ -1,6 +1,6 @@
 """A block's codes and words checked before it runs, as LinuxCNC checks a block it has read
 (its enhance_block, check_g_codes and check_other_codes, in that order), with its wording; and
-what the twin's machine does not have, refused in one line naming it (probing, cutter radius
+what the twin's machine does not have, refused in one line naming it (cutter radius
 compensation, threading, lathe modes...).
 """
 
@@ -19,8 +19,7 @@ UNSUPPORTED_MARK = "not supported by cnc-twin"
 """every refusal of a feature the machine does not have says this"""
 UNSUPPORTED_G = {
     50: "G5 (cubic spline)", 51: "G5.1 (quadratic spline)", 70: "G7 (lathe diameter mode)",
-    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 382: "G38.2 (probing)",
-    383: "G38.3 (probing)", 384: "G38.4 (probing)", 385: "G38.5 (probing)", 410: "G41 (cutter radius compensation)",
+    330: "G33 (spindle-synchronised motion)", 331: "G33.1 (rigid tapping)", 410: "G41 (cutter radius compensation)",
     411: "G41.1 (cutter radius compensation)", 420: "G42 (cutter radius compensation)",
     421: "G42.1 (cutter radius compensation)", 432: "G43.2 (additional tool length offset)",
     760: "G76 (threading cycle)", 950: "G95 (feed per revolution)", 960: "G96 (constant surface speed)",
@@ -41,6 +40,8 @@ setpoint, M101 switches it off (LinuxCNC's user M-code range)"""
 AXIS_LETTERS = "xyzabc"
 MOVE_WORDS = AXIS_LETTERS + "@^"
 """words that make a block move (``@`` / ``^`` polar radius and angle)"""
+PROBES = (G.G38_2, G.G38_3, G.G38_4, G.G38_5)
+"""straight probing (:mod:`~cnc_twin.gcode.probing`)"""
 AXIS_CODES = (G.G10, G.G28, G.G30, G.G92)
 """group 0 codes whose axis words are their own (G10, G28, G30, G92)"""
 
@@ -55,9 +56,6 @@ def refuse_unsupported(block: Block, g: dict[int, int], m: dict[int, int]) -> No
             raise BlockError(f"{UNSUPPORTED_M[code]} is {UNSUPPORTED_MARK}'s machine")
         if M.M100 <= code <= M.M199 and code not in (FORCE_ON, FORCE_OFF):
             raise BlockError(f"Unknown m code used: M{code}")
-    if g.get(GGroup.NON_MODAL) == G.G10 and round(block.words.get("l", -1)) in (0, 1, 10, 11):
-        raise BlockError("G10 L0 / L1 / L10 / L11 (tool table edits) are not supported by cnc-twin: give "
-                         "tool data in the tool table")
     for letter in "uvw":
         if letter in block.words:
             raise BlockError(f"Bad character '{letter}' used")
@@ -90,6 +88,8 @@ def _check_axis_words(block: Block, g: dict[int, int], state: State) -> None:
         raise BlockError("Cannot use axis values with g80")
     if g.get(GGroup.MOTION) in CANNED_CYCLES and not moving:  # a G1 alone is allowed, a cycle is not
         raise BlockError("All axes missing with motion code")
+    if g.get(GGroup.MOTION) in PROBES and not moving:
+        raise BlockError("All axes missing with motion code")
     owned = g0 in AXIS_CODES or g.get(GGroup.TOOL_LENGTH_OFFSET) == G.G43_1 or GGroup.MOTION in g
     if not owned and state.motion == G.G80 and moving:
         raise BlockError("Cannot use axis values without a g code that uses them")
@@ -120,6 +120,8 @@ def _check_g10(p: float, l_word: int) -> None:
         raise BlockError("P value not an integer with G10")
     if l_word in (2, 20) and not 0 <= p_int <= 9:
         raise BlockError(f"P value out of range (0-9) with G10 L{l_word}")
+    if l_word in (1, 10, 11) and p_int < 1:  # P is the tool number
+        raise BlockError(f"P value out of range with G10 L{l_word}")
 
 
 def _check_other_words(block: Block, g: dict[int, int], m: dict[int, int], motion: int | None) -> None:

@@ -10,7 +10,7 @@ force-control M codes, dwell, plane, units, cutter radius compensation off, tool
 work system, path control, distance modes, retract mode, G10 / G28 / G30 / G92, motion, stops.
 O-word lines go to :mod:`~cnc_twin.gcode.flow`.
 
-What the twin's machine does not have is refused in one line naming it (probing, cutter radius
+What the twin's machine does not have is refused in one line naming it (cutter radius
 compensation, threading, lathe modes...), never read differently: the reader
 either makes the calls LinuxCNC makes or says why it will not. A refused or wrong program raises
 :class:`ProgramError` with the line and LinuxCNC's wording; nothing of it reaches the machine,
@@ -35,10 +35,12 @@ from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
+from cnc_twin.gcode.probing import Probe, standalone_probe
 from cnc_twin.gcode.reading import read_line
 from cnc_twin.gcode.source import O_NAME, Source
 from cnc_twin.gcode.subfiles import SubroutineFiles
 from cnc_twin.gcode.state import ACTIVE_SYSTEM, HOME_PARAMETERS, SYSTEM_CODES, State, ToolTable
+from cnc_twin.gcode.tool_edits import TOOL_EDITS, edit_tool_table
 
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
 PLAIN_WORDS = frozenset(AXIS_LETTERS + "f")
@@ -76,7 +78,9 @@ class Interpreter:
     """Runs one program; see :func:`read_program`."""
 
     def __init__(self, source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
-                 parameters: Mapping[int, float] | None = None, subroutine_path: Sequence[Path] = ()):
+                 parameters: Mapping[int, float] | None = None, probe: Probe | None = None,
+                 subroutine_path: Sequence[Path] = ()):
+        self.probe: Probe = probe or standalone_probe
         self.params = Parameters()
         self.params.numbered.update(parameters or {})
         self.state = State(self.params, tools)
@@ -200,6 +204,8 @@ class Interpreter:
             self.emit("CHANGE_TOOL", s.selected_tool)
             if s.selected_tool != 0:  # T0 M6 leaves the last tool's data in rs274's spindle slot
                 s.tool_in_spindle = s.tool_data = s.selected_tool
+                s.slot_tools = None  # the slot holds the table's entry, G10 L1 edits included
+            s.pocket = s.tools.index(s.selected_tool)
         elif m.get(MGroup.TOOL_CHANGE) == M.M61:
             self._set_tool_number(block)
         if MGroup.SPINDLE in m:
@@ -349,7 +355,7 @@ class Interpreter:
         offsets = [0.0] * 9
         if code == G.G43:
             number = self._tool_number(block.words["h"]) if "h" in block.words else 0
-            for axis, value in enumerate(s.tool_lengths(number or s.tool_data)):
+            for axis, value in enumerate(s.tools.offsets(number) if number else s.spindle_offsets()):
                 offsets[axis] = s.user_to_program(axis, value)
         elif code == G.G43_1:
             offsets = list(s.tool_offset)
@@ -403,9 +409,13 @@ class Interpreter:
             self.emit("SET_G92_OFFSET", *s.g92)
 
     def _g10(self, block: Block, given: dict[int, float]) -> None:
-        """G10 L2 / L20 (P checked with the block): LinuxCNC truncates P (``P1.5`` is G54)."""
+        """G10 L2 / L20 (P checked with the block): LinuxCNC truncates P (``P1.5`` is G54); the
+        tool table's L0 / L1 / L10 / L11: :mod:`~cnc_twin.gcode.tool_edits`."""
         s = self.state
         words = block.words
+        if round(words["l"]) in TOOL_EDITS:
+            edit_tool_table(self, block)
+            return
         if words.get("r", 0.0) != 0.0:
             raise BlockError(f"G10 L2 R (rotated work coordinates) is {UNSUPPORTED_MARK}")
         system = int(words["p"] + 0.0001) or s.system
@@ -465,13 +475,18 @@ class Interpreter:
 
 
 def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
-                 parameters: Mapping[int, float] | None = None, subroutine_path: Sequence[Path] = ()) -> Reading:
+                 parameters: Mapping[int, float] | None = None, probe: Probe | None = None,
+                 subroutine_path: Sequence[Path] = ()) -> Reading:
     """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused.
 
     ``parameters``: numbered parameters as LinuxCNC's parameter file (``.var``) holds them at the
     start, in machine units (the work offsets #5221.., the active system #5220, G92's #5210..);
     ``start``: where the machine stands, x y z a b c in machine coordinates and units (LinuxCNC's
     interpreter starts from the machine's position; rs274 alone, and None here, from 0);
-    ``subroutine_path``: folders a called subroutine's file is looked for in after the program's
-    own (:mod:`~cnc_twin.gcode.subfiles`)."""
-    return Interpreter(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path).run()
+    ``probe``: the machine's answer to a G38.n probing move (:data:`~cnc_twin.gcode.probing.Probe`);
+    None: rs274's standalone answer (:func:`~cnc_twin.gcode.probing.standalone_probe`). A G10 L1 /
+    L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``:
+    folders a called subroutine's file is looked for in after the program's own
+    (:mod:`~cnc_twin.gcode.subfiles`)."""
+    return Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
+                       subroutine_path=subroutine_path).run()

@@ -1,7 +1,8 @@
 """The motion step of a block, as LinuxCNC's interpreter makes it: the end point from the axis
 words (absolute, incremental or, with G53, machine coordinates), then a traverse, a feed, an
-arc, a NURBS curve (G5.2 ... G5.3, or the Fanuc-style G6.2), a canned cycle
-(:mod:`~cnc_twin.gcode.cycles`), a dwell or a return to a stored position (G28 / G30).
+arc, a NURBS curve (G5.2 ... G5.3, or the Fanuc-style G6.2), a probing move (G38.2 .. G38.5,
+:mod:`~cnc_twin.gcode.probing`), a canned cycle (:mod:`~cnc_twin.gcode.cycles`), a dwell or a
+return to a stored position (G28 / G30).
 
 Positions are program coordinates in the program's units (see :mod:`~cnc_twin.gcode.state`).
 """
@@ -19,6 +20,7 @@ from cnc_twin.gcode.expressions import PI_LONG
 from cnc_twin.gcode.cycles import CycleRunner
 from cnc_twin.gcode.modal import CANNED_CYCLES, G
 from cnc_twin.gcode.nurbs import G52Collector, G62Collector, NurbsBlock, g53
+from cnc_twin.gcode.probing import PROBE_CODES, straight_probe
 from cnc_twin.gcode.state import HOME_PARAMETERS
 
 if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed here
@@ -115,6 +117,9 @@ class MotionRunner:
             return
         if motion in CANNED_CYCLES:
             self.cycles.run(motion, block)
+            return
+        if motion in PROBE_CODES:
+            straight_probe(self, motion, block)
             return
         end = self.ends(block, machine)
         if motion == G.G0:

@@ -44,12 +44,36 @@ SYSTEM_CODES = {G.G54: 1, G.G55: 2, G.G56: 3, G.G57: 4, G.G58: 5, G.G59: 6, G.G5
 
 @dataclass
 class ToolTable:
-    """Tools by number: ``lengths`` tool -> its length offsets along x y z (in ``units``: 200
-    inch, 210 mm: LinuxCNC's machine units), ``diameters`` tool -> diameter."""
+    """Tools by number, in the table's order: ``lengths`` tool -> its length offsets along x y z
+    (in ``units``: 200 inch, 210 mm: LinuxCNC's machine units), ``diameters`` tool -> diameter,
+    ``angles`` tool -> its A B C offsets (degrees; none: 0), ``shapes`` tool -> its lathe data
+    (front angle, back angle, orientation; none: 0, 0, 0), kept to be printed as rs274 prints
+    a tool table entry. A program's G10 L1 / L10 / L11 edits a copy (:meth:`with_tool`)."""
 
     lengths: dict[int, tuple[float, float, float]] = field(default_factory=dict)
     diameters: dict[int, float] = field(default_factory=dict)
     units: int = G.G21
+    angles: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+    shapes: dict[int, tuple[float, float, int]] = field(default_factory=dict)
+
+    def index(self, number: int) -> int:
+        """LinuxCNC's index of tool ``number``: its place in the table from 1 (0: tool 0, the
+        spindle's own slot); the tool must be in the table."""
+        return 0 if number == 0 else list(self.lengths).index(number) + 1
+
+    def offsets(self, number: int) -> tuple[float, ...]:
+        """Tool ``number``'s x y z (machine units) and a b c (degrees) offsets; zeros for a tool
+        not in the table."""
+        return self.lengths.get(number, (0.0, 0.0, 0.0)) + self.angles.get(number, (0.0, 0.0, 0.0))
+
+    def with_tool(self, number: int, offsets, diameter: float, shape: tuple[float, float, int]) -> "ToolTable":
+        """A copy with tool ``number``'s entry (in the table already, keeping its place) replaced."""
+        table = ToolTable(dict(self.lengths), dict(self.diameters), self.units, dict(self.angles), dict(self.shapes))
+        table.lengths[number] = tuple(offsets[:3])
+        table.angles[number] = tuple(offsets[3:6])
+        table.diameters[number] = diameter
+        table.shapes[number] = shape
+        return table
 
     @classmethod
     def parse(cls, text: str, units: int = G.G21) -> "ToolTable":
@@ -63,6 +87,11 @@ class ToolTable:
             number = int(values["t"])
             table.lengths[number] = tuple(float(values.get(axis, 0.0)) for axis in "xyz")
             table.diameters[number] = float(values.get("d", 0.0))
+            if any(axis in values for axis in "abc"):
+                table.angles[number] = tuple(float(values.get(axis, 0.0)) for axis in "abc")
+            if any(letter in values for letter in "ijq"):
+                table.shapes[number] = (float(values.get("i", 0.0)), float(values.get("j", 0.0)),
+                                        int(float(values.get("q", 0))))
         return table
 
 
@@ -93,6 +122,13 @@ class State:
     tool_data: int = 0
     """the tool whose table data is in rs274's spindle slot (what G43 without H, and G43 H0,
     apply): the last tool M6 loaded other than 0, since T0 M6 leaves the slot as it was"""
+    pocket: int = 1
+    """rs274's current pocket: the table index (:meth:`ToolTable.index`) of the tool the last M6
+    loaded (0 after T0 M6); 1 before any, as rs274's standalone canon starts with slot 1 active.
+    A G10 L1 / L10 / L11 of the tool at this index copies it into the spindle slot too"""
+    slot_tools: ToolTable | None = None
+    """the table the spindle slot's data (tool ``tool_data``) was copied from, when a G10 L1 /
+    L10 / L11 has edited that tool's entry since without copying it to the slot; None: ``tools``"""
     selected_tool: int = 0
     spindle: str = "stop"
     mist: bool = False
@@ -255,6 +291,15 @@ class State:
         """Tool ``number``'s x y z lengths in the table (machine units); none for tool 0."""
         return self.tools.lengths.get(number, (0.0, 0.0, 0.0))
 
+    def spindle_offsets(self) -> tuple[float, ...]:
+        """The spindle slot's x y z (machine units) and a b c offsets: what G43 without H (or
+        H0) applies and #5401.. read."""
+        return (self.slot_tools or self.tools).offsets(self.tool_data)
+
+    def spindle_diameter(self) -> float:
+        """The spindle slot's tool diameter (machine units), #5410."""
+        return (self.slot_tools or self.tools).diameters.get(self.tool_data, 0.0)
+
     def set_tool_offset(self, offsets: list[float]) -> None:
         """G43 / G43.1 / G49: the tool tip's program position moves with the offset."""
         for axis in range(6):
@@ -307,8 +352,8 @@ class State:
             named[f"_{letter}"] = position
             numbered[5420 + axis] = position
             # the spindle's tool as the table has it (machine units), not the offset in use
-            numbered[5401 + axis] = (lambda k=axis: self.tool_lengths(self.tool_data)[k]) if axis < 3 else (lambda: 0.0)
+            numbered[5401 + axis] = (lambda k=axis: self.spindle_offsets()[k]) if axis < 6 else (lambda: 0.0)
         numbered[5400] = lambda: float(self.tool_in_spindle)
-        numbered[5410] = lambda: self.tools.diameters.get(self.tool_data, 0.0)
+        numbered[5410] = self.spindle_diameter
         for index in range(5411, 5414):  # front and back angles, orientation: a mill's are 0
             numbered[index] = lambda: 0.0

@@ -164,8 +164,9 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
     deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
     ``air`` [mm]: every point raised this far along Z (the program proved in the air).
 
-    Raises :class:`ToolpathError` for what reads but cannot run: an arc or a curve as the first
-    motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
+    Raises :class:`ToolpathError` for what reads but cannot run: a probing move (G38.2 .. G38.5,
+    which the twin does not run yet), an arc or a curve as the first motion when ``start`` is not
+    known (the tool's place is not known before a G0 / G1).
     """
     canon = _Canon(air=air)
     ops: list[Operation] = []
@@ -231,6 +232,9 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
                 element = curve_element(call.payload, here[:3], offset, canon.scale, call.payload.line)
             path.append((element, _modes(canon, here)))
             here = np.concatenate([element.end, here[3:]])
+        elif name == "STRAIGHT_PROBE":
+            raise ToolpathError(call.line, "a probing move (G38.2 .. G38.5): the reader reads it, but probing "
+                                "runs on the twin in a later version, so this program cannot run yet")
         elif name == "DWELL":
             close()
             ops.append(Pause(float(v[0]), call.line))
