@@ -8,6 +8,7 @@ not have); and ``cnc-twin gcode`` as a command."""
 from __future__ import annotations
 
 import random
+import re
 from dataclasses import dataclass, field
 
 import pytest
@@ -686,12 +687,14 @@ def test_a_reader_that_stops_early_ends_the_listing_quietly():
     assert first.strip() and err == b""
 
 
-def test_the_summary_counts_the_moves(tmp_path):
+def test_the_summary_counts_the_moves_and_says_how_far_the_tool_goes(tmp_path):
+    """G0 X1 then G1 Y2 from the program's 0: the tip's box is X 1..1, Y 0..2, Z 0..0 mm."""
     path = _write(tmp_path, "small.ngc", SMALL)
     code, out, err = run_cli("gcode", path)
     assert (code, err) == (0, "")
-    assert out.splitlines() == [f"{path}: 4 lines, 20 canonical calls", "  STRAIGHT_TRAVERSE  1",
-                                "  STRAIGHT_FEED      1"]
+    lines = out.splitlines()
+    assert lines[:3] == [f"{path}: 4 lines, 20 canonical calls", "  STRAIGHT_TRAVERSE  1", "  STRAIGHT_FEED      1"]
+    assert len(lines) == 4 and re.search(r"X 1 \.\. 1 Y 0 \.\. 2 Z 0 \.\. 0 mm", lines[3]), lines[3]
 
 
 def test_a_refused_program_lists_the_calls_before_it_and_one_error_line(tmp_path):

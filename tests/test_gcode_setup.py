@@ -80,3 +80,14 @@ def test_a_bad_set_up_is_one_line_at_its_key(program, tmp_path):
     code, err, _ = _run(tmp_path, "bad", "G21\nG0 X1\nM2\n", scenario=program)
     assert code == 2 and not (tmp_path / "run_bad").exists()
     assert len(err.strip().splitlines()) == 1 and "program." in err
+
+
+def test_g28_and_g30_return_to_where_the_machine_stood_not_to_the_workpiece(tmp_path):
+    """CAM programs end with ``G91 G28 Z0``: Z goes back up to the machine's home (the stored G28
+    position is the home, as on a machine homed there), X and Y stay; G30 likewise."""
+    for code in ("G28", "G30"):
+        program = f"G21 G90\nG0 X10 Y10 Z5\nG1 X20 F600\nG91 {code} Z0\nG90\nM2\n"
+        status, err, trace = _run(tmp_path, code.lower(), program)
+        assert status == 0, err
+        assert trace["command_Z"].min() < -280 * COUNTS_PER_MM  # it went down to Z5 first
+        assert trace["command_Z"][-1] == 0 and trace["command_X"][-1] == pytest.approx(20 * COUNTS_PER_MM)

@@ -59,4 +59,19 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
     counts = Counter(call.name for call in calls)
     lines = [f"{path}: {len(source.lines)} lines, {len(calls)} canonical calls"]
     lines += [f"  {name:<18} {counts[name]}" for name in MOVES if counts[name]]
+    if error is None:
+        lines += _reach(calls)
     return lines + printed, error
+
+
+def _reach(calls) -> list[str]:
+    """The line saying how far the tool tip goes, after the program's own offsets (where it
+    starts is not known here: from the first motion on)."""
+    from cnc_twin.gcode.extents import describe, extents
+    from cnc_twin.gcode.toolpath import ToolpathError, operations
+
+    try:
+        box = extents(operations(calls))
+    except ToolpathError:  # an arc as the first motion: from where the machine stands, not known here
+        return []
+    return [] if box is None else [f"  reaches {describe(box)} (the tool tip, after the program's offsets)"]

@@ -75,6 +75,9 @@ class Element:
 
     @property
     def length(self) -> float:
+        """[mm] along the element (a line's exactly; others by :func:`piece_length`'s chords)."""
+        if self.kind == "line":  # most of a CAM program: no need to sample a straight piece
+            return float(np.linalg.norm(self.end - self.start))
         return sum(piece_length(p) for p in self.pieces)
 
 

@@ -70,6 +70,46 @@ def feed_caps(prog: GcodeProgram, axes: tuple[AxisConfig, ...]) -> list[tuple[in
     return out
 
 
+def turn_limited_time(c) -> float:
+    """[s] roughly how long a joined feed path (a curve program ``c``) takes when its turns slow
+    it, read off its control polygon (which follows a curve of Bezier pieces closely): where the
+    polygon turns by ``theta`` between edges of length ``l`` the radius is about ``l / theta``;
+    there the normal acceleration allows ``sqrt(a_n r)`` and the normal jerk, its curvature
+    building up over ``l``, about ``(j_n r l)^(1/3)``; each edge runs at the feed or the slower
+    of its two ends. A raster's corners blended within G64 P0.01, or a dense 3D polyline, run far
+    below F on the card (an estimate at the feed would time the run out); a 50 mm radius at
+    3 m/min runs at F."""
+    points = [c.control_points[0]]
+    for q in c.control_points[1:]:  # the pieces' shared ends are repeated: one of each
+        if q != points[-1]:
+            points.append(q)
+    lim = c.limits
+    edges = [math.dist(p, q) for p, q in zip(points, points[1:])]
+    at_vertex = [lim.feed]  # the speed each vertex allows (the ends: the feed, ramps counted elsewhere)
+    for j in range(1, len(points) - 1):
+        d_in = [x1 - x0 for x0, x1 in zip(points[j - 1], points[j])]
+        d_out = [x1 - x0 for x0, x1 in zip(points[j], points[j + 1])]
+        cos = sum(x * y for x, y in zip(d_in, d_out)) / (edges[j - 1] * edges[j])
+        theta = math.acos(max(-1.0, min(1.0, cos)))
+        if theta < 1e-9:
+            at_vertex.append(lim.feed)
+            continue
+        l = 0.5 * (edges[j - 1] + edges[j])
+        r = l / theta
+        at_vertex.append(min(lim.feed, math.sqrt(lim.normal_acceleration * r), (lim.normal_jerk * r * l) ** (1 / 3)))
+    at_vertex.append(lim.feed)
+    # the card's ramps between them are jerk-limited: over an edge the speed gains at most what
+    # the tangential jerk gives in the time the edge takes (forward, then backward for braking)
+    a, j = lim.tangential_acceleration, lim.tangential_jerk
+    for order in (range(1, len(at_vertex)), range(len(at_vertex) - 2, -1, -1)):
+        for k in order:
+            prev = k - 1 if order.step == 1 else k + 1
+            v0, length = max(at_vertex[prev], 1e-6), edges[min(k, prev)]
+            t = length / v0
+            at_vertex[k] = min(at_vertex[k], v0 + min(0.5 * j * t * t, a * t))
+    return sum(2.0 * l / max(v0 + v1, 1e-6) for l, v0, v1 in zip(edges, at_vertex, at_vertex[1:]))
+
+
 def move_starts(prog: GcodeProgram, home: tuple[float, ...]) -> list[tuple[GcodeMove, tuple[float, ...]]]:
     """Each coordinated move of the program with the six axes where it starts [m | rad] (after
     the step before it: a move's end, or a path's end pose)."""
@@ -97,7 +137,8 @@ class GcodePlan:
     @property
     def estimated_periods(self) -> int:
         """Program length [periods], estimated: moves at their planned time, feed paths at 1.5x
-        their length at feed (corners and curvature slow them), pauses, the settle."""
+        their length at feed or as their turns slow them (:func:`turn_limited_time`), whichever
+        is longer, pauses, the settle."""
         from cnc_twin.planner.curve_program import curve_setup
 
         T, here, total = self.period, self.home, 0.0
@@ -108,7 +149,7 @@ class GcodePlan:
             elif isinstance(step, GcodePath):
                 c = step.curve
                 length = sum(math.dist(p, q) for p, q in zip(c.control_points, c.control_points[1:]))
-                total += 1.5 * length / c.limits.feed + 0.05
+                total += max(1.5 * length / c.limits.feed, turn_limited_time(c)) + 0.05
                 curve, _, axis_path, _, _ = curve_setup(c)
                 here = _end_pose(curve, axis_path, c.hold)
             elif isinstance(step, GcodePause):

@@ -24,17 +24,27 @@ from cnc_twin.trace.trace import Trace
 
 
 class _PathTrace:
-    """The trace seen by one path: it ends with the path's last period (so what follows, a rapid
-    move's start, is not counted in the path's axis peaks), and ``path_u`` is -1 before the path."""
+    """The trace seen by one path: a window from two periods before it to its last period (so
+    what follows, a rapid move's start, is not counted in the path's axis peaks; the period before
+    it is, as a curve run's), ``path_u`` -1 before the path, ``period_offset`` the window's first
+    period in the run. A window, not the run up to the path: a program of thousands of paths is
+    measured in time proportional to its length, not to the square of it."""
 
     def __init__(self, trace: Trace, first: int, stop: int):
-        """``first``, ``stop``: the path's first and one-past-last servo tick."""
-        u = trace.period_signals["path_u"][:stop].copy()
-        u[:first] = -1.0
-        self.period_signals = {"path_u": u, "path_ds": trace.period_signals["path_ds"][:stop],
-                               "force_depth": trace.period_signals["force_depth"][:stop]}
-        self.command, self.actual = trace.command[:stop], trace.actual[:stop]
-        self.tool = trace.tool[:stop // trace.ticks_per_period]
+        """``first``, ``stop``: the path's first and one-past-last period."""
+        tpp = trace.ticks_per_period
+        begin = max(0, first - 2)
+        self.period_offset = begin
+        signals = trace.period_signals
+
+        def window(name: str) -> np.ndarray:
+            return np.repeat(signals.per_period(name)[begin:stop].astype(np.float64), tpp)
+
+        u = window("path_u")
+        u[:(first - begin) * tpp] = -1.0
+        self.period_signals = {"path_u": u, "path_ds": window("path_ds"), "force_depth": window("force_depth")}
+        self.command, self.actual = trace.command[begin * tpp:stop * tpp], trace.actual[begin * tpp:stop * tpp]
+        self.tool = trace.tool[begin:stop]
         self.counts_per_unit = trace.counts_per_unit
 
 
@@ -44,15 +54,14 @@ def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     from cnc_twin.run.path_metrics import path_metrics
 
     prog: GcodeProgram = scenario.program
-    tpp = scenario.timing.ticks_per_period
-    u_ticks = trace.period_signals["path_u"]
-    u = u_ticks[tpp - 1::tpp]
+    u = trace.period_signals.per_period("path_u").astype(np.float64)
     per_path = []
     pressed = pressed_paths(prog)
     for path, (first, stop) in zip(prog.paths, curve_runs(u)):
         axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
-        m = path_metrics(_PathTrace(trace, first * tpp, stop * tpp), dataclasses.replace(scenario, program=path.curve),
-                         force_axis=axis)
+        window = _PathTrace(trace, first, stop)
+        m = path_metrics(window, dataclasses.replace(scenario, program=path.curve), force_axis=axis,
+                         period_offset=window.period_offset)
         per_path.append((path, m))
     out: dict[str, Any] = {"file": str(prog.file), "feed_paths": len(prog.paths), "paths_run": len(per_path)}
     measured = [(p, m) for p, m in per_path if "chord_error_um" in m]

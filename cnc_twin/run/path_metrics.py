@@ -57,14 +57,17 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
 
 
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
-                 plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None) -> dict[str, Any]:
+                 plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None,
+                 period_offset: int = 0) -> dict[str, Any]:
     """The contour metrics of a curve run (see the module docstring); lengths in um.
 
     ``force_axis``: the tool axis (world frame, unit) of a run with the force loop on. The loop's
     offset along it (the trace's ``force_depth``) is taken off the commanded and actual X/Y/Z
     first, so the chord error, the contour error (tracking) and the axis peaks are the path's;
     the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
-    reported beside them, without limits (the force loop's correction, not the planned path)."""
+    reported beside them, without limits (the force loop's correction, not the planned path).
+    ``period_offset``: the run's period at which ``trace`` begins (a window of it), for the times
+    the violations give."""
     prog = scenario.program
     curve = tip_curve(prog)
     tpp = scenario.timing.ticks_per_period
@@ -115,7 +118,7 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     acc = np.diff(v, axis=0) / T
     jerk = np.diff(acc, axis=0) / T
     # the period a difference belongs to: v[k] spans periods first+k .. first+k+1 (and so on)
-    first = seg[0] - 1
+    first = seg[0] - 1 + period_offset  # in the run (``trace`` may be a window starting at period_offset)
     out["axis_peaks"] = {}
     violations = []
     for i, name in enumerate(names):

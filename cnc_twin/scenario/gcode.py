@@ -197,10 +197,14 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
     # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
     per_mm = 1.0 / 25.4 if tool_units == "inch" else 1.0
+    start_units = _in_units(start, per_mm)
+    # G28 / G30 return to where the machine stood (its home), as a machine homed there keeps them
+    # in its parameter file; zeros would send the tool to the workpiece frame's origin, on the work
+    parameters = {base + k: value for base in (5161, 5181) for k, value in enumerate(start_units)}
+    parameters.update(work_offset_parameters(spec.work_offsets, per_mm))
     sub_folders = [_find_folder(name, folder, label, f"program.subroutine_path[{k}]")
                    for k, name in enumerate(spec.subroutine_path)]
-    calls, source, sub_files = read_calls(path, table, tool_units, label, start=_in_units(start, per_mm),
-                                          parameters=work_offset_parameters(spec.work_offsets, per_mm),
+    calls, source, sub_files = read_calls(path, table, tool_units, label, start=start_units, parameters=parameters,
                                           subroutine_path=sub_folders)
     where = _Where(path)
     try:
