@@ -10,7 +10,7 @@ same curve written as G5.2 must sample to the same points.
 
 A small reader below drives the collectors the way the interpreter will (motion modes, G90 /
 G91, the current point that stays put while a G5.2 curve is read); the reference programs
-(``/work/shared/data/linuxcnc-nurbs``, GPL, read in place) are read with it.
+(``../shared/data/linuxcnc-nurbs``, GPL, read in place) are read with it.
 """
 
 from __future__ import annotations
@@ -23,12 +23,13 @@ import pytest
 
 import oracle
 import oracle_samples
+import shared_data
 from cnc_twin.gcode.blocks import BlockError, apply_assignments, read_block
 from cnc_twin.gcode.expressions import Parameters
 from cnc_twin.gcode.modal import g_code
 from cnc_twin.gcode.nurbs import AXES, G52Collector, G62Collector, NurbsBlock, g53
 
-REFERENCE = Path("/work/shared/data/linuxcnc-nurbs")
+REFERENCE = shared_data.LINUXCNC_NURBS
 REFERENCE_ABSENT = (f"the published NURBS programs are not at {REFERENCE} (LinuxCNC's nc_files/nurbs, "
                     "see its README.md): this test reads them there")
 TOLERANCE = 1e-9

@@ -15,6 +15,7 @@ import pytest
 
 import gcode_conformance
 import oracle
+import shared_data
 from gcode_conformance import compare, ours
 from cnc_twin.gcode.interpreter import read_program
 from cnc_twin.gcode.probing import ProbeMove, ProbeResult, standalone_probe
@@ -141,17 +142,13 @@ def test_the_runner_refuses_a_probe_at_its_line():
 
 # -- outside programs that probe --------------------------------------------------------------------
 
-OUTSIDE = Path("/work/shared/data/outside-gcode/progs")
-OUTSIDE_ABSENT = f"the outside programs are not at {OUTSIDE} (see scripts/outside_programs.py): this test reads them there"
 MACHINE_TOOLS = "".join(f"T{n} P{n} Z0 D0.1\n" for n in range(1, 100))
 """T1-T99, as the outside programs are read with (scripts/outside_programs.py)"""
 
 
 def test_outside_programs_that_probe_are_read_as_rs274_reads_them(tmp_path, monkeypatch):
     oracle.require()
-    if not OUTSIDE.is_dir():
-        pytest.skip(OUTSIDE_ABSENT)
-    probing = [p for p in sorted(OUTSIDE.iterdir()) if re.search(r"G38", p.read_text(errors="replace"))]
+    probing = [p for p in sorted(shared_data.require(shared_data.OUTSIDE_GCODE).iterdir()) if re.search(r"G38", p.read_text(errors="replace"))]
     assert len(probing) >= 5
     monkeypatch.setattr(oracle, "TOOL_TABLE", MACHINE_TOOLS)
     monkeypatch.setattr(gcode_conformance, "TOOLS", ToolTable.parse(MACHINE_TOOLS, units=200))
