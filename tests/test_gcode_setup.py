@@ -91,3 +91,15 @@ def test_g28_and_g30_return_to_where_the_machine_stood_not_to_the_workpiece(tmp_
         assert status == 0, err
         assert trace["command_Z"].min() < -280 * COUNTS_PER_MM  # it went down to Z5 first
         assert trace["command_Z"][-1] == 0 and trace["command_X"][-1] == pytest.approx(20 * COUNTS_PER_MM)
+
+
+def test_a_program_beyond_the_travel_is_refused_with_where_it_goes_and_runs_once_placed(tmp_path):
+    """A part programmed from its corner, 500 mm long: beyond X's soft limits as written (one line,
+    naming the key that places it); with G54 half its length back it runs, X ending at +250 mm."""
+    program = "G21 G90\nG0 X0 Y0 Z5\nG1 X500 F3000\nM2\n"
+    code, err, _ = _run(tmp_path, "long", program, scenario={})
+    assert code == 2 and not (tmp_path / "run_long").exists()
+    assert len(err.strip().splitlines()) == 1 and "program.work_offsets" in err
+    code, err, trace = _run(tmp_path, "placed", program, scenario={"work_offsets": {"G54": {"X": -250.0}}})
+    assert code == 0, err
+    assert trace["command_X"][-1] == pytest.approx(250 * COUNTS_PER_MM, abs=1.0)

@@ -218,40 +218,10 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     if spec.in_air and pressing is not None:
         raise ScenarioError(label, "program.in_air", f"the program presses on the workpiece (M100 at {path.name} line "
                             f"{pressing.line}): a run in the air cannot; leave in_air out to polish")
-    steps = []
-    force_on = None  # the M100 op while the force loop is on
-    for op in ops:
-        if isinstance(op, tp.Traverse):
-            if force_on is not None:
-                raise where(op.line, f"a rapid or a move of A / B / C alone while the grinding-force loop is on (M100 at "
-                            f"line {force_on.line}): switch it off with M101 first")
-            steps.append(_move(op, axes, head, where))
-        elif isinstance(op, tp.FeedPath):
-            steps += _paths(op, spec, axes, model, label, where, head)
-        elif isinstance(op, tp.ToolAxisPath):
-            if force_on is not None:
-                raise where(op.line, f"G1 moves turning A / B while the grinding-force loop is on (M100 at line "
-                            f"{force_on.line}): not in this version; hold A / B, or M101 first")
-            steps += _tool_axis_paths(op, spec, axes, model, label, where, head)
-        elif isinstance(op, tp.Pause):
-            steps.append(GcodePause(op.seconds, op.line))
-        elif isinstance(op, tp.SpindleChange):
-            asked = op.rpm * units.RPM
-            # as LinuxCNC's motion holds a spindle command to [SPINDLE_0]MAX_FORWARD_VELOCITY:
-            # the spindle (C) turns at its limit, and the run says so at load
-            top = axes[5].max_velocity
-            steps.append(GcodeSpindle(max(-top, min(top, asked)), op.line, asked if abs(asked) > top else None))
-        elif op.setpoint is not None:
-            if force_on is not None:
-                raise where(op.line, f"M100 while the grinding-force loop is on (M100 at line {force_on.line}): "
-                            "M101 first")
-            force_on = op
-            steps.append(GcodeForce(force_control(spec.force, op.setpoint), op.line))
-        elif force_on is not None:  # M101 (one while the loop is off changes nothing)
-            force_on = None
-            steps.append(GcodeForce(None, op.line))
-    if force_on is not None:  # the program end switches the loop off, as it stops the spindle
-        steps.append(GcodeForce(None, steps[-1].line))
+    try:
+        steps = _machine_steps(ops, spec, axes, model, label, where, head)
+    except ScenarioError as exc:
+        raise _with_placement(exc, ops, axes, head) from None
     _check_force_paths(steps, where)
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
@@ -288,6 +258,64 @@ def work_offset_parameters(offsets: dict[str, WorkOffsetSpec], per_mm: float) ->
 def _in_units(point: tuple[float, ...], per_mm: float) -> tuple[float, ...]:
     """A machine point [mm, deg] with its lengths in machine units."""
     return (*(v * per_mm for v in point[:3]), *point[3:])
+
+
+def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list:
+    """The program's operations as machine steps (SI, axis space), refusing at its line what the
+    machine cannot run."""
+    from cnc_twin.gcode import toolpath as tp
+
+    steps = []
+    force_on = None  # the M100 op while the force loop is on
+    for op in ops:
+        if isinstance(op, tp.Traverse):
+            if force_on is not None:
+                raise where(op.line, f"a rapid or a move of A / B / C alone while the grinding-force loop is on (M100 at "
+                            f"line {force_on.line}): switch it off with M101 first")
+            steps.append(_move(op, axes, head, where))
+        elif isinstance(op, tp.FeedPath):
+            steps += _paths(op, spec, axes, model, label, where, head)
+        elif isinstance(op, tp.ToolAxisPath):
+            if force_on is not None:
+                raise where(op.line, f"G1 moves turning A / B while the grinding-force loop is on (M100 at line "
+                            f"{force_on.line}): not in this version; hold A / B, or M101 first")
+            steps += _tool_axis_paths(op, spec, axes, model, label, where, head)
+        elif isinstance(op, tp.Pause):
+            steps.append(GcodePause(op.seconds, op.line))
+        elif isinstance(op, tp.SpindleChange):
+            asked = op.rpm * units.RPM
+            # as LinuxCNC's motion holds a spindle command to [SPINDLE_0]MAX_FORWARD_VELOCITY:
+            # the spindle (C) turns at its limit, and the run says so at load
+            top = axes[5].max_velocity
+            steps.append(GcodeSpindle(max(-top, min(top, asked)), op.line, asked if abs(asked) > top else None))
+        elif op.setpoint is not None:
+            if force_on is not None:
+                raise where(op.line, f"M100 while the grinding-force loop is on (M100 at line {force_on.line}): "
+                            "M101 first")
+            force_on = op
+            steps.append(GcodeForce(force_control(spec.force, op.setpoint), op.line))
+        elif force_on is not None:  # M101 (one while the loop is off changes nothing)
+            force_on = None
+            steps.append(GcodeForce(None, op.line))
+    if force_on is not None:  # the program end switches the loop off, as it stops the spindle
+        steps.append(GcodeForce(None, steps[-1].line))
+    return steps
+
+
+def _with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
+    """A program that leaves an axis's soft limits is refused with where it goes and where the
+    machine reaches (the tip's boxes in the workpiece frame, the head upright), so the user sees
+    the work offset that places it; any other refusal as it is."""
+    from cnc_twin.gcode.extents import describe, extents
+
+    box = extents(ops)
+    if box is None or not any(cfg.allowed is not None and cfg.allowed_name in exc.message for cfg in axes[:3]):
+        return exc
+    shift = (np.asarray(head.pivot_home) + np.asarray(head.tool_offset) - np.asarray(head.workpiece_origin)) / units.MM
+    reach = (np.array([cfg.allowed[0] for cfg in axes[:3]]) / units.MM + shift,
+             np.array([cfg.allowed[1] for cfg in axes[:3]]) / units.MM + shift)
+    return ScenarioError(exc.file, exc.key_path, f"{exc.message}; the program goes to {describe(box)}, the machine "
+                         f"reaches {describe(reach)} (workpiece frame, head upright): program.work_offsets places it")
 
 
 def _check_force_paths(steps: list, where: _Where) -> None:
