@@ -48,6 +48,8 @@ DEFAULT_FOLDER = ROOT.parent / "shared" / "data" / "outside-gcode" / "progs"
 LIMIT_TOLERANCE = 1.01
 """a commanded peak above this multiple of its limit is a violation (as the run's metrics use)"""
 SUFFIXES = (".ngc", ".nc", ".gcode", ".tap", ".cnc", ".txt")
+MAXRSS = "outside-programs-maxrss-kb:"
+"""the line GNU time adds to a run's standard error"""
 
 
 def machine_reach(in_air: float) -> tuple[np.ndarray, np.ndarray, object]:
@@ -112,16 +114,21 @@ def rs274(tools: Path):
     return run
 
 
-def placement(box, low, high) -> dict:
-    """The one-line scenario that places the program (none when it fits as written): centred in
-    X and Y on the workpiece."""
+def placement(box, low, high, in_air: float) -> dict:
+    """The one-line scenario that places the program (none when it fits as written and ``in_air``
+    clears the work): centred in X and Y on the workpiece when it does not fit, and raised enough
+    that its lowest point stays ``in_air`` above the workpiece top (Z0 in the workpiece frame) when
+    it cuts deeper than that."""
     if box is None:
         return {}
     lo, hi = box
-    if np.all(lo[:2] >= low[:2]) and np.all(hi[:2] <= high[:2]):
-        return {}
-    centre = 0.5 * (lo + hi)
-    return {"work_offsets": {"G54": {"X": round(-float(centre[0]), 3), "Y": round(-float(centre[1]), 3)}}}
+    setup = {}
+    if not (np.all(lo[:2] >= low[:2]) and np.all(hi[:2] <= high[:2])):
+        centre = 0.5 * (lo + hi)
+        setup["work_offsets"] = {"G54": {"X": round(-float(centre[0]), 3), "Y": round(-float(centre[1]), 3)}}
+    if lo[2] < 0.0:
+        setup["in_air"] = round(in_air - float(lo[2]), 3)
+    return setup
 
 
 def run(path: Path, setup: dict, in_air: float, out: Path, timeout: float) -> dict:
@@ -131,22 +138,25 @@ def run(path: Path, setup: dict, in_air: float, out: Path, timeout: float) -> di
     if setup:
         source = out.parent / f"{out.name}.yaml"
         source.write_text(yaml.safe_dump({"name": out.name, "program": {"type": "gcode", "file": str(path), **setup}}))
-    command = [sys.executable, "-m", "cnc_twin", "run", str(source), "--in-air", str(in_air), "--no-rrd", "--quiet",
-               "--out", str(out)]
+    air = [] if "in_air" in setup else ["--in-air", str(in_air)]
+    # GNU time measures the run's own peak memory (a child forked from this process would count
+    # this process's pages until it execs)
+    command = [sys.executable, "-m", "cnc_twin", "run", str(source), *air, "--no-rrd", "--quiet", "--out", str(out)]
+    if Path("/usr/bin/time").is_file():  # Debian's package 'time'; without it no memory figure
+        command = ["/usr/bin/time", "-f", f"{MAXRSS} %M", *command]
     t0 = time.perf_counter()
     with tempfile.TemporaryFile("w+") as stderr:
-        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, text=True)
-        timer = threading.Timer(timeout, process.kill)
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=stderr, text=True, start_new_session=True)
+        timer = threading.Timer(timeout, os.killpg, (process.pid, 9))  # the run with the time around it
         timer.start()
-        # wait4: the child's own peak memory (resource's RUSAGE_CHILDREN keeps the largest of all)
-        _, status, usage = os.wait4(process.pid, 0)
+        process.wait()
         timer.cancel()
-        process.returncode = os.waitstatus_to_exitcode(status)
         stderr.seek(0)
         err = stderr.read()
     wall = time.perf_counter() - t0
-    rss = usage.ru_maxrss / 1024.0
-    if process.returncode < 0 and wall >= timeout:
+    rss = next((float(line.split()[1]) / 1024.0 for line in err.splitlines() if line.startswith(MAXRSS)), None)
+    err = "\n".join(line for line in err.splitlines() if not line.startswith(MAXRSS))
+    if process.returncode != 0 and wall >= timeout:
         return {"code": None, "error": f"timeout after {timeout:g} s", "wall_s": wall, "rss_mb": rss}
     lines = [line for line in err.splitlines() if line.strip() and not line.startswith("note:")]
     return {"code": process.returncode, "error": lines[-1] if lines else "", "wall_s": wall, "rss_mb": rss,
@@ -214,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
         if verdict != "read":
             row.update(verdict="not read", detail=message)
         else:
-            setup = placement(box, low, high)
+            setup = placement(box, low, high, args.in_air)
             row["setup"] = setup
             row["reach_mm"] = None if box is None else [[float(v) for v in box[0]], [float(v) for v in box[1]]]
             out = keep / path.stem[:60]

@@ -118,6 +118,9 @@ class GcodeProgram:
     keeps it beside the program); None without one"""
     air: float = 0.0
     """[m] how far above where it is written the program runs (``program.in_air``: a dry run)"""
+    air_clearance: float | None = None
+    """[m] in the air: how far the program's lowest point stays above the scene's workpiece top
+    (negative: it still reaches into the work); None when not in the air or no block to measure"""
     subroutine_files: tuple[tuple[str, str], ...] = ()
     """``(name, text)`` of the subroutine files the program called that the run directory keeps:
     the name relative to the scenario's folder (beside the program, or in a folder of

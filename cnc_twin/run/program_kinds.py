@@ -350,9 +350,13 @@ class GcodeKind(ProgramKind):
             if xyz > 0.0 and move.feed > v_s * xyz * (1.0 + 1e-9):
                 by_feed.setdefault((move.feed, "move"), []).append((move.line, v_s * xyz, slowest))
         said = spindle_notes(scenario)
-        if scenario.program.air:
-            said.append(f"in the air: every point runs {scenario.program.air / MM:g} mm above where the program puts "
-                        "it (program.in_air)")
+        prog = scenario.program
+        if prog.air:
+            said.append(f"in the air: every point runs {prog.air / MM:g} mm above where the program puts it "
+                        "(program.in_air)" + ("" if prog.air_clearance is None or prog.air_clearance >= 0 else
+                                              f"; its lowest point still reaches {-prog.air_clearance / MM:.4g} mm "
+                                              f"into the workpiece: in_air {(prog.air - prog.air_clearance) / MM:.4g} "
+                                              "clears it"))
         for (feed, what), steps in sorted(by_feed.items(), key=lambda item: item[1][0][0]):
             _, cap, axis = max(steps, key=lambda p: p[1])
             more = len(steps) - 1

@@ -230,7 +230,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
-                        air=spec.in_air * units.MM,
+                        air=spec.in_air * units.MM, air_clearance=_air_clearance(spec, ops, model, head, label),
                         subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
@@ -339,6 +339,21 @@ def _workpiece(spec: GcodeWorkpieceSpec | None, model, head, label: Path) -> Gco
     _, surface_def = surface_in_world(surface, head.workpiece_origin, label, "program.workpiece.surface")
     return GcodeWorkpiece(surface=surface_def, preston=preston_model(spec.removal, pad_radius(model)),
                           friction=spec.friction, tile_size=surface.tile_size * units.MM)
+
+
+def _air_clearance(spec: GcodeProgramSpec, ops, model, head, label: Path) -> float | None:
+    """[m] in the air, the program's lowest point (raised) above the scene block's top; None
+    otherwise or without a block."""
+    from cnc_twin.gcode.extents import extents
+
+    box = extents(ops) if spec.in_air else None
+    if box is None:
+        return None
+    try:
+        top = _block_top(model, head, label).control_net[0][0][2]
+    except ScenarioError:
+        return None
+    return float(box[0][2] - top) * units.MM
 
 
 def _block_top(model, head, label: Path) -> SurfaceSpec:
