@@ -44,7 +44,10 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_FOLDER = ROOT.parent / "shared" / "data" / "outside-gcode" / "progs"
+DEFAULT_FOLDER = next((path for path in (ROOT.parent / "shared", Path("/work/shared"))
+                       if (path / "data" / "outside-gcode" / "progs").is_dir()), ROOT.parent / "shared") \
+    / "data" / "outside-gcode" / "progs"
+"""beside the checkout (as CI lays shared/ out), else the workplace's"""
 LIMIT_TOLERANCE = 1.01
 """a commanded peak above this multiple of its limit is a violation (as the run's metrics use)"""
 SUFFIXES = (".ngc", ".nc", ".gcode", ".tap", ".cnc", ".txt")
