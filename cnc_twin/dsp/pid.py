@@ -47,7 +47,7 @@ fff      V           friction feed-forward, full beyond ``friction_ff_band`` [un
 
 Algorithm (dt = servo period)::
 
-    e = command - feedback
+    e = command - feedback        (in 32-bit arithmetic: wrapped into [-2^31, 2^31), count_error)
     i_try = clamp(i + ki_c * e * dt, -integrator_limit, +integrator_limit)
     ramp = clamp(velocity / (friction_ff_band * counts_per_unit), -1, +1)   # the friction's sign, softened
     u = kp_c*e + i_try + kd_c*(e - e_prev)/dt + kvff_c*velocity + kaff_c*acceleration + fff*ramp
@@ -60,6 +60,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from cnc_twin.dsp.encoder import count_error
 
 PID = np.dtype([(name, np.float64) for name in (
     "kp", "ki_dt", "kd_over_dt", "kvff", "kaff", "friction_ff", "friction_rate", "output_limit",
@@ -108,7 +110,7 @@ def new_pid(**gains) -> np.void:
 @njit(cache=True)
 def pid_update(pid, command, feedback, velocity, acceleration):
     """One servo tick of ``pid`` (a :data:`PID` record); returns the clamped drive voltage [V]."""
-    error = command - feedback
+    error = count_error(command, feedback)  # the 32-bit position may have wrapped
     ramp = velocity * pid.friction_rate
     if ramp > 1.0:
         ramp = 1.0

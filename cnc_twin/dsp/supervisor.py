@@ -48,6 +48,7 @@ from numba import njit
 
 from cnc_twin.core.axes import SWITCH_LIMIT_NEG, SWITCH_LIMIT_POS
 from cnc_twin.core.config import AxisConfig, SupervisorConfig
+from cnc_twin.dsp.encoder import count_error
 from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.whiteboard.status import FaultCode
 
@@ -77,7 +78,7 @@ def supervise(settings, limits, command, actual, saturations, inputs, force):
     for i in range(n):
         limit = limits[i].ferr_limit
         if limit > 0.0:
-            error = command[i] - actual[i]
+            error = count_error(command[i], actual[i])
             if error > limit or -error > limit:
                 return _FOLLOWING_ERROR, i
     if settings.check_switches != 0:
@@ -154,7 +155,7 @@ class Supervisor:
         if code == FaultCode.FOLLOWING_ERROR:
             a = self.axes[i]
             f = a.display_factor / a.counts_per_unit
-            error, limit = command[i] - actual[i], float(self.limits[i]["ferr_limit"])
+            error, limit = count_error(command[i], actual[i]), float(self.limits[i]["ferr_limit"])
             return Trip(code, i, f"{a.name} following error {error * f:.3f} {a.display_unit} beyond the limit "
                                  f"{limit * f:g} {a.display_unit}", self.config.following_error_stop)
         if code == FaultCode.HARD_LIMIT:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cnc_twin.core.axes import AXES
+from cnc_twin.dsp.encoder import count_error
 from cnc_twin.dsp.frame import PERIOD_FIELDS
 from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES, TOOL_FIELDS
 
@@ -79,8 +80,8 @@ class Trace:
 
     @property
     def following_error(self) -> np.ndarray:
-        """command - actual [counts], shape ``(n, 6)``."""
-        return self.command - self.actual
+        """command - actual [counts], shape ``(n, 6)``, as the card computes it (32-bit wrap)."""
+        return count_error.py_func(self.command, self.actual.astype(np.float64))
 
     @property
     def period_signals(self) -> PeriodSignals:
