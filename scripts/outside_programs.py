@@ -158,7 +158,9 @@ def run(path: Path, setup: dict, in_air: float, out: Path, timeout: float) -> di
         err = stderr.read()
     wall = time.perf_counter() - t0
     rss = next((float(line.split()[1]) / 1024.0 for line in err.splitlines() if line.startswith(MAXRSS)), None)
-    err = "\n".join(line for line in err.splitlines() if not line.startswith(MAXRSS))
+    # GNU time's own lines: its figure, and how the run ended
+    err = "\n".join(line for line in err.splitlines()
+                    if not line.startswith((MAXRSS, "Command exited with", "Command terminated by")))
     if process.returncode != 0 and wall >= timeout:
         return {"code": None, "error": f"timeout after {timeout:g} s", "wall_s": wall, "rss_mb": rss}
     lines = [line for line in err.splitlines() if line.strip() and not line.startswith("note:")]
