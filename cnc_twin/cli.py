@@ -9,6 +9,7 @@ still writes its run directory, marked ``"status": "interrupted"`` in ``metrics.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import shutil
@@ -19,7 +20,6 @@ from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
-from cnc_twin.run.run_dir import new_run_dir
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, folder_list, input_path
@@ -228,6 +228,7 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     """One run; ``recorder`` (a :class:`~cnc_twin.view.rerun_stream.RecordingProcess`, or None when
     no recording is wanted) records it while it runs."""
     from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.run.run_dir import new_run_dir  # the scenario's config (numpy...): not for gcode / list
     from cnc_twin.run.twin import Twin
 
     source = args.scenario or default_scenario()
@@ -456,6 +457,7 @@ def _validate(args: argparse.Namespace) -> int:
 def _gcode(args: argparse.Namespace) -> int:
     from cnc_twin.gcode.listing import list_program
 
+    gc.disable()  # one program listed, then the process ends: the collector would only walk the calls (10 %)
     lines, error = list_program(args.program, args.tool_table, args.tool_units, args.canon, args.subroutine_path)
     print("\n".join(lines))
     if error:

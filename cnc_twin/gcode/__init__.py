@@ -2,6 +2,7 @@
 interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 
 - :mod:`~cnc_twin.gcode.expressions`   ``[...]`` expressions, functions and parameters
+- :mod:`~cnc_twin.gcode.long_double`   C's ``long double`` angles (numpy, imported on first use)
 - :mod:`~cnc_twin.gcode.blocks`        one line read into a block: words, comments, N, ``/``, O-words,
   parameter settings applied after the line
 - :mod:`~cnc_twin.gcode.modal`         G and M codes into modal groups, refused as LinuxCNC refuses them; the
@@ -18,6 +19,8 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 - :mod:`~cnc_twin.gcode.nurbs`         G5.2 / G5.3 and G6.2 curves into NURBS
 - :mod:`~cnc_twin.gcode.motion`        the motion step of a block
 - :mod:`~cnc_twin.gcode.interpreter`   a whole program run into canonical calls
+- :mod:`~cnc_twin.gcode.common_lines`  a CAM program's common lines run at once (the fast path), as the
+  interpreter runs them
 - :mod:`~cnc_twin.gcode.canon`         canonical calls and their rs274 text
 - :mod:`~cnc_twin.gcode.listing`       ``cnc-twin gcode``
 

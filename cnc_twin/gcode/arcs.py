@@ -90,7 +90,7 @@ _ABSOLUTE_ORDER = {G.G17: ("i", "j"), G.G18: ("i", "k"), G.G19: ("j", "k")}
 _END_LETTERS = {G.G17: ("x", "y"), G.G18: ("x", "z"), G.G19: ("y", "z")}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class ArcMove:
     """One arc as LinuxCNC's ``ARC_FEED`` gives it, in program units and coordinates.
 
@@ -109,6 +109,14 @@ class ArcMove:
     axis_end: float
     center: tuple[float, float, float]
     normal: int
+
+    def __init__(self, first_end: float, second_end: float, first_center: float, second_center: float, rotation: int,
+                 axis_end: float, center: tuple[float, float, float], normal: int):
+        # one a G2 / G3 line: filled in directly, as Call is (the frozen way costs twice as much)
+        fields = self.__dict__
+        fields["first_end"], fields["second_end"] = first_end, second_end
+        fields["first_center"], fields["second_center"] = first_center, second_center
+        fields["rotation"], fields["axis_end"], fields["center"], fields["normal"] = rotation, axis_end, center, normal
 
 
 def arc_move(plane: int, clockwise: bool, start: tuple[float, float, float], end: tuple[float, float, float],
@@ -138,9 +146,9 @@ def arc_move(plane: int, clockwise: bool, start: tuple[float, float, float], end
                                       radius_tolerance, spiral)
     center = list(start)
     center[first], center[second] = c1, c2
-    return ArcMove(first_end=end[first], second_end=end[second], first_center=c1, second_center=c2,
-                   rotation=-turns if clockwise else turns, axis_end=end[normal],
-                   center=(center[0], center[1], center[2]), normal=normal)
+    # first_end, second_end, first_center, second_center, rotation, axis_end, center, normal
+    return ArcMove(end[first], end[second], c1, c2, -turns if clockwise else turns, end[normal],
+                   (center[0], center[1], center[2]), normal)
 
 
 def check_arc_words(plane: int, words: dict[str, float], ijk_absolute: bool, *,
@@ -153,7 +161,7 @@ def check_arc_words(plane: int, words: dict[str, float], ijk_absolute: bool, *,
         raise BlockError("Cannot do an arc in planes G17.1, G18.1, or G19.1")
     if plane not in PLANE_AXES:
         raise ValueError(f"no arc plane {plane} (170, 180 or 190)")
-    ijk = any(letter in words for letter in "ijk")
+    ijk = "i" in words or "j" in words or "k" in words
     if "r" not in words and not ijk:
         raise BlockError("R i j k words all missing for arc")
     if "r" in words and ijk:
@@ -192,10 +200,16 @@ def arc_feed_text(move: ArcMove, a: float = 0.0, b: float = 0.0, c: float = 0.0)
     """The arguments of ``ARC_FEED`` as ``rs274`` prints them: four decimals, the turn count as
     an integer, then the normal-axis end and the rotary axes a, b, c (``-0.0000`` and ``-nan`` as
     C prints them)."""
-    values = [_fixed(v) for v in (move.first_end, move.second_end, move.first_center, move.second_center)]
-    values.append(str(move.rotation))
-    values += [_fixed(v) for v in (move.axis_end, a, b, c)]
-    return ", ".join(values)
+    values = (move.first_end, move.second_end, move.first_center, move.second_center, move.axis_end, a, b, c)
+    total = sum(values)
+    if total == total:  # no NaN among them (inf - inf is NaN too: then value by value)
+        return _ARC_TEXT % (*values[:4], move.rotation, *values[4:])
+    texts = [_fixed(v) for v in values]
+    return ", ".join(texts[:4] + [str(move.rotation)] + texts[4:])
+
+
+_ARC_TEXT = "%.4f, %.4f, %.4f, %.4f, %d, %.4f, %.4f, %.4f, %.4f"
+"""ARC_FEED's arguments when none is NaN (``%.4f`` as ``_fixed`` prints a number)"""
 
 
 def glibc_hypot(x: float, y: float) -> float:
@@ -245,18 +259,25 @@ def _center_from_offsets(plane: int, clockwise: bool, start1: float, start2: flo
         c1, c2 = start1 + offset1, start2 + offset2
     r1 = glibc_hypot(c1 - start1, c2 - start2)
     r2 = glibc_hypot(c1 - end1, c2 - end2)
-    a, b = (_AXIS_NAMES[k] for k in PLANE_AXES[plane][:2])
-    points = (f"start=({a}{_fixed(start1)},{b}{_fixed(start2)}) center=({a}{_fixed(c1)},{b}{_fixed(c2)}) "
-              f"end=({a}{_fixed(end1)},{b}{_fixed(end2)}) r1={_fixed(r1)} r2={_fixed(r2)}")
     if r1 < radius_tolerance or r2 < radius_tolerance:
-        raise BlockError(f"Zero-radius arc: {points}")
+        raise BlockError(f"Zero-radius arc: {_arc_points(plane, start1, start2, c1, c2, end1, end2, r1, r2)}")
     abs_err = abs(r1 - r2)
     rel_err = abs_err / (r2 if r1 < r2 else r1)
     if abs_err > spiral_tolerance * SPIRAL_ABSOLUTE_LIMIT or (
             rel_err > SPIRAL_RELATIVE_TOLERANCE and abs_err > spiral_tolerance):
-        raise BlockError(f"Radius to end of arc differs from radius to start: {points} "
+        raise BlockError(f"Radius to end of arc differs from radius to start: "
+                         f"{_arc_points(plane, start1, start2, c1, c2, end1, end2, r1, r2)} "
                          f"abs_err={_general(abs_err)} rel_err={_fixed(rel_err * 100)}%")
     return c1, c2
+
+
+def _arc_points(plane: int, start1: float, start2: float, c1: float, c2: float, end1: float, end2: float,
+                r1: float, r2: float) -> str:
+    """An offset arc's points and radii as LinuxCNC's refusals give them (made only for a refusal:
+    a program's arcs are many)."""
+    a, b = (_AXIS_NAMES[k] for k in PLANE_AXES[plane][:2])
+    return (f"start=({a}{_fixed(start1)},{b}{_fixed(start2)}) center=({a}{_fixed(c1)},{b}{_fixed(c2)}) "
+            f"end=({a}{_fixed(end1)},{b}{_fixed(end2)}) r1={_fixed(r1)} r2={_fixed(r2)}")
 
 
 def _center_from_radius(plane: int, clockwise: bool, start1: float, start2: float, end1: float, end2: float,

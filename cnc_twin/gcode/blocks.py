@@ -218,10 +218,11 @@ def _check_l_word(value: float, repeated: bool) -> None:
 # line, or one whose reading would be refused, is left to the full reader. Quantifiers are
 # possessive (a number is always read whole, as the full reader reads it), so a long run of
 # digits never makes the expression backtrack.
-_NUMBER = r"[+-]?+(?:[0-9]++(?:\.[0-9]*+)?+|\.[0-9]++)"
+NUMBER = r"[+-]?+(?:[0-9]++(?:\.[0-9]*+)?+|\.[0-9]++)"
+"""a plain number as LinuxCNC reads one (no exponent), possessive: read whole or not at all"""
 _PARAMETER = r"([+-]?+)#(?:<([^>]++)>|([0-9]{1,9}+))"  # sign, name | index (more digits: the full reader)
 _SIMPLE_WORD = re.compile(
-    rf"([a-mp-z@^$])(?:({_NUMBER})|\[(?:({_NUMBER})|{_PARAMETER})(?:([-+*/])(?:({_NUMBER})|{_PARAMETER}))?+\]"
+    rf"([a-mp-z@^$])(?:({NUMBER})|\[(?:({NUMBER})|{_PARAMETER})(?:([-+*/])(?:({NUMBER})|{_PARAMETER}))?+\]"
     rf"|{_PARAMETER})|.", re.DOTALL)
 """a word: its letter, then a number | a bracket (number | parameter, then an operator and
 number | parameter) | a parameter; anything else matches as one character, every group empty"""

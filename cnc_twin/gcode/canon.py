@@ -108,4 +108,11 @@ class Call:
     def text(self, sequence: int) -> str:
         """The whole line as ``rs274 -g`` prints it, ``sequence`` being the call's 1-based count."""
         number = "....." if self.number is None else self.number
+        whole = _LINE_TEXTS.get(self.name)
+        if whole is not None and len(self.values) == 6:  # most of a program's lines: one format
+            return whole % (sequence, number, *self.values)
         return f"{sequence:5d} N{number:<5} {self.name}({self.arguments})"
+
+
+_LINE_TEXTS = {name: f"%5d N%-5s {name}({_F4_TEXTS[6]})" for name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED")}
+"""the whole printed line of a straight move (``%-5s`` pads as ``:<5``, ``%5d`` as ``:5d``)"""

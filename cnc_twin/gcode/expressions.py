@@ -24,7 +24,7 @@ import math
 import re
 from collections.abc import Callable
 
-import numpy as np
+from cnc_twin.gcode.long_double import to_degrees, trig
 
 EQUAL_TOLERANCE = 1e-4
 """``eq`` / ``ne`` treat values closer than this as equal (LinuxCNC's tolerance)"""
@@ -314,28 +314,11 @@ def binary(op: str, a: float, b: float) -> float:
     return result
 
 
-PI_LONG = np.longdouble("3.141592653589793238462643383279502884")
-"""M_PIl: LinuxCNC converts angles with the C ``long double`` pi, in long double arithmetic"""
-_DEGREES = np.longdouble(180.0)
-
-
-def _trig(function) -> Callable[[float], float]:
-    """``function`` of an angle in degrees as LinuxCNC computes it: ``sin((x * M_PIl) / 180.0)``
-    in long double (C++ picks ``sinl`` for a long double argument), rounded to double at the end;
-    ``sin[-180]`` is then +5e-20, not -1.2e-16, and the sign shows in four decimals."""
-    return lambda x: float(function(np.longdouble(x) * PI_LONG / _DEGREES))
-
-
-def to_degrees(radians: float) -> float:
-    """``(r * 180.0) / M_PIl`` as LinuxCNC writes it: a double product, a long double quotient."""
-    return float(np.longdouble(radians * 180.0) / PI_LONG)
-
-
 _UNARY: dict[str, Callable[[float], float]] = {
     "abs": abs,
-    "cos": _trig(np.cos),
-    "sin": _trig(np.sin),
-    "tan": _trig(np.tan),
+    "cos": lambda x: trig("cos", x),
+    "sin": lambda x: trig("sin", x),
+    "tan": lambda x: trig("tan", x),
     "exp": lambda x: math.exp(x) if x < 709.0 else math.inf,
     "fix": lambda x: float(math.floor(x)),
     "fup": lambda x: float(math.ceil(x)),

@@ -20,6 +20,7 @@ because the whole program is read before any motion.
 from __future__ import annotations
 
 import bisect
+import gc
 import re
 from collections.abc import Mapping, Sequence
 
@@ -31,6 +32,7 @@ from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.checks import (AXIS_CODES, AXIS_LETTERS, FORCE_ON, MOVE_WORDS, UNSUPPORTED_MARK,
                                    check_words, refuse_unsupported)
 from cnc_twin.gcode.comments import CALLS, read_comment
+from cnc_twin.gcode.common_lines import run_common_lines
 from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
@@ -45,6 +47,9 @@ from cnc_twin.gcode.tool_edits import TOOL_EDITS, edit_tool_table
 MOTION_CALLS = frozenset(("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED"))
 PLAIN_WORDS = frozenset(AXIS_LETTERS + "f")
 """a block with no codes, no comment and no words but these only moves in the current mode"""
+COMMON_LINES = True
+"""run a CAM program's common lines on the fast path (:mod:`~cnc_twin.gcode.common_lines`); off only
+in the tests that compare it with the full path"""
 NON_MODAL_STEPS = (G.G10, G.G28, G.G28_1, G.G30, G.G30_1, G.G92, G.G92_1, G.G92_2, G.G92_3)
 """the group 0 codes run in the G10 / G28 / G30 / G92 step (G4 and G53 have steps of their own)"""
 
@@ -98,6 +103,10 @@ class Interpreter:
         """The file being run: the program's, or a subroutine file's while it runs."""
         return self.flow.source
 
+    def at(self, line: int, number: str | None) -> None:
+        """The line being run (1-based) and its N word as written: its calls and refusal name them."""
+        self._line, self._number = line, number
+
     def emit(self, name: str, *values, payload=None) -> None:
         self.calls.append(Call(name, values, self._line, self._number, payload))
         if name in MOTION_CALLS:
@@ -112,6 +121,8 @@ class Interpreter:
         index = self.source.first
         try:
             while True:
+                if COMMON_LINES:
+                    index = run_common_lines(self, index)
                 if index >= self.source.end:
                     if self.source.percent_end:
                         self._line, self._number = 0, None
@@ -186,7 +197,7 @@ class Interpreter:
         check_words(block, g, m, motion, self.state)
         s = self.state
         if block.comments:
-            self._comment(block.comments[-1])
+            self.comment(block.comments[-1])
         if GGroup.FEED_MODE in g:
             self._feed_mode(g[GGroup.FEED_MODE])
         if "f" in block.words and s.feed_mode != G.G93:  # in inverse time each move sets its own rate
@@ -271,7 +282,8 @@ class Interpreter:
         return False
 
     # -- the steps ---------------------------------------------------------------------------
-    def _comment(self, text: str) -> None:
+    def comment(self, text: str) -> None:
+        """The step of a block's comment (its last): ``text`` as written, leading spaces dropped."""
         kind, body = read_comment(text, self.params)
         if kind == "comment":
             self.emit("COMMENT", body)
@@ -488,5 +500,14 @@ def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | N
     L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``:
     folders a called subroutine's file is looked for in after the program's own
     (:mod:`~cnc_twin.gcode.subfiles`)."""
-    return Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
-                       subroutine_path=subroutine_path).run()
+    interpreter = Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
+                              subroutine_path=subroutine_path)
+    # The calls hold no reference cycles; the cyclic collector's passes over their growing list
+    # cost a fifth of a long program's reading (measured), so it waits until the program is read.
+    paused = gc.isenabled()
+    gc.disable()
+    try:
+        return interpreter.run()
+    finally:
+        if paused:
+            gc.enable()

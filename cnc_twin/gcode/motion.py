@@ -12,24 +12,23 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from cnc_twin.gcode.arcs import arc_move, glibc_hypot
 from cnc_twin.gcode.blocks import Block, BlockError
-from cnc_twin.gcode.expressions import PI_LONG
 from cnc_twin.gcode.cycles import CycleRunner
+from cnc_twin.gcode.long_double import extended, pi_long
 from cnc_twin.gcode.modal import CANNED_CYCLES, G
-from cnc_twin.gcode.nurbs import G52Collector, G62Collector, NurbsBlock, g53
 from cnc_twin.gcode.probing import PROBE_CODES, straight_probe
 from cnc_twin.gcode.state import HOME_PARAMETERS
 
 if TYPE_CHECKING:  # the interpreter owns this runner; only its type is needed here
     from cnc_twin.gcode.interpreter import Interpreter
+    from cnc_twin.gcode.nurbs import NurbsBlock
 
 AXIS_LETTERS = "xyzabc"
 AXIS_INDEX = {letter: axis for axis, letter in enumerate(AXIS_LETTERS)}
-NURBS_STARTS = {G.G5_2: G52Collector, G.G6_2: G62Collector}
-"""G5.2 / G6.2 (tenths) -> what gathers their blocks into one curve"""
+NURBS_STARTS = (G.G5_2, G.G6_2)
+"""G5.2 / G6.2 (tenths): their blocks gather into one curve (:mod:`~cnc_twin.gcode.nurbs`, imported with
+the first: it brings numpy, which a program without curves never needs)"""
 NURBS_END = G.G5_3
 """G5.3 ends a G5.2 curve"""
 
@@ -96,12 +95,12 @@ class MotionRunner:
             x, y = radius * math.cos(theta), radius * math.sin(theta)
         end[0], end[1] = x, y
 
-    def _feed_error(self, block: Block, missing: str, zero: str) -> str | None:
-        """LinuxCNC's refusal of the block's feed, or None: ``missing`` in inverse time without
-        an F, ``zero`` in units per minute at feed 0."""
+    def _feed_error(self, words: dict[str, float], missing: str, zero: str) -> str | None:
+        """LinuxCNC's refusal of the block's feed (``words``: the block's), or None: ``missing``
+        in inverse time without an F, ``zero`` in units per minute at feed 0."""
         s = self.state
         if s.feed_mode == G.G93:
-            return missing if "f" not in block.words else None
+            return missing if "f" not in words else None
         return zero if s.feed <= 0.0 else None
 
     def move(self, motion: int, block: Block, machine: bool) -> None:
@@ -125,31 +124,43 @@ class MotionRunner:
         if motion == G.G0:
             emit("STRAIGHT_TRAVERSE", *end)
         elif motion == G.G1:
-            error = self._feed_error(block, "F word missing with inverse time g1 move", "Cannot do g1 with zero feed rate")
+            error = self._feed_error(block.words, "F word missing with inverse time g1 move",
+                                     "Cannot do g1 with zero feed rate")
             if error:
                 raise BlockError(error)
             if s.feed_mode == G.G93:
-                self._inverse_time(block, straight_length(s.position, end))
+                self._inverse_time(block.words, straight_length(s.position, end))
             emit("STRAIGHT_FEED", *end)
         else:
-            # LinuxCNC checks the feed in the middle of the arc's own checks
-            feed_error = self._feed_error(block, "F word missing with inverse time arc move",
-                                          "Cannot make arc with zero feed rate")
-            arc = arc_move(s.plane, motion == G.G2, tuple(s.position[:3]), tuple(end[:3]), block.words,
-                           s.ijk_distance == G.G90_1, s.units == G.G21, feed_error=feed_error)
-            if s.feed_mode == G.G93:
-                self._inverse_time(block, arc_length(s.plane, s.position, arc))
-            emit("ARC_FEED", *end[3:], payload=arc)
+            self.arc(motion, block.words, end)
         s.position = end
 
-    def _inverse_time(self, block: Block, length: float) -> None:
-        """G93: the move's feed in units per minute is its length times F (at least 0.1)."""
-        self.state.feed = max(0.1, length * block.words["f"])
+    def arc(self, motion: int, words: dict[str, float], end: list[float]) -> None:
+        """The arc of a G2 / G3 block (``motion``; ``words``: the block's) from the current point to
+        ``end`` (x y z a b c, as :meth:`ends` finds it), its checks and refusals; the caller then
+        moves the current point to ``end``."""
+        s = self.state
+        # LinuxCNC checks the feed in the middle of the arc's own checks
+        feed_error = self._feed_error(words, "F word missing with inverse time arc move",
+                                      "Cannot make arc with zero feed rate")
+        start = s.position
+        arc = arc_move(s.plane, motion == G.G2, (start[0], start[1], start[2]), (end[0], end[1], end[2]), words,
+                       s.ijk_distance == G.G90_1, s.units == G.G21, feed_error=feed_error)
+        if s.feed_mode == G.G93:
+            self._inverse_time(words, arc_length(s.plane, s.position, arc))
+        self.interpreter.emit("ARC_FEED", *end[3:], payload=arc)
+
+    def _inverse_time(self, words: dict[str, float], length: float) -> None:
+        """G93: the move's feed in units per minute is its length times F (``words``: the block's;
+        at least 0.1)."""
+        self.state.feed = max(0.1, length * words["f"])
         self.interpreter.emit("SET_FEED_RATE", self.state.feed)
 
     def _nurbs(self, motion: int, block: Block) -> None:
         """A block of a NURBS curve. G5.2 points are all relative to the point before the curve
         (LinuxCNC moves its current point only at G5.3); G6.2 points follow one another."""
+        from cnc_twin.gcode.nurbs import G52Collector, G62Collector, g53  # see NURBS_STARTS
+
         s = self.state
         line = block.line
         feed = s.feed if s.feed_mode == G.G94 else None
@@ -158,7 +169,8 @@ class MotionRunner:
             return
         point = tuple(self.ends(block)[:3])
         if self.nurbs is None or (motion == G.G5_2 and any(round(g * 10) == G.G5_2 for g in block.g)):
-            self.nurbs = NURBS_STARTS[motion](tuple(s.position[:3]), s.plane, block.words, point, line, feed)
+            collector = G52Collector if motion == G.G5_2 else G62Collector
+            self.nurbs = collector(tuple(s.position[:3]), s.plane, block.words, point, line, feed)
             self.nurbs_kind = motion
         else:
             self.nurbs.add(block.words, point, line, feed)
@@ -167,7 +179,7 @@ class MotionRunner:
             if self.nurbs.complete:
                 self._finish(self.nurbs.finish(line))
 
-    def _finish(self, curve: NurbsBlock) -> None:
+    def _finish(self, curve: "NurbsBlock") -> None:
         self.nurbs = self.nurbs_kind = None
         self.state.position[:3] = list(curve.end)
         self.interpreter.emit("NURBS_FEED", payload=curve)
@@ -226,12 +238,12 @@ def arc_length(plane: int, start, arc) -> float:
         # as find_turn writes it: 2 * M_PIl in long double, each result rounded to double
         if turn > 0:
             if beta <= alpha:
-                beta = float(beta + 2 * PI_LONG)
-            theta = float(np.longdouble(beta - alpha) + (turn - 1) * (2 * PI_LONG))
+                beta = float(beta + 2 * pi_long())
+            theta = float(extended(beta - alpha) + (turn - 1) * (2 * pi_long()))
         else:
             if alpha <= beta:
-                alpha = float(alpha + 2 * PI_LONG)
-            theta = float(np.longdouble(beta - alpha) + (turn + 1) * (2 * PI_LONG))
+                alpha = float(alpha + 2 * pi_long())
+            theta = float(extended(beta - alpha) + (turn + 1) * (2 * pi_long()))
     if arc.axis_end == start[normal]:
         return radius * abs(theta)
     return math.hypot(radius * theta, arc.axis_end - start[normal])

@@ -94,8 +94,9 @@ class Source:
                     self.lines[k] = _ESCAPED.sub("\ufffd", line)
         # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
         # (a CR counts) is "Command too long" wherever it is read, a line passed over too
-        self.too_long = [k for k, line in enumerate(raw)
-                         if len(line) >= MAX_LINE and _byte_length(line) >= MAX_LINE]
+        longest = max(map(len, raw), default=0)  # most files have no line that long: known at once
+        self.too_long = [k for k, line in enumerate(raw) if len(line) >= MAX_LINE and _byte_length(line) >= MAX_LINE
+                         ] if longest >= MAX_LINE else []
         self.first, self.end, self.percent_end = 0, len(self.lines), False
         self.percent_start = False
         for k, line in enumerate(self.lines):
