@@ -43,6 +43,8 @@ from cnc_twin.core.gcode_config import (
 )
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
+from cnc_twin.scenario.gcode_setup import (WORK_SYSTEMS, WorkOffsetSpec, air_clearance, in_units, start_point,
+                                           with_placement, work_offset_parameters)
 from cnc_twin.scenario.curve import convert as convert_curve
 from cnc_twin.scenario.schema_base import DAY, PathLimitsSpec, Strict
 from cnc_twin.scenario.surface import ForceLoopSpec, RemovalSpec, SurfaceSpec, force_control, preston_model, surface_in_world
@@ -64,21 +66,6 @@ class GcodeWorkpieceSpec(Strict):
     surface: SurfaceSpec | None = Field(None, description="NURBS surface, workpiece frame [mm]; default the scene's block top")
     removal: RemovalSpec = RemovalSpec()
     friction: float | None = Field(None, gt=0, description="pad-workpiece sliding friction coefficient; default the model's")
-
-
-WORK_SYSTEMS = ("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
-"""the work systems in LinuxCNC's order (system 1 .. 9: parameters #5221 + 20 (n - 1) ..)"""
-
-
-class WorkOffsetSpec(Strict):
-    """A work system's origin in the workpiece frame, as a touch-off sets it [mm; deg for A B C]."""
-
-    X: float = 0.0
-    Y: float = 0.0
-    Z: float = 0.0
-    A: float = 0.0
-    B: float = 0.0
-    C: float = 0.0
 
 
 class GcodeProgramSpec(Strict):
@@ -197,7 +184,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
     # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
     per_mm = 1.0 / 25.4 if tool_units == "inch" else 1.0
-    start_units = _in_units(start, per_mm)
+    start_units = in_units(start, per_mm)
     # G28 / G30 return to where the machine stood (its home), as a machine homed there keeps them
     # in its parameter file; zeros would send the tool to the workpiece frame's origin, on the work
     parameters = {base + k: value for base in (5161, 5181) for k, value in enumerate(start_units)}
@@ -221,7 +208,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     try:
         steps = _machine_steps(ops, spec, axes, model, label, where, head)
     except ScenarioError as exc:
-        raise _with_placement(exc, ops, axes, head) from None
+        raise with_placement(exc, ops, axes, head) from None
     _check_force_paths(steps, where)
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
@@ -230,34 +217,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
-                        air=spec.in_air * units.MM, air_clearance=_air_clearance(spec, ops, model, head, label),
+                        air=spec.in_air * units.MM, air_clearance=air_clearance(ops, _work_top(spec, model, head, label)),
                         subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
-
-
-def start_point(head, home: tuple[float, ...] | None, air: float) -> tuple[float, ...]:
-    """Where the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose) as a
-    program sees it: the tool tip in the workpiece frame [mm] less the run's raise ``air`` [mm]
-    in Z, and A B C [deg]."""
-    q = np.zeros(6) if home is None else np.asarray(home, dtype=float)
-    tip = head.tip_from_axes(q[:3], q[3], q[4]) - np.asarray(head.workpiece_origin)
-    return (*(float(v) / units.MM for v in tip[:2]), float(tip[2]) / units.MM - air,
-            *(float(v) / units.DEG for v in q[3:]))
-
-
-def work_offset_parameters(offsets: dict[str, WorkOffsetSpec], per_mm: float) -> dict[int, float]:
-    """The work systems' origins as LinuxCNC's parameter file holds them: #5221 + 20 (n - 1) + k,
-    lengths in machine units (``per_mm`` of them in a mm), angles in deg."""
-    out = {}
-    for name, offset in offsets.items():
-        base = 5221 + 20 * WORK_SYSTEMS.index(name)
-        for k, value in enumerate((offset.X, offset.Y, offset.Z, offset.A, offset.B, offset.C)):
-            out[base + k] = value * per_mm if k < 3 else value
-    return out
-
-
-def _in_units(point: tuple[float, ...], per_mm: float) -> tuple[float, ...]:
-    """A machine point [mm, deg] with its lengths in machine units."""
-    return (*(v * per_mm for v in point[:3]), *point[3:])
 
 
 def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list:
@@ -302,22 +263,6 @@ def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where:
     return steps
 
 
-def _with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
-    """A program that leaves an axis's soft limits is refused with where it goes and where the
-    machine reaches (the tip's boxes in the workpiece frame, the head upright), so the user sees
-    the work offset that places it; any other refusal as it is."""
-    from cnc_twin.gcode.extents import describe, extents
-
-    box = extents(ops)
-    if box is None or not any(cfg.allowed is not None and cfg.allowed_name in exc.message for cfg in axes[:3]):
-        return exc
-    shift = (np.asarray(head.pivot_home) + np.asarray(head.tool_offset) - np.asarray(head.workpiece_origin)) / units.MM
-    reach = (np.array([cfg.allowed[0] for cfg in axes[:3]]) / units.MM + shift,
-             np.array([cfg.allowed[1] for cfg in axes[:3]]) / units.MM + shift)
-    return ScenarioError(exc.file, exc.key_path, f"{exc.message}; the program goes to {describe(box)}, the machine "
-                         f"reaches {describe(reach)} (workpiece frame, head upright): program.work_offsets places it")
-
-
 def _check_force_paths(steps: list, where: _Where) -> None:
     """Every M100 has a feed path after it before its M101 (the loop switches on at its start)."""
     for k, step in enumerate(steps):
@@ -341,19 +286,14 @@ def _workpiece(spec: GcodeWorkpieceSpec | None, model, head, label: Path) -> Gco
                           friction=spec.friction, tile_size=surface.tile_size * units.MM)
 
 
-def _air_clearance(spec: GcodeProgramSpec, ops, model, head, label: Path) -> float | None:
-    """[m] in the air, the program's lowest point (raised) above the scene block's top; None
-    otherwise or without a block."""
-    from cnc_twin.gcode.extents import extents
-
-    box = extents(ops) if spec.in_air else None
-    if box is None:
+def _work_top(spec: GcodeProgramSpec, model, head, label: Path) -> float | None:
+    """[mm] the scene block's top in the workpiece frame, for a run in the air; None otherwise."""
+    if not spec.in_air:
         return None
     try:
-        top = _block_top(model, head, label).control_net[0][0][2]
+        return _block_top(model, head, label).control_net[0][0][2]
     except ScenarioError:
         return None
-    return float(box[0][2] - top) * units.MM
 
 
 def _block_top(model, head, label: Path) -> SurfaceSpec:
