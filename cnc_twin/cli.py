@@ -22,7 +22,7 @@ from cnc_twin.core.errors import ScenarioError
 from cnc_twin.run.progress import ProgressBar
 from cnc_twin.run.summary import summary_table
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
-from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario, folder_list, input_path
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, bundled_tool_table, default_scenario, folder_list, input_path
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
@@ -104,9 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     gcode = sub.add_parser("gcode", help="read an NC program as LinuxCNC reads it and list what it makes")
     gcode.add_argument("program", type=input_path, help="RS274/NGC program (.ngc): a path, or a bundled one by name")
-    gcode.add_argument("--canon", action="store_true",
-                       help="print the canonical machine calls in the text form of LinuxCNC's rs274 -g")
-    gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: none)")
+    gcode.add_argument("--canon", action="store_true", help="print the canonical calls as LinuxCNC's rs274 -g prints them")
+    gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: the machine's)")
     gcode.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
     gcode.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
 
@@ -458,7 +457,8 @@ def _gcode(args: argparse.Namespace) -> int:
     from cnc_twin.gcode.listing import list_program
 
     gc.disable()  # one program listed, then the process ends: the collector would only walk the calls (10 %)
-    lines, error = list_program(args.program, args.tool_table, args.tool_units, args.canon, args.subroutine_path)
+    lines, error = list_program(args.program, args.tool_table or bundled_tool_table(),  # as run reads them
+                                args.tool_units if args.tool_table else "mm", args.canon, args.subroutine_path)
     print("\n".join(lines))
     if error:
         print(f"error: {error}", file=sys.stderr)

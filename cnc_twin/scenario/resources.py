@@ -42,6 +42,12 @@ def models_dir() -> Path:
     return _bundled_dir("models")
 
 
+def bundled_tool_table() -> Path:
+    """The bundled machine's LinuxCNC tool table (T1 the pad, T2-T99 generic; lengths in mm),
+    which its parameter file names."""
+    return models_dir() / "polisher.tbl"
+
+
 def scenarios_dir() -> Path:
     """Directory holding the bundled scenarios."""
     return _bundled_dir("scenarios")
