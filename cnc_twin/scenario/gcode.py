@@ -131,15 +131,6 @@ def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path
         raise _Where(exc.file or path)(exc.line, exc.message) from None
 
 
-def _find_folder(name: str, folder: Path | None, label: Path, key: str) -> Path:
-    path = Path(name)
-    if not path.is_absolute() and folder is not None:
-        path = folder / path
-    if not path.is_dir():
-        raise ScenarioError(label, key, f"folder '{name}' not found next to the scenario")
-    return path
-
-
 def _kept_subroutines(files: dict[Path, str], program_folder: Path, names: list[str],
                       folders: list[Path]) -> tuple[tuple[str, str], ...]:
     """The called subroutine files a run directory keeps, by their name beside the program
@@ -158,12 +149,13 @@ def _kept_subroutines(files: dict[Path, str], program_folder: Path, names: list[
     return tuple(kept)
 
 
-def _find(name: str, folder: Path | None, label: Path, key: str) -> Path:
+def _find(name: str, folder: Path | None, label: Path, key: str, *, is_folder: bool = False) -> Path:
+    """The file (or folder) ``name`` the scenario names, relative to its ``folder``."""
     path = Path(name)
     if not path.is_absolute() and folder is not None:
         path = folder / path
-    if not path.is_file():
-        raise ScenarioError(label, key, f"file '{name}' not found next to the scenario")
+    if not (path.is_dir() if is_folder else path.is_file()):
+        raise ScenarioError(label, key, f"{'folder' if is_folder else 'file'} '{name}' not found next to the scenario")
     return path
 
 
@@ -189,7 +181,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     # in its parameter file; zeros would send the tool to the workpiece frame's origin, on the work
     parameters = {base + k: value for base in (5161, 5181) for k, value in enumerate(start_units)}
     parameters.update(work_offset_parameters(spec.work_offsets, per_mm))
-    sub_folders = [_find_folder(name, folder, label, f"program.subroutine_path[{k}]")
+    sub_folders = [_find(name, folder, label, f"program.subroutine_path[{k}]", is_folder=True)
                    for k, name in enumerate(spec.subroutine_path)]
     calls, source, sub_files = read_calls(path, table, tool_units, label, start=start_units, parameters=parameters,
                                           subroutine_path=sub_folders)
