@@ -52,3 +52,13 @@ def compare(text: str, folder: Path) -> Verdict:
     if [o.strip() for o in other] != [e.strip() for e in expected]:
         return Verdict("differs", f"messages: ours {expected} rs274 {other}")
     return Verdict("matched", error.message if error else "")
+
+
+def assert_refused_alike(program: str, message: str, folder: Path) -> None:
+    """rs274 refuses ``program`` first with ``message`` (else the test's table is wrong), and ours
+    refuses it alike, after the same calls."""
+    oracle.require()
+    _, said = oracle.run(program, folder)
+    assert said[:1] == [message], "the table is wrong"
+    verdict = compare(program, folder)
+    assert (verdict.kind, verdict.detail) == ("matched", message), verdict.detail
