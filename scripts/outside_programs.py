@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=1800.0, help="[s] a run's wall time at most")
     parser.add_argument("--json", type=Path, default=None, help="write every row here")
     parser.add_argument("--keep", type=Path, default=None, help="keep the run directories here")
+    parser.add_argument("--markdown", type=Path, default=None, help="write the table as Markdown here")
     args = parser.parse_args(argv)
 
     from cnc_twin.scenario.resources import models_dir
@@ -255,7 +256,26 @@ def main(argv: list[str] | None = None) -> int:
     for row in rows:
         counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1
     print("counts: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+    if args.markdown:
+        args.markdown.write_text(markdown(rows, counts, args.in_air))
     return 0
+
+
+def markdown(rows: list[dict], counts: dict[str, int], in_air: float) -> str:
+    """The table, one row a program: verdict, what it took, the one-line set-up, the detail."""
+    out = [f"Counts: {', '.join(f'{k} {v}' for k, v in sorted(counts.items()))} (in the air by at least "
+           f"{in_air:g} mm above the workpiece top).", "",
+           "| program | lines | verdict | simulated s | wall s | peak MB | set-up | detail |",
+           "|---|---:|---|---:|---:|---:|---|---|"]
+    for row in rows:
+        setup = json.dumps(row["setup"]) if row.get("setup") else ""
+        sim = f"{row['sim_s']:.1f}" if row.get("sim_s") else ""
+        wall = f"{row['wall_s']:.1f}" if row.get("wall_s") else ""
+        rss = f"{row['rss_mb']:.0f}" if row.get("rss_mb") else ""
+        detail = str(row.get("detail", "")).replace("|", "/").replace(str(DEFAULT_FOLDER) + "/", "")
+        out.append(f"| {row['program']} | {row['lines']} | {row['verdict']} | {sim} | {wall} | {rss} | {setup} | "
+                   f"{detail[:200]} |")
+    return "\n".join(out) + "\n"
 
 
 if __name__ == "__main__":
