@@ -53,8 +53,8 @@ def in_units(point: tuple[float, ...], per_mm: float) -> tuple[float, ...]:
 
 
 def with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
-    """A program that leaves an axis's soft limits is refused with where it goes and where the
-    machine reaches (the tip's boxes in the workpiece frame, the head upright), so the user sees
+    """A program that leaves an axis's soft limits, and whose tip goes beyond what the machine
+    reaches with the head upright, is refused with both boxes (workpiece frame), so the user sees
     the work offset that places it; any other refusal as it is."""
     from cnc_twin.gcode.extents import describe, extents
 
@@ -64,6 +64,8 @@ def with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
     shift = (np.asarray(head.pivot_home) + np.asarray(head.tool_offset) - np.asarray(head.workpiece_origin)) / units.MM
     reach = (np.array([cfg.allowed[0] for cfg in axes[:3]]) / units.MM + shift,
              np.array([cfg.allowed[1] for cfg in axes[:3]]) / units.MM + shift)
+    if np.all(box[0] >= reach[0]) and np.all(box[1] <= reach[1]):
+        return exc  # it fits upright: its tilt (A / B) takes it out, which no offset mends
     return ScenarioError(exc.file, exc.key_path, f"{exc.message}; the program goes to {describe(box)}, the machine "
                          f"reaches {describe(reach)} (workpiece frame, head upright): program.work_offsets places it")
 
