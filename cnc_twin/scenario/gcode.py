@@ -30,6 +30,7 @@ face of the scene's block as a flat plate, with the removal map on it.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Literal
 
@@ -153,7 +154,7 @@ def _find(name: str, folder: Path | None, label: Path, key: str, *, is_folder: b
     """The file (or folder) ``name`` the scenario names, relative to its ``folder``."""
     path = Path(name)
     if not path.is_absolute() and folder is not None:
-        path = folder / path
+        path = Path(os.path.normpath(folder / path))  # a bundled scenario's ../programs/x.ngc as programs/x.ngc
     if not (path.is_dir() if is_folder else path.is_file()):
         raise ScenarioError(label, key, f"{'folder' if is_folder else 'file'} '{name}' not found next to the scenario")
     return path
