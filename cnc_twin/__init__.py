@@ -18,7 +18,15 @@ The names are imported lazily so that light processes (the planner) import only 
 from __future__ import annotations
 
 import importlib
+import os
 from typing import Any
+
+# The twin draws with rerun, never with MuJoCo's OpenGL. Left unset, `import mujoco` imports
+# glfw, whose import starts a Python subprocess to ask the GLFW library its version: 20-30 ms in
+# each of a run's processes, and a child that prints an EOFError traceback into the command's
+# stderr when a signal ends the command during its start-up. A MUJOCO_GL the user sets is kept
+# (e.g. egl, to render with mujoco.Renderer beside the twin).
+os.environ.setdefault("MUJOCO_GL", "disable")
 
 __all__ = ["PlannerPool", "RecordingProcess", "RunResult", "Scenario", "ScenarioError", "Twin", "analyse",
            "load_scenario", "run_scenario", "sweep"]

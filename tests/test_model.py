@@ -134,3 +134,17 @@ def test_compiled_models_are_reused_as_copies_and_recompiled_when_a_file_in_the_
     stat = included.stat()
     os.utime(included, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000))
     assert not np.array_equal(load_model(scene).dof_armature, again.dof_armature)
+
+
+def test_importing_the_twin_and_mujoco_starts_no_opengl_probe():
+    """The twin never renders with MuJoCo's OpenGL: `import mujoco` after `import cnc_twin` leaves
+    glfw unimported (its import starts a subprocess that asks the GLFW library its version, in
+    every process of a run, and prints a traceback when a signal ends the command meanwhile)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    code = "import cnc_twin, mujoco, sys; print('glfw' in sys.modules, hasattr(mujoco, 'MjModel'))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert out.stdout.split() == ["False", "True"], out.stderr
