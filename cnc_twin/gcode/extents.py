@@ -25,12 +25,10 @@ def operation_points(op: Operation) -> np.ndarray | None:
     return None
 
 
-def extents(ops: list[Operation], start=None) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(low, high)`` (each (3,) [mm]): the box of every point the operations reach (and
-    ``start``, where the machine stands, when given); None when nothing moves."""
+def extents(ops: list[Operation]) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(low, high)`` (each (3,) [mm]): the box of every point the operations reach; None when
+    nothing moves."""
     chunks = [p for p in (operation_points(op) for op in ops) if p is not None]
-    if start is not None:
-        chunks.append(np.asarray([start[:3]], dtype=float))
     if not chunks:
         return None
     points = np.vstack(chunks)

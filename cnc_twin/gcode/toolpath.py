@@ -136,9 +136,9 @@ class _Canon:
     control: tuple = ("CANON_CONTINUOUS", 0.0)
     spindle_speed: float = 0.0
     spindle_direction: int = 0
-    air: float = 0.0
-    """[mm] every point raised this far along Z (a run in the air), outside the program's sight as
-    LinuxCNC's external offsets are"""
+    air: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    """x y z a b c [mm / deg]: the run's raise in Z (a run in the air), outside the program's sight
+    as LinuxCNC's external offsets are"""
 
     def to_mm(self, values) -> np.ndarray:
         """Program values x y z a b c -> mm / deg, unoffset."""
@@ -153,7 +153,7 @@ class _Canon:
     @property
     def offset(self) -> np.ndarray:
         """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg]."""
-        return self.g92 + self.g5x + self.tool + np.array([0.0, 0.0, self.air, 0.0, 0.0, 0.0])
+        return self.g92 + self.g5x + self.tool + self.air
 
 
 def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
@@ -168,7 +168,7 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
     which the twin does not run yet), an arc or a curve as the first motion when ``start`` is not
     known (the tool's place is not known before a G0 / G1).
     """
-    canon = _Canon(air=air)
+    canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
     ops: list[Operation] = []
     # machine point, mm / deg (raised with the program); None until the first move when not known
     here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset

@@ -166,6 +166,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     scenario's tool table, else the machine's (``machine_tools``, in mm); the program starts where
     the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose)."""
     from cnc_twin.gcode import toolpath as tp
+    from cnc_twin.gcode.state import MM_PER_INCH
     from cnc_twin.geometry.kinematics import HeadGeometry
 
     path = _find(spec.file, folder, label, "program.file")
@@ -176,7 +177,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     head = HeadGeometry.from_model(model)
     start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
     # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
-    per_mm = 1.0 / 25.4 if tool_units == "inch" else 1.0
+    per_mm = 1.0 / MM_PER_INCH if tool_units == "inch" else 1.0
     start_units = in_units(start, per_mm)
     # G28 / G30 return to where the machine stood (its home), as a machine homed there keeps them
     # in its parameter file; zeros would send the tool to the workpiece frame's origin, on the work
