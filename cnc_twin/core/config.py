@@ -430,6 +430,9 @@ class Scenario:
     max_time: float | None
     """cap on simulated time [s]; None = twice the planned program plus 5 s"""
     supervisor: SupervisorConfig = SupervisorConfig()
+    block_shift: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """[m] how far the scene's workpiece block sits from where the scene draws it (the work frame
+    stays): ``machine.block_shift``"""
     command_output: str = "analog"
     """``analog``: +-10 V speed commands from the card's PID (drives in velocity mode);
     ``pulse``: step/direction pulses (drives in position mode, :mod:`cnc_twin.machine.drive`)"""

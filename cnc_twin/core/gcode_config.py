@@ -3,6 +3,7 @@ the machine steps an NC program becomes. Re-exported by :mod:`cnc_twin.core.conf
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -87,6 +88,51 @@ class GcodeForce:
 
 
 @dataclass(frozen=True)
+class GcodeProbe:
+    """G38.2 .. G38.5: a straight move down (G38.2 / .3) or up (G38.4 / .5) the tool axis that the
+    card stops when the pad's load cell reads ``trip_force`` (or, up, falls below it); the program
+    after it is read again with where the machine found the work (:attr:`GcodeProgram.after_probe`)."""
+
+    end: tuple[float, ...]
+    """the programmed end [m | rad], axis space, shape ``(6,)``"""
+    feed: float
+    """tool-axis speed [m/s]"""
+    kind: int
+    """2 .. 5 for G38.2 .. G38.5 (2 and 4 must trip: the card faults when they do not)"""
+    trip_force: float
+    """[N] the load-cell force that trips the probe"""
+    line: int
+    """program line (1-based)"""
+    offset: tuple[float, ...] = ()
+    """the program's offsets at the probe (G92 + G5x + tool length), x y z [mm] a b c [deg]: a
+    machine point less these, divided by ``scale`` (x y z), is the program's"""
+    scale: float = 1.0
+    """[mm per program unit] (25.4 under G20)"""
+
+
+@dataclass(frozen=True)
+class ProbeAnswer:
+    """What the card reported after a probing move, in axis space [m | rad] (shape ``(6,)``)."""
+
+    tripped: bool
+    trip: tuple[float, ...]
+    """the encoder positions the card latched when the load cell crossed the trip force (where
+    the move ended when it did not trip)"""
+    stop: tuple[float, ...]
+    """where the card stopped the axes (commanded): the next move starts here"""
+
+    @classmethod
+    def from_counts(cls, tripped: bool, latch, stop, axes, power_on) -> "ProbeAnswer":
+        """The answer from the card's counts (its status block's ``probe_latch``, ``probe_stop``),
+        converted as the card's interpolator converts them: ``count / counts_per_unit + power_on``
+        per axis (``axes``: the :class:`~cnc_twin.core.axis_config.AxisConfig` of each)."""
+        def position(counts) -> tuple[float, ...]:
+            return tuple(float(c) / a.counts_per_unit + float(z) for c, a, z in zip(counts, axes, power_on))
+
+        return cls(bool(tripped), position(latch), position(stop))
+
+
+@dataclass(frozen=True)
 class GcodeWorkpiece:
     """The workpiece a G-code program polishes: its surface in the scene, the removal map on it."""
 
@@ -106,7 +152,7 @@ class GcodeProgram:
     file: Path
     text: str
     """the program as read (the run directory keeps it)"""
-    steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle | GcodeForce, ...]
+    steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle | GcodeForce | GcodeProbe, ...]
     lines: int
     """lines in the file"""
     settle: float
@@ -121,10 +167,30 @@ class GcodeProgram:
     air_clearance: float | None = None
     """[m] in the air: how far the program's lowest point stays above the scene's workpiece top
     (negative: it still reaches into the work); None when not in the air or no block to measure"""
+    after_probe: object = field(default=None, compare=False)
+    """for a program that probes: a picklable callable ``answers -> steps``, given the card's
+    :class:`ProbeAnswer` to each probe so far (in order, with its :class:`GcodeProbe`), the steps
+    after the last of them, the program read again with those answers (LinuxCNC's interpreter
+    reads on past a probe only once the machine has answered); None otherwise"""
     subroutine_files: tuple[tuple[str, str], ...] = ()
     """``(name, text)`` of the subroutine files the program called that the run directory keeps:
     the name relative to the scenario's folder (beside the program, or in a folder of
     ``program.subroutine_path`` under it); files elsewhere are found there again"""
+
+    def as_run(self, answers: list[ProbeAnswer]) -> "GcodeProgram":
+        """The program as the machine ran it: its steps up to each probe, then those read again
+        with the card's ``answers`` (one per probe run, in order; :attr:`after_probe`)."""
+        if not answers or self.after_probe is None:
+            return self
+        steps, ran, given = list(self.steps), [], []
+        for answer in answers:
+            k = next((i for i, s in enumerate(steps) if isinstance(s, GcodeProbe)), None)
+            if k is None:
+                break
+            ran += steps[:k + 1]
+            given.append((steps[k], answer))
+            steps = list(self.after_probe(given))
+        return dataclasses.replace(self, steps=tuple(ran + steps))
 
     @property
     def paths(self) -> tuple[GcodePath, ...]:

@@ -54,6 +54,7 @@ from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp import feed_slew
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
+from cnc_twin.dsp.probe import ProbeSegment, ProbeState, run_probe, start_probe
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
 from cnc_twin.dsp.record_intake import MODAL, RecordIntake
 from cnc_twin.dsp.spindle import spindle_turn
@@ -155,6 +156,8 @@ class SegmentInterpolator(RecordIntake):
         """curve parameter at the end of the last period; -1 when not on a curve"""
         self.path_ds = 0.0
         """arc length commanded in the last period [m]"""
+        self.probe = ProbeState()
+        """the probing move's state and the last probe's result (:mod:`cnc_twin.dsp.probe`)"""
         self.tick_commands: list[list[float]] | None = None
         """a step interpolator's command for every servo tick of the coming period [counts], or
         None (the servo task interpolates linearly to the period's setpoint)"""
@@ -365,11 +368,12 @@ class SegmentInterpolator(RecordIntake):
         self.start_counts = [(p - z) * c for p, z, c in zip(seg.start, self.power_on, self.counts_per_unit)]
         self.delta_counts = [(p1 - p0) * c for p0, p1, c in zip(seg.start, seg.end, self.counts_per_unit)]
 
-    def _advance_move(self, seq: int, seg: MoveSegment) -> list[float]:
-        """Advance the segment clock one period; the setpoint in counts."""
+    def _advance_move(self, seq: int, seg: MoveSegment, stopping: bool = False) -> list[float]:
+        """Advance the segment clock one period; the setpoint in counts (``stopping``: the move
+        stops along its path, as held)."""
         prof = seg.profile
         lam = self.override
-        target = 0.0 if self.hold else min(self.override_target, self.lam_max)
+        target = 0.0 if self.hold or stopping else min(self.override_target, self.lam_max)
         if lam != target:
             _, sd, sdd = prof.evaluate(self.tau)
             lam = slew(lam, target, sd, sdd, self._a_lim, self.period)
@@ -486,14 +490,14 @@ START = {Block: SegmentInterpolator._start_block, StepRun: SegmentInterpolator._
          ChipCommand: SegmentInterpolator._start_chip, Curve: SegmentInterpolator._start_path,
          SurfaceRun: SegmentInterpolator._start_path, ForceWait: SegmentInterpolator._start_force_wait,
          SurfaceGeometry: SegmentInterpolator._start_surface, MoveSegment: SegmentInterpolator._start_move,
-         Dwell: SegmentInterpolator._start_dwell}
+         Dwell: SegmentInterpolator._start_dwell, ProbeSegment: start_probe}
 """what each queue item does as it reaches the queue's head; any other is a modal record (MODAL)"""
 ADVANCE = {Block: SegmentInterpolator._run_block, StepRun: SegmentInterpolator._run_steps,
            ChipRun: SegmentInterpolator._run_chip, ForceWait: SegmentInterpolator._run_force_wait,
-           Dwell: SegmentInterpolator._run_dwell, MoveSegment: SegmentInterpolator._run_move}
+           Dwell: SegmentInterpolator._run_dwell, MoveSegment: SegmentInterpolator._run_move, ProbeSegment: run_probe}
 """one period of each kind of running item; a new kind plugs in here, in START and in
 :data:`cnc_twin.dsp.record_intake.ACCEPT`"""
-MOVING = frozenset({MoveSegment, Block, StepRun, ChipRun})
+MOVING = frozenset({MoveSegment, Block, StepRun, ChipRun, ProbeSegment})
 """running items that are motion (a feed hold and the override act on them)"""
 ON_PATH = frozenset({Block, Curve, SurfaceRun})
 """queue items of a curve path"""

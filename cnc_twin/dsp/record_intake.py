@@ -2,7 +2,8 @@
 running it (:class:`RecordIntake`, the accepting half of
 :class:`~cnc_twin.dsp.interpolator.SegmentInterpolator`).
 
-A move becomes a :class:`~cnc_twin.motion.segments.MoveSegment` from the programmed position; a
+A move becomes a :class:`~cnc_twin.motion.segments.MoveSegment` from the programmed position (a
+probing move a :class:`~cnc_twin.dsp.probe.ProbeSegment`); a
 curve or a surface section is built at once (the card decodes ahead) into a
 :class:`~cnc_twin.dsp.path_blocks.Curve` or :class:`~cnc_twin.dsp.path_blocks.SurfaceRun`, and
 its CurveBlocks into :class:`~cnc_twin.dsp.path_blocks.Block` items; a force-control record
@@ -18,10 +19,11 @@ from __future__ import annotations
 import math
 
 from cnc_twin.dsp.path_blocks import Block, Curve, ForceWait, Surface, SurfaceRun, stop_reserve
+from cnc_twin.dsp.probe import ProbeSegment
 from cnc_twin.dsp.step_interpolator import StepRun
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.whiteboard.records import (
-    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move, Record,
+    CurveBlock, CurveGeometry, Dwell, EndOfProgram, FeedOverride, ForceControlRecord, ForceSetpoint, Mark, Move, Probe, Record,
     Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
@@ -37,6 +39,15 @@ class RecordIntake:
     def _accept_move(self, seq: int, record: Move) -> None:
         segment = MoveSegment(start=self.programmed, end=tuple(record.end), profile=record.profile,
                               periods=record.periods)
+        self.programmed = segment.end
+        self.queue.append((seq, segment))
+        self._queued_periods += record.periods
+
+    def _accept_probe(self, seq: int, record: Probe) -> None:
+        # the next move starts where the probe stops: the card sets ``programmed`` then (the
+        # planner sends nothing more before it has the probe's result)
+        segment = ProbeSegment(start=self.programmed, end=tuple(record.end), profile=record.profile,
+                               periods=record.periods, trip_force=record.trip_force, kind=record.kind)
         self.programmed = segment.end
         self.queue.append((seq, segment))
         self._queued_periods += record.periods
@@ -93,7 +104,7 @@ class RecordIntake:
 ACCEPT = {Move: RecordIntake._accept_move, Dwell: RecordIntake._accept_dwell, CurveGeometry: RecordIntake._accept_curve,
           SurfaceGeometry: RecordIntake._accept_surface, SurfaceCurve: RecordIntake._accept_section,
           ForceControlRecord: RecordIntake._accept_force, StepContour: RecordIntake._accept_steps,
-          CurveBlock: RecordIntake._accept_block}
+          CurveBlock: RecordIntake._accept_block, Probe: RecordIntake._accept_probe}
 """what each record type becomes in the queue; any other waits there as it is (modal records,
 marks, the end of the program, chip commands)"""
 

@@ -153,6 +153,8 @@ class DspTask:
         if self.read_inputs is not None:
             interp.inputs = inputs = self.read_inputs()
             interp.actual = frame[n:2 * n]
+        elif interp.probe.active:  # a probe latches the encoders
+            interp.actual = frame[n:2 * n]
         supervisor = self.supervisor
         if supervisor is not None and self.drives_enabled and self.state != DspState.FAULT:
             trip = supervisor.check(frame, frame[n:2 * n], servo.dac_saturations, inputs, frame[3 * n])
@@ -164,6 +166,9 @@ class DspTask:
             self.interpolator_ns.append(perf_counter_ns() - started)
         else:
             setpoint = interp.next_period()
+        if interp.probe.fault is not None:
+            self.raise_fault(FaultCode.PROBE, interp.probe.fault, k)
+            interp.probe.fault = None
         if self.retract is not None:
             reach, direction = self.retract.offset(), self.retract.direction
             setpoint[0] += reach * direction[0]
@@ -291,12 +296,13 @@ class DspTask:
         n = self.servo.n_axes
         interp = self.interpolator
         port = self.port
+        probe = interp.probe
         # frame[0:3n] is command, actual, DAC code: the status block's field order.
         port.publish(None, k, values=(
             k, self.state, self.fault, port.fifo.fill(), self.expected_seq, interp.last_seq_executed,
             self.records_accepted, self.records_rejected, port.missed_exchanges, self.underrun_periods,
             interp.queued_periods, k * self.period, interp.override, frame[3 * n],
             *frame[0:3 * n], *map(float.__sub__, frame[0:n], frame[n:2 * n]),
-            *self.pending_events, *self.index_latch,
+            *self.pending_events, *self.index_latch, probe.count, probe.tripped, *probe.latch, *probe.stop,
         ))
         self.pending_events = [0] * n

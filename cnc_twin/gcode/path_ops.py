@@ -166,7 +166,25 @@ class ToolAxisPath:
     """[rad] how far the fitted tool axis may turn from the programmed one"""
 
 
-Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange | ToolAxisPath
+@dataclass
+class Probe:
+    """A straight probing move (G38.2 .. G38.5) from ``start`` to ``end`` (machine points: tip,
+    workpiece frame [mm], A B C [deg]) at ``feed`` [mm/min]; ``stop``, where the machine stopped
+    as the reader was answered (:mod:`cnc_twin.gcode.probing`); ``offset`` (x y z [mm], a b c
+    [deg]) and ``scale`` [mm per program unit]: the program's frame at the probe."""
+
+    start: tuple[float, ...]
+    end: tuple[float, ...]
+    stop: tuple[float, ...]
+    feed: float
+    kind: int
+    """2 .. 5 for G38.2 .. G38.5"""
+    line: int
+    offset: tuple[float, ...]
+    scale: float
+
+
+Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange | ToolAxisPath | Probe
 
 
 # -- element geometry ---------------------------------------------------------------------------

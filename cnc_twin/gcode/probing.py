@@ -12,8 +12,10 @@ Where the probe trips is the machine's to say, so it is asked (:data:`Probe`): a
 :class:`~cnc_twin.gcode.interpreter.Interpreter` takes a ``probe`` callable given the move
 (:class:`ProbeMove`) and answering a :class:`ProbeResult`. The default,
 :func:`standalone_probe`, answers as LinuxCNC's standalone ``rs274`` does (its canon in
-saicanon.cc), so a program's calls and what it reads after a probe match rs274's; the twin will
-run the probe on its simulated machine and answer with the real trip point.
+saicanon.cc), so a program's calls and what it reads after a probe match rs274's; the twin runs
+the probe on its simulated machine and answers with the real trip point. The
+``STRAIGHT_PROBE`` call carries the move and its answer (``payload``: ``(ProbeMove,
+ProbeResult)``), so what turns the calls into machine steps knows where the machine stopped.
 """
 
 from __future__ import annotations
@@ -104,10 +106,11 @@ def straight_probe(runner: MotionRunner, code: int, block: Block) -> None:
     # the canon measures the move from its own point, which tool length offset changes since
     # the last motion have not moved
     start = tuple(p - shift for p, shift in zip(s.position, s.tool_shift))
+    move = ProbeMove(kind, start, tuple(target), s.units, block.line)
+    result = interpreter.probe(move)  # asked first: the call carries the answer to what runs it
     interpreter.emit("TURN_PROBE_ON")
-    interpreter.emit("STRAIGHT_PROBE", *target)
+    interpreter.emit("STRAIGHT_PROBE", *target, payload=(move, result))
     interpreter.emit("TURN_PROBE_OFF")
-    result = interpreter.probe(ProbeMove(kind, start, tuple(target), s.units, block.line))
     numbered = s.params.numbered
     for k in range(9):
         numbered[PROBE_PARAMETER + k] = float(result.trip[k]) if k < 6 else 0.0

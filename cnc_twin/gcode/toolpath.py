@@ -10,7 +10,7 @@ The operations, in program order (:mod:`cnc_twin.gcode.path_ops`): traverses, fe
 held; corners between lines blended within the G64 ``P`` tolerance, others, and all in G61 /
 G61.1, stop; under G64 P runs of gently turning lines fitted as one curve,
 :mod:`cnc_twin.gcode.line_fit`), tool-axis paths (G1 runs turning the head, fitted under G64 P),
-pauses, spindle and force changes. Corner blending in :func:`_blend_corners`.
+pauses, spindle and force changes, probing moves. Corner blending in :func:`_blend_corners`.
 """
 
 from __future__ import annotations
@@ -24,13 +24,13 @@ from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines, tool_axis_paths
 from cnc_twin.gcode.modal import G
 from cnc_twin.gcode.path_ops import (
-    Element, FeedPath, ForceChange, Operation, Pause, SpindleChange, ToolAxisPath, ToolpathError, Traverse,
+    Element, FeedPath, ForceChange, Operation, Pause, Probe, SpindleChange, ToolAxisPath, ToolpathError, Traverse,
     line_element, programmed_geometry,
 )
 from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans
 
 __all__ = ["operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange", "Operation", "Pause",
-           "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
+           "Probe", "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
 """the operations are re-exported: what the program becomes is looked for here"""
 
 INCH = 25.4
@@ -164,9 +164,8 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
     deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
     ``air`` [mm]: every point raised this far along Z (the program proved in the air).
 
-    Raises :class:`ToolpathError` for what reads but cannot run: a probing move (G38.2 .. G38.5,
-    which the twin does not run yet), an arc or a curve as the first motion when ``start`` is not
-    known (the tool's place is not known before a G0 / G1).
+    Raises :class:`ToolpathError` for what reads but cannot run: an arc, a curve or a probing move
+    as the first motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
     """
     canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
     ops: list[Operation] = []
@@ -233,8 +232,16 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
             path.append((element, _modes(canon, here)))
             here = np.concatenate([element.end, here[3:]])
         elif name == "STRAIGHT_PROBE":
-            raise ToolpathError(call.line, "a probing move (G38.2 .. G38.5): the reader reads it, but probing "
-                                "runs on the twin in a later version, so this program cannot run yet")
+            if here is None:
+                raise ToolpathError(call.line, "a probing move as the program's first motion: the tool's place "
+                                    "is not known yet (start with a G0 or G1 to where the probe starts)")
+            close()
+            move, result = call.payload
+            end, stop = canon.machine(v), canon.machine(result.stop)
+            ops.append(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
+                             tuple(float(x) for x in stop), canon.feed, move.kind, call.line,
+                             tuple(float(x) for x in canon.offset), canon.scale))
+            here = stop
         elif name == "DWELL":
             close()
             ops.append(Pause(float(v[0]), call.line))

@@ -17,6 +17,8 @@ from cnc_twin.core.errors import ScenarioError
 
 PAD_FORCE_SENSOR = "pad_force"
 TOOL_POS_SENSOR = "tool_pos"
+BLOCK_GEOM = "workpiece_collision"
+"""the scene's workpiece block (a box)"""
 
 _COMPILED: dict[tuple, mujoco.MjModel] = {}
 """checked models compiled in this process, by file and the state of its folder (see load_model)"""
@@ -86,6 +88,19 @@ def _require(model: mujoco.MjModel, path: Path) -> None:
         raise ScenarioError(path, "", problem)
 
 
+def place_block(spec: mujoco.MjSpec, shift) -> None:
+    """Move the scene's workpiece block by ``shift`` (x y z [m], world frame) in ``spec``, the
+    work frame staying where the scene puts it: a part set up off its drawn place, or thicker or
+    thinner than drawn (``machine.block_shift``), as a program that probes finds it. Edited in the
+    spec, not the compiled model: MuJoCo bounds a static body's geoms when it compiles, and a
+    geom moved afterwards is not found in contact above its old bounds. ValueError for a scene
+    without the block."""
+    block = spec.geom(BLOCK_GEOM)
+    if block is None:
+        raise ValueError(f"the scene has no block '{BLOCK_GEOM}' to shift")
+    block.pos = [p + d for p, d in zip(block.pos, shift)]
+
+
 OBSTACLE_PARK = (0.0, 0.0, -50.0)
 """where an obstacle waits until its time comes [m]: far below the table"""
 
@@ -101,13 +116,16 @@ def add_obstacles(spec: mujoco.MjSpec, boxes: list[tuple[tuple[float, float, flo
                       conaffinity=2, group=3, rgba=[0.85, 0.2, 0.2, 1.0], density=0.0)
 
 
-def load_model_with_obstacles(path: Path, boxes) -> mujoco.MjModel:
-    """:func:`load_model` plus obstacle boxes (see :func:`add_obstacles`)."""
+def load_model_with_obstacles(path: Path, boxes, block_shift=(0.0, 0.0, 0.0)) -> mujoco.MjModel:
+    """:func:`load_model` plus obstacle boxes (see :func:`add_obstacles`), the workpiece block
+    moved by ``block_shift`` [m] (:func:`place_block`)."""
     model = load_model(path)  # checks the file first, with its clear errors
-    if not boxes:
+    if not boxes and not any(block_shift):
         return model
     spec = mujoco.MjSpec.from_file(str(path))
     add_obstacles(spec, boxes)
+    if any(block_shift):
+        place_block(spec, block_shift)
     return spec.compile()
 
 

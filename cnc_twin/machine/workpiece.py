@@ -28,10 +28,10 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.machine.model_file import BLOCK_GEOM
 from cnc_twin.geometry.surface import NurbsSurface, parameter_scales
 
 WORKPIECE_BODY = "workpiece"
-BLOCK_GEOM = "workpiece_collision"
 PAD_GEOM = "pad_collision"
 PAD_CONTACTS = "pad_contacts"
 """the contact sensor on the pad's geom: per slot the matches found, the contact force (normal

@@ -8,6 +8,10 @@ Per step (:class:`~cnc_twin.core.config.GcodeProgram`)::
                   window by window (rest to rest)
     GcodePause    Mark line, Dwell
     GcodeSpindle  Mark line, Spindle
+    GcodeProbe    Mark line, Probe (a trapezoid at the probe's feed), the last record of its chunk:
+                  the next chunk waits for the card's answer (:meth:`GcodePlan.answer`), and the
+                  steps after it are the program read again with the answers so far
+                  (``GcodeProgram.after_probe``), from where the card stopped
     GcodeForce    on (M100): the next GcodePath's approach Move ends ``standoff`` above its start
                   along the tool axis, and a ForceControl on follows its CurveGeometry (the card
                   seeks contact, ramps, then runs the blocks); off (M101): Mark line, ForceControl
@@ -22,10 +26,11 @@ import dataclasses
 import math
 
 from cnc_twin.core.config import AxisConfig
-from cnc_twin.core.gcode_config import GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeSpindle
+from cnc_twin.core.gcode_config import (GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProbe, GcodeProgram,
+                                        GcodeSpindle, ProbeAnswer)
 from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.planner.ptp import dwell_chunk, plan_move
-from cnc_twin.whiteboard.records import CurveBlock, EndOfProgram, ForceControlRecord, Mark, Move, Spindle
+from cnc_twin.whiteboard.records import CurveBlock, EndOfProgram, ForceControlRecord, Mark, Move, Probe, Spindle
 
 
 def _standoff(pose: tuple[float, ...], distance: float) -> tuple[float, ...]:
@@ -46,6 +51,15 @@ def _move_records(here: tuple[float, ...], step: GcodeMove, axes, period: float)
     if seg is None:
         return [], []
     return [Move(end=seg.end, profile=seg.profile, periods=seg.periods)], [seg.periods]
+
+
+def _probe_records(here: tuple[float, ...], step: GcodeProbe, axes, period: float):
+    """``([Probe], [periods])``: the probing move as a trapezoid at its feed along the tool axis."""
+    seg = plan_move(here, step.end, axes, feed=step.feed, period=period)
+    if seg is None:  # refused at load: a probe goes somewhere
+        raise ValueError(f"line {step.line}: a probing move of no length")
+    return [Probe(end=seg.end, profile=seg.profile, periods=seg.periods, trip_force=step.trip_force,
+                  kind=step.kind)], [seg.periods]
 
 
 def _end_pose(curve, axis_path, hold: tuple[float, ...]) -> tuple[float, ...]:
@@ -133,6 +147,19 @@ class GcodePlan:
     def __init__(self, prog: GcodeProgram, axes: tuple[AxisConfig, ...], home: tuple[float, ...], period: float,
                  *, window: float):
         self.prog, self.axes, self.home, self.period, self.window = prog, axes, tuple(home), period, window
+        self.answers: list[tuple[GcodeProbe, ProbeAnswer]] = []
+        """each probe run so far with the card's answer (:meth:`answer`)"""
+
+    def answer(self, answer: ProbeAnswer) -> None:
+        """The card's answer to the probe :meth:`chunks` last handed out; the chunks after it are
+        planned from it (asked for only once it is given)."""
+        step = self._probing
+        if step is None:
+            raise RuntimeError("a probe answer with no probe running")
+        self.answers.append((step, answer))
+        self._probing = None
+
+    _probing: GcodeProbe | None = None
 
     @property
     def estimated_periods(self) -> int:
@@ -154,6 +181,9 @@ class GcodePlan:
                 here = _end_pose(curve, axis_path, c.hold)
             elif isinstance(step, GcodePause):
                 total += step.seconds + T
+            elif isinstance(step, GcodeProbe):  # its whole length (it stops short when it trips)
+                total += sum(_probe_records(here, step, self.axes, T)[1]) * T
+                here = step.end
             elif isinstance(step, GcodeForce) and step.control is not None:
                 f = step.control  # seek from the standoff (twice: slack for a gap), ramps, retract
                 total += 2.0 * f.standoff / f.seek_speed + 2.0 * f.ramp_time + f.standoff / f.retract_speed
@@ -168,9 +198,20 @@ class GcodePlan:
         here = self.home
         force_on = None  # the ForceControl of an M100 waiting for the next path's start
         force = None  # the one in effect (for M101's record)
-        for step in self.prog.steps:
+        steps, k = list(self.prog.steps), 0
+        while k < len(steps):
+            step = steps[k]
+            k += 1
             mark = Mark(step.line)
-            if isinstance(step, GcodeMove):
+            if isinstance(step, GcodeProbe):
+                records, periods = _probe_records(here, step, self.axes, T)
+                self._probing = step
+                yield [mark] + records, [0] + periods
+                if self._probing is not None:  # asked for more before the card answered
+                    raise RuntimeError(f"line {step.line}: the program after a probe was asked for before its answer")
+                here = self.answers[-1][1].stop
+                steps, k = list(self.prog.after_probe(self.answers)), 0
+            elif isinstance(step, GcodeMove):
                 records, periods = _move_records(here, step, self.axes, T)
                 yield [mark] + records, [0] + periods
                 here = step.end

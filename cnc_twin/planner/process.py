@@ -69,6 +69,7 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
             st = status[0]
             sim_time = float(st["sim_time"])
             faults.before_answer(sim_time)
+            feeder.see(status)
             feeder.top_up()
             wb.plan_us[0] = min(int(feeder.plan_seconds * 1e6), 0xFFFFFFFF)
             wb.plan_blocks[0] = feeder.blocks

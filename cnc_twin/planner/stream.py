@@ -3,24 +3,27 @@ FIFO space, chunk size and look-ahead allow, with go-back-N on rejects (:class:`
 
 from __future__ import annotations
 
+import queue
 import sys
 import threading
 import time
 
 import numpy as np
 
+from cnc_twin.core.gcode_config import ProbeAnswer
 from cnc_twin.planner.job import PlannerJob, plan_for
 from cnc_twin.whiteboard.codec import encode, split
 from cnc_twin.whiteboard.ports import PcPort
-from cnc_twin.whiteboard.records import CurveBlock, Move, Record
+from cnc_twin.whiteboard.records import CurveBlock, Move, Probe, Record
 from cnc_twin.whiteboard.status import DspState
 
 
 class Feeder:
     """Moves planned chunks into the streamer; the planning itself runs ahead in a thread.
 
-    Lockstep takes the next chunk only when fewer than ``BACKLOG`` records wait unsent, a decision
-    that depends on the exchange sequence alone, so the stream is the same on every run; the
+    Lockstep takes the next chunk only when fewer than ``BACKLOG`` records wait unsent, and none
+    after a probing move until the card's status brings its result (:meth:`see`), decisions that
+    depend on the exchange sequence alone, so the stream is the same on every run; the
     thread has usually planned that chunk already (the planner's process has a core of its own
     while the card simulates), and the exchange waits for it only when planning falls behind.
     Real time hands over whatever is planned at each exchange.
@@ -33,6 +36,14 @@ class Feeder:
 
     def __init__(self, job: PlannerJob, streamer: "Streamer"):
         self.streamer = streamer
+        self.job = job
+        self.awaiting = False
+        """lockstep: a probing move was handed to the streamer and the card has not answered yet
+        (nothing after it is planned before the answer)"""
+        self.probes_seen = 0
+        """probe results read from the card's status"""
+        self._answers: queue.SimpleQueue = queue.SimpleQueue()
+        self._waiting = False  # the thread waits for a probe's answer
         started = time.perf_counter()
         self.program = plan_for(job)
         self.plan_seconds = time.perf_counter() - started
@@ -60,9 +71,15 @@ class Feeder:
     def _run(self) -> None:
         try:
             while (chunk := self._next()) is not None:
+                probing = any(type(r) is Probe for r in chunk[0])
                 with self._planned:
                     self._ready.append(chunk)
+                    self._waiting = probing
                     self._planned.notify()
+                if probing:  # what follows a probe is planned from the card's answer
+                    self.program.answer(self._answers.get())
+                    with self._planned:
+                        self._waiting = False
         except BaseException as exc:  # reported from the exchange loop
             self._error = exc
         with self._planned:
@@ -84,8 +101,19 @@ class Feeder:
         """Wait until the thread has ``chunks`` planned chunks waiting (or planned them all): before
         the planner reports ready, so the card's first exchanges never wait for a window."""
         with self._planned:
-            while len(self._ready) < chunks and not self._done:
+            while len(self._ready) < chunks and not self._done and not self._waiting:
                 self._planned.wait()
+
+    def see(self, status: np.ndarray) -> None:
+        """Read a probe's result from the card's ``status`` when a new one is there, and let the
+        planning go on past the probe with it."""
+        st = status[0]
+        if int(st["probes"]) <= self.probes_seen:
+            return
+        self.probes_seen = int(st["probes"])
+        self.awaiting = False
+        self._answers.put(ProbeAnswer.from_counts(st["probe_tripped"], st["probe_latch"], st["probe_stop"],
+                                                  self.job.axes, self.job.home))
 
     def top_up(self) -> None:
         """Hand planned records to the streamer: lockstep by the backlog rule, real time all there is."""
@@ -100,12 +128,13 @@ class Feeder:
             if done:
                 self.streamer.complete = True
             return
-        while not self.streamer.complete and self.streamer.backlog < self.BACKLOG:
+        while not self.streamer.complete and not self.awaiting and self.streamer.backlog < self.BACKLOG:
             chunk = self._take()
             if chunk is None:
                 self.streamer.complete = True
             else:
                 self.streamer.add(*chunk)
+                self.awaiting = any(type(r) is Probe for r in chunk[0])
 
 
 class Streamer:

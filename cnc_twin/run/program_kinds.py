@@ -22,6 +22,8 @@ Hooks, each with a default that serves a point-to-point program:
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -59,14 +61,19 @@ class ProgramKind:
         """The plant for ``twin.scenario`` with the injected collision ``obstacles`` (centre, half
         sizes [m]) added, and what comes with it."""
         sc = twin.scenario
-        return PlantParts(Plant(load_model_with_obstacles(sc.model_file, obstacles),
-                                timestep=sc.timing.physics_timestep, drives=sc.drives,
+        model = load_model_with_obstacles(sc.model_file, obstacles, sc.block_shift)  # the part as set up
+        return PlantParts(Plant(model, timestep=sc.timing.physics_timestep, drives=sc.drives,
                                 encoder_mounts=sc.encoder_mounts))
 
     def stop_time(self, program) -> float | None:
         """Time to stop from the programmed feed, jerk-limited [s]; None for programs without a
         path feed (the look-ahead is then what the scenario says)."""
         return None
+
+    def as_run(self, scenario, dsp: DspTask):
+        """The scenario with its program as the machine ran it (a program whose course depends on
+        what the machine found, read again with that), for the metrics and the recording."""
+        return scenario
 
     def warm_up(self, twin: Twin) -> None:
         """Compile (or load) what the run will call; runs while the planner starts."""
@@ -302,6 +309,17 @@ class GcodeKind(ProgramKind):
         if w is None:
             return super().build_plant(twin, obstacles)
         return _workpiece_plant(twin, obstacles, w.surface, w.preston, w.friction, w.tile_size)
+
+    def as_run(self, scenario, dsp: DspTask):
+        """A program that probed: read again with the card's answers (:meth:`GcodeProgram.as_run`)."""
+        log = dsp.interpolator.probe.log
+        if not log or scenario.program.after_probe is None:
+            return scenario
+        from cnc_twin.core.gcode_config import ProbeAnswer
+
+        answers = [ProbeAnswer.from_counts(tripped, latch, stop, scenario.axes, scenario.home)
+                   for tripped, latch, stop in log]
+        return dataclasses.replace(scenario, program=scenario.program.as_run(answers))
 
     def stop_time(self, program: GcodeProgram) -> float | None:
         times = [_path_stop_time(path.curve.limits) for path in program.paths]

@@ -217,6 +217,7 @@ class Twin:
                                    counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
 
     def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
+        self.scenario = self.kind.as_run(self.scenario, dsp)  # what ran is what is measured and shown
         sc = self.scenario
         assert self.recorder is not None
         trace = self.partial_trace(copy=False)  # by now, the whole run

@@ -40,10 +40,12 @@ from pydantic import Field
 from cnc_twin.core import units
 from cnc_twin.core.config import AxisConfig
 from cnc_twin.core.gcode_config import (
-    GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProgram, GcodeReference, GcodeSpindle, GcodeWorkpiece,
+    GcodeForce, GcodeMove, GcodePath, GcodePause, GcodeProbe, GcodeProgram, GcodeReference, GcodeSpindle,
+    GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
+from cnc_twin.scenario.gcode_probe import ProbeReplay, ProbeSpec, probe_step, reader_answers
 from cnc_twin.scenario.gcode_setup import (WORK_SYSTEMS, WorkOffsetSpec, air_clearance, in_units, start_point,
                                            with_placement, work_offset_parameters)
 from cnc_twin.scenario.curve import convert as convert_curve
@@ -91,6 +93,7 @@ class GcodeProgramSpec(Strict):
     work_offsets: dict[Literal[WORK_SYSTEMS], WorkOffsetSpec] = Field(
         default_factory=dict, description="where each work system's zero sits in the workpiece frame [mm, deg] (G54: "
         "the program's zero unless it selects another), as LinuxCNC's parameter file holds them after a touch-off")
+    probe: ProbeSpec = ProbeSpec()
     in_air: float = Field(0.0, ge=0, le=1000, description="[mm] run the whole program this far above where it is "
                           "written (a dry run: the machine moves as programmed, the pad never reaches the work)")
 
@@ -106,11 +109,12 @@ class _Where:
 
 
 def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path, *, start=None,
-               parameters=None, subroutine_path=()):
+               parameters=None, subroutine_path=(), probe=None):
     """The canonical calls of the program at ``path``, its :class:`~cnc_twin.gcode.source.Source`
     and the subroutine files it called (path -> text), or a ScenarioError at its line (a
     subroutine file's own; ``start``, ``parameters``, ``subroutine_path``: as
-    :func:`~cnc_twin.gcode.interpreter.read_program` takes them, in the tool table's units)."""
+    :func:`~cnc_twin.gcode.interpreter.read_program` takes them, in the tool table's units; ``probe``:
+    its answers to probing moves, None: rs274's standalone ones)."""
     from cnc_twin.gcode.interpreter import ProgramError, read_program
     from cnc_twin.gcode.listing import read_tool_table
     from cnc_twin.gcode.source import Source, SourceError
@@ -126,7 +130,8 @@ def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path
     except OSError as exc:
         raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
     try:
-        reading = read_program(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path)
+        reading = read_program(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path,
+                               probe=probe)
         return reading.calls, source, reading.files
     except ProgramError as exc:
         raise _Where(exc.file or path)(exc.line, exc.message) from None
@@ -161,10 +166,14 @@ def _find(name: str, folder: Path | None, label: Path, key: str, *, is_folder: b
 
 
 def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: Path, folder: Path | None,
-            machine_tools: Path | None = None, home: tuple[float, ...] | None = None) -> GcodeProgram:
+            machine_tools: Path | None = None, home: tuple[float, ...] | None = None, *, model_file: Path | None = None,
+            block_shift=(0.0, 0.0, 0.0), answers=()) -> GcodeProgram:
     """Read the program and turn its operations into machine steps (SI, axis space), with the
     scenario's tool table, else the machine's (``machine_tools``, in mm); the program starts where
-    the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose)."""
+    the machine stands at ``home`` (six axes [m | rad]; None: the head's home pose). Its probes
+    are answered as rs274 alone answers them, or the first ones by the card's ``answers``
+    (:mod:`cnc_twin.scenario.gcode_probe`); a program that probes can be read again at run time
+    from ``model_file`` (with the block shifted by ``block_shift`` [m]), else it is refused."""
     from cnc_twin.gcode import toolpath as tp
     from cnc_twin.gcode.state import MM_PER_INCH
     from cnc_twin.geometry.kinematics import HeadGeometry
@@ -186,7 +195,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     sub_folders = [_find(name, folder, label, f"program.subroutine_path[{k}]", is_folder=True)
                    for k, name in enumerate(spec.subroutine_path)]
     calls, source, sub_files = read_calls(path, table, tool_units, label, start=start_units, parameters=parameters,
-                                          subroutine_path=sub_folders)
+                                          subroutine_path=sub_folders, probe=reader_answers(answers, head))
     where = _Where(path)
     try:
         ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,
@@ -204,6 +213,12 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     except ScenarioError as exc:
         raise with_placement(exc, ops, axes, head) from None
     _check_force_paths(steps, where)
+    replay = None
+    if any(isinstance(s, GcodeProbe) for s in steps):
+        if model_file is None:
+            raise ScenarioError(label, "program.file", f"{path} probes (G38.n): give its scenario a machine model file")
+        replay = ProbeReplay(spec, tuple(axes), Path(model_file), tuple(block_shift), label, folder, machine_tools,
+                             None if home is None else tuple(home))
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):
         workpiece = GcodeWorkpieceSpec()
@@ -212,7 +227,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
                         air=spec.in_air * units.MM, air_clearance=air_clearance(ops, _work_top(spec, model, head, label)),
-                        subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
+                        after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
 def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list:
@@ -235,6 +250,9 @@ def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where:
                 raise where(op.line, f"G1 moves turning A / B while the grinding-force loop is on (M100 at line "
                             f"{force_on.line}): not in this version; hold A / B, or M101 first")
             steps += _tool_axis_paths(op, spec, axes, model, label, where, head)
+        elif isinstance(op, tp.Probe):
+            end = _move(tp.Traverse(op.end, op.feed, op.line), axes, head, where)
+            steps.append(probe_step(op, end, spec.probe, head, where, force_on=force_on, air=spec.in_air))
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):

@@ -25,7 +25,7 @@ from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import ForceSensorConfig, PlannerConfig, Scenario, WhiteboardConfig
 from cnc_twin.core.errors import ScenarioError, format_key_path
-from cnc_twin.machine.model_file import load_model
+from cnc_twin.machine.model_file import load_model, load_model_with_obstacles
 from cnc_twin.machine.plant import model_info
 from cnc_twin.scenario import chip, contour, curve, gcode, points, surface
 from cnc_twin.scenario.ballbar import BallbarSpec, convert_ballbar
@@ -196,12 +196,18 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         if model_path.stat().st_size > MAX_FILE_BYTES:
             raise too_large(model_path)
         model = load_model(model_path)
+    block_shift = _block_shift(machine_ref, spec.program, label)
+    if any(block_shift):
+        try:
+            model = load_model_with_obstacles(model_path, [], block_shift)
+        except ValueError as exc:
+            raise ScenarioError(label, "machine.block_shift", str(exc)) from None
     info = model_info(model)
     axes = convert_axes(spec.axes, info, label, folder)
     if spec.command_output == "pulse":
         check_pulse_rates(axes, label)
     machine_tools = None if params.tool_table is None else params_path.parent / params.tool_table
-    program = convert_program(spec.program, axes, model, model_path, info, label, folder, machine_tools)
+    program = convert_program(spec.program, axes, model, model_path, info, label, folder, machine_tools, block_shift)
     if source_text is None:
         source_text = yaml.safe_dump(raw, sort_keys=False)
     return Scenario(
@@ -230,11 +236,25 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
         command_output=spec.command_output,
         machine={"model": machine_ref.model, "parameters": machine_ref.parameters},
         ballbar=convert_ballbar(spec.ballbar, model),
+        block_shift=block_shift,
     )
 
 
+def _block_shift(machine_ref: MachineRef, program, label: Path) -> tuple[float, float, float]:
+    """``machine.block_shift`` in m; refused for a program that brings its own surface."""
+    shift = tuple(v * units.MM for v in machine_ref.block_shift)
+    if not any(shift):
+        return (0.0, 0.0, 0.0)
+    own = isinstance(program, SurfacePolishProgram) or (
+        isinstance(program, GcodeProgramSpec) and program.workpiece is not None and program.workpiece.surface is not None)
+    if own:
+        raise ScenarioError(label, "machine.block_shift", "the program's own surface replaces the block: place the "
+                            "surface where it is instead")
+    return shift
+
+
 def convert_program(spec, axes, model, model_path: Path, info, label: Path, folder: Path | None = None,
-                    machine_tools: Path | None = None):
+                    machine_tools: Path | None = None, block_shift=(0.0, 0.0, 0.0)):
     """The program in SI, by its kind: the one place a program kind's schema meets the loader
     (``folder``: the scenario's, where files it names are looked for; ``machine_tools``: the
     machine's tool table, for an NC program that names none)."""
@@ -252,7 +272,8 @@ def convert_program(spec, axes, model, model_path: Path, info, label: Path, fold
 
         return chip.convert(spec, axes, has_home_switch, label)
     if isinstance(spec, GcodeProgramSpec):
-        return gcode.convert(spec, axes, model, label, folder, machine_tools, info.home)
+        return gcode.convert(spec, axes, model, label, folder, machine_tools, info.home, model_file=model_path,
+                             block_shift=block_shift)
     raise TypeError(f"no converter for {type(spec).__name__}")  # pragma: no cover - ProgramSpec lists them all
 
 

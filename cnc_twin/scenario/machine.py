@@ -183,6 +183,10 @@ class TimingSpec(Strict):
 class MachineRef(Strict):
     model: str = Field("scene.xml", description="MJCF file, relative to the scenario or bundled in models/")
     parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
+    block_shift: list[float] = Field(
+        [0.0, 0.0, 0.0], min_length=3, max_length=3, description="[mm] x y z: the workpiece block sits this far from where the scene draws it, "
+        "the work frame (the programs' zero) staying: a part set up off its place or thicker than drawn, which a "
+        "program finds by probing (G38.2)")
 
 
 HEARTBEAT_DEFAULT_MS = {"realtime": 1000.0, "lockstep": 10000.0}

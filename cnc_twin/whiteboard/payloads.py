@@ -46,6 +46,8 @@ type   record           payload                                                 
                         jerk [counts/s^3], time [s] f64 x5
 16     GeometryPart     whole record's type, part index, part count, pad u16 x4;   5..2048
                         the part's payload words
+17     Probe            a Move's payload (end f64 x6, trapezoid f64 x4, periods     48
+                        u32), then trip force f64 [N], kind u16 (2 .. 5), pad u16
 =====  ===============  =========================================================  ======
 
 """
@@ -63,7 +65,7 @@ from cnc_twin.motion.scurve import SCurve
 from cnc_twin.motion.trapezoid import Trapezoid
 from cnc_twin.whiteboard.records import (
     MAX_BLOCK_WORDS, ChipCommand, CurveBlock, CurveGeometry, DataBlock, Dwell, EndOfProgram, FeedOverride,
-    ForceControlRecord, ForceSetpoint, GeometryPart, Mark, Move, Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
+    ForceControlRecord, ForceSetpoint, GeometryPart, Mark, Move, Probe, Record, Spindle, StepContour, SurfaceCurve, SurfaceGeometry,
 )
 
 MAX_GEOMETRY_WORDS = 16384
@@ -76,6 +78,7 @@ class RecordError(ValueError):
 
 
 _MOVE = struct.Struct("<6d4dI")
+_PROBE = struct.Struct("<6d4dIdHH")
 _DWELL = struct.Struct("<I")
 _F64 = struct.Struct("<d")
 _SPINDLE = struct.Struct("<HHd")
@@ -248,6 +251,17 @@ def _decode_move(payload: bytes, _words) -> Move:
     return Move(end=tuple(v[:6]), profile=Trapezoid(*v[6:10]), periods=v[10])
 
 
+def _encode_probe(record: Probe) -> bytes:
+    p = record.profile
+    return _PROBE.pack(*record.end, p.t_acc, p.t_flat, p.v_peak, p.accel, record.periods, record.trip_force,
+                       record.kind, 0)
+
+
+def _decode_probe(payload: bytes, _words) -> Probe:
+    v = _PROBE.unpack(payload)
+    return Probe(end=tuple(v[:6]), profile=Trapezoid(*v[6:10]), periods=v[10], trip_force=v[11], kind=v[12])
+
+
 def _encode_step_contour(record: StepContour) -> bytes:
     p = record.profile
     return _STEP_CONTOUR.pack(record.method, record.kind, 1 if record.clockwise else 0, 0, record.dda_bits, 0,
@@ -309,6 +323,7 @@ PAYLOADS = (
     Payload(14, Mark, lambda r: _MARK.pack(r.number), lambda p, _: Mark(number=_MARK.unpack(p)[0]), _MARK.size // 2),
     Payload(15, ChipCommand, _encode_chip, _decode_chip, _CHIP.size // 2),
     Payload(16, GeometryPart, _encode_part, _decode_part, None),
+    Payload(17, Probe, _encode_probe, _decode_probe, _PROBE.size // 2),
 )
 """every record type on the wire, by code"""
 BY_KIND = {p.kind: p for p in PAYLOADS}

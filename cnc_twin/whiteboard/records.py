@@ -8,6 +8,8 @@ record              what it carries
 ==================  ===========================================================================
 Move                a synchronised point-to-point move: end position; trapezoid t_acc, t_flat
                     [s], v_peak [1/s], accel [1/s^2]; periods
+Probe               a Move stopped when the load cell's force crosses trip_force [N]; kind 2 .. 5
+                    (G38.2 .. G38.5)
 Dwell               periods to wait
 FeedOverride        fraction (1.0 = programmed feed)
 ForceSetpoint       force [N]
@@ -64,6 +66,21 @@ class Move(WireRecord):
     end: tuple[float, ...]
     profile: Trapezoid
     periods: int
+    motion_block: ClassVar[bool] = True
+
+
+@dataclass(frozen=True)
+class Probe(WireRecord):
+    """A probing move: a Move the card stops when the load cell's force crosses ``trip_force``
+    [N] (``kind`` 2, 3: rising to it; 4, 5: falling below it), latching the encoders; kinds 2 and
+    4 fault when the move ends without crossing, and every kind when the force is already past
+    the trip at the start (G38.2 .. G38.5). The status block reports the result."""
+
+    end: tuple[float, ...]
+    profile: Trapezoid
+    periods: int
+    trip_force: float
+    kind: int
     motion_block: ClassVar[bool] = True
 
 
@@ -247,5 +264,5 @@ CHIP_INDEX, CHIP_LINEAR, CHIP_JOG, CHIP_HOME = 1, 2, 3, 4
 CHIP_CONSTANT, CHIP_TRAPEZOID, CHIP_S_CURVE = 0, 1, 2
 
 
-Record = (Move | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
+Record = (Move | Probe | Dwell | FeedOverride | ForceSetpoint | Spindle | EndOfProgram | DataBlock | CurveGeometry | CurveBlock | SurfaceGeometry
           | SurfaceCurve | ForceControlRecord | StepContour | Mark | ChipCommand | GeometryPart)

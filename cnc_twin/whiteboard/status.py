@@ -27,6 +27,14 @@ following_error        f64 x6      command - actual [counts]
 events                 u16 x6      motion-chip event bits raised since the last status
                                    (1 motion done, 2 home found, 4 + limit, 8 - limit)
 index_latch            i32 x6      count latched at the index pulse by the last home return
+probes                 u32         probing moves finished so far (G38.n); the next three fields
+                                   are the last one's
+probe_tripped          u16         1 when the load cell crossed the trip force, 0 when the move
+                                   ended first
+probe_latch            i32 x6      encoder position latched when it crossed [counts] (where the
+                                   move ended when it did not)
+probe_stop             f64 x6      commanded position where the card stopped the axes [counts]:
+                                   the next move starts there
 =====================  ==========  ===============================================================
 """
 
@@ -58,6 +66,10 @@ STATUS_DTYPE = np.dtype(
         ("following_error", "<f8", (6,)),
         ("events", "<u2", (6,)),
         ("index_latch", "<i4", (6,)),
+        ("probes", "<u4"),
+        ("probe_tripped", "<u2"),
+        ("probe_latch", "<i4", (6,)),
+        ("probe_stop", "<f8", (6,)),
     ],
     align=True,
 )
@@ -89,9 +101,11 @@ class FaultCode:
     DAC_SATURATION = 7     # a DAC channel clamped for longer than allowed
     FORCE_LIMIT = 8        # pad force above the maximum
     WATCHDOG = 9           # the card's task stopped running (servo interrupts missed)
+    PROBE = 10             # a probing move that must trip did not, or the probe was tripped at its start
 
     NAMES = {0: "NONE", 1: "PLANNER_LOST", 2: "PLANNER_START", 3: "RUN_TIMEOUT", 4: "FOLLOWING_ERROR",
-             5: "SOFT_LIMIT", 6: "HARD_LIMIT", 7: "DAC_SATURATION", 8: "FORCE_LIMIT", 9: "WATCHDOG"}
+             5: "SOFT_LIMIT", 6: "HARD_LIMIT", 7: "DAC_SATURATION", 8: "FORCE_LIMIT", 9: "WATCHDOG",
+             10: "PROBE"}
 
 
 def _struct_format(dtype: np.dtype) -> str:
