@@ -14,7 +14,9 @@ repositories; their sources and licences in SOURCES.tsv beside it). For each pro
    own offsets). A program that fits the machine's reach as written runs with every default
    (``cnc-twin run PROGRAM --in-air D``); one that does not is centred in X and Y on the
    workpiece by a one-line scenario, ``work_offsets: {G54: {X: .., Y: ..}}`` (its Z0 stays on the
-   workpiece top, as CAM programs put it), printed in the table.
+   workpiece top, as CAM programs put it), printed in the table. A program that probes the work
+   (G38.2 / G38.4 must touch) runs on the work, centred on it (``in_air: 0``): the pad probes
+   the block's top, and the program goes on from what the card found.
 3. **Run** ``cnc-twin run`` in its own process (lockstep, the compliant default machine), its
    wall time and peak memory measured (``os.wait4``), with ``--timeout`` seconds at most.
 4. **Check from the trace** (``trace.parquet``), not from the run's own metrics: the commanded
@@ -74,8 +76,9 @@ def machine_reach(in_air: float) -> tuple[np.ndarray, np.ndarray, object]:
     return low * 1e3, high * 1e3, scenario.axes
 
 
-def read(path: Path, tools: Path, oracle) -> tuple[str, str, tuple | None]:
-    """(our verdict, its message, the tool tip's box [mm]): ``read`` or ``refused``."""
+def read(path: Path, tools: Path, oracle) -> tuple[str, str, tuple | None, bool]:
+    """(our verdict, its message, the tool tip's box [mm], whether it probes the work (a G38.2 or
+    G38.4, which must touch)): ``read`` or ``refused``."""
     from cnc_twin.gcode.extents import extents
     from cnc_twin.gcode.interpreter import ProgramError, read_program
     from cnc_twin.gcode.listing import read_tool_table
@@ -85,16 +88,17 @@ def read(path: Path, tools: Path, oracle) -> tuple[str, str, tuple | None]:
     try:
         calls = read_program(Source.read(path), read_tool_table(tools, "mm")).calls
     except ProgramError as exc:
-        return "refused", f"{path.name}:{exc.line}: {exc.message}", None
+        return "refused", f"{path.name}:{exc.line}: {exc.message}", None, False
     if oracle is not None:
         theirs = oracle(path.read_text(errors="replace"))
         if theirs:
-            return "refused", f"rs274 refuses it too: {theirs}", None
+            return "refused", f"rs274 refuses it too: {theirs}", None, False
+    touches = any(c.name == "STRAIGHT_PROBE" and c.payload[0].kind in (2, 4) for c in calls)
     try:
         box = extents(operations(calls))
     except ToolpathError:
         box = None
-    return "read", "", box
+    return "read", "", box, touches
 
 
 def rs274(tools: Path):
@@ -117,15 +121,20 @@ def rs274(tools: Path):
     return run
 
 
-def placement(box, low, high, in_air: float) -> dict:
+def placement(box, low, high, in_air: float, touches: bool = False) -> dict:
     """The one-line scenario that places the program (none when it fits as written and ``in_air``
     clears the work): centred in X and Y on the workpiece when it does not fit, and raised enough
     that its lowest point stays ``in_air`` above the workpiece top (Z0 in the workpiece frame) when
-    it cuts deeper than that."""
+    it cuts deeper than that. A program that probes the work (``touches``) runs on it, not in
+    the air (it must touch: the pad probes the block's top), centred on the workpiece."""
     if box is None:
         return {}
     lo, hi = box
     setup = {}
+    if touches:
+        centre = 0.5 * (lo + hi)
+        return {"work_offsets": {"G54": {"X": round(-float(centre[0]), 3), "Y": round(-float(centre[1]), 3)}},
+                "in_air": 0}
     if not (np.all(lo[:2] >= low[:2]) and np.all(hi[:2] <= high[:2])):
         centre = 0.5 * (lo + hi)
         setup["work_offsets"] = {"G54": {"X": round(-float(centre[0]), 3), "Y": round(-float(centre[1]), 3)}}
@@ -226,11 +235,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for path in programs:
         row = {"program": path.name, "lines": sum(1 for _ in path.open(errors="replace"))}
-        verdict, message, box = read(path, tools, oracle)
+        verdict, message, box, touches = read(path, tools, oracle)
         if verdict != "read":
             row.update(verdict="not read", detail=message)
         else:
-            setup = placement(box, low, high, args.in_air)
+            setup = placement(box, low, high, args.in_air, touches)
             row["setup"] = setup
             row["reach_mm"] = None if box is None else [[float(v) for v in box[0]], [float(v) for v in box[1]]]
             out = keep / path.stem[:60]

@@ -21,7 +21,7 @@ from cnc_twin.gcode.interpreter import read_program
 from cnc_twin.gcode.probing import ProbeMove, ProbeResult, standalone_probe
 from cnc_twin.gcode.source import Source
 from cnc_twin.gcode.state import ToolTable
-from cnc_twin.gcode.toolpath import ToolpathError, operations
+from cnc_twin.gcode.toolpath import Probe, ToolpathError, operations
 
 # -- programs rs274 reads whole -----------------------------------------------------------------
 
@@ -128,12 +128,26 @@ def test_the_machine_s_answer_is_what_the_program_reads():
     assert feed.values == (-1.25, 2.0, -1.5, 0.0, 0.0, 0.0) and feed.line == 5
 
 
-def test_the_runner_refuses_a_probe_at_its_line():
-    reading = read_program(Source("G21 G0 X1 Z5\nG1 X2 F100\nG38.2 Z-5 F100\nG1 X[#5063]\nM2\n"), ToolTable())
+def test_a_probe_becomes_a_probing_operation_and_the_path_goes_on_from_its_stop():
+    """The probing move as an operation (start, end, where the answer stopped, the program's
+    frame), and the next move starts from the stop: rs274's standalone answer, backed off
+    0.254 mm toward the start."""
+    reading = read_program(Source("G21 G0 X1 Z5\nG1 X2 F100\nG38.2 Z-5 F100\nG1 X[#5063 + 3]\nM2\n"), ToolTable())
+    ops = operations(reading.calls, start=(0.0, 0.0, 50.0, 0.0, 0.0, 0.0))
+    k = next(i for i, op in enumerate(ops) if isinstance(op, Probe))
+    probe, after = ops[k], ops[k + 1]
+    assert (probe.kind, probe.line, probe.feed, probe.scale) == (2, 3, 100.0, 1.0)
+    assert probe.start[:3] == (2.0, 0.0, 5.0) and probe.end[:3] == (2.0, 0.0, -5.0)
+    assert probe.stop[2] == pytest.approx(-5.0 + 0.254, abs=1e-12)
+    assert after.elements[0].start[2] == pytest.approx(probe.stop[2], abs=1e-12)
+    assert after.elements[-1].end[0] == pytest.approx(-5.0 + 3.0)  # X[#5063 + 3]: the trip's Z
+
+
+def test_a_probe_as_the_first_motion_is_refused_when_the_start_is_not_known():
+    reading = read_program(Source("G21 G38.2 Z-5 F100\nM2\n"), ToolTable())
     with pytest.raises(ToolpathError) as refused:
         operations(reading.calls)
-    assert refused.value.line == 3 and "later version" in refused.value.message
-    assert "\n" not in refused.value.message
+    assert refused.value.line == 1 and "\n" not in refused.value.message
 
 
 # -- outside programs that probe --------------------------------------------------------------------

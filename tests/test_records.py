@@ -15,7 +15,7 @@ from cnc_twin.whiteboard.codec import MAX_RECORD_WORDS, RecordError, crc16, deco
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.records import (
-    DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Mark, Move, Spindle, StepContour,
+    DataBlock, Dwell, EndOfProgram, FeedOverride, ForceSetpoint, Mark, Move, Probe, Spindle, StepContour,
 )
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
@@ -30,6 +30,9 @@ moves = st.builds(
 )
 records = st.one_of(
     moves,
+    st.builds(Probe, end=st.tuples(finite, finite, finite, finite, finite, finite),
+              profile=st.builds(Trapezoid, finite, finite, finite, finite), periods=st.integers(0, 2**32 - 1),
+              trip_force=finite, kind=st.sampled_from([2, 3, 4, 5])),
     st.builds(Dwell, periods=st.integers(0, 2**32 - 1)),
     st.builds(FeedOverride, fraction=finite),
     st.builds(ForceSetpoint, newtons=finite),
@@ -171,12 +174,15 @@ def test_status_struct_has_the_numpy_layout():
     assert STATUS_STRUCT.size == STATUS_DTYPE.itemsize
     values = (7, 1, 0, 100, 12, 11, 11, 0, 3, 2, 480, 0.007, 0.5, 19.5,
               1.0, 2.0, 3.0, 4.0, 5.0, 6.0, -1, -2, -3, -4, -5, -6, 10, -20, 30, -40, 50, -2048,
-              0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 1, 2, 4, 8, 0, 3, 365000, -25000, 0, 0, 0, -7)
+              0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 1, 2, 4, 8, 0, 3, 365000, -25000, 0, 0, 0, -7,
+              2, 1, 11, 12, 13, -14, 15, 16, 0.25, 0.5, -0.75, 1.0, 1.25, 1.5)
     rec = np.frombuffer(STATUS_STRUCT.pack(*values), dtype=STATUS_DTYPE)[0]
     assert rec["period"] == 7 and rec["queued_periods"] == 480 and rec["pad_force"] == 19.5
     assert list(rec["actual"]) == [-1, -2, -3, -4, -5, -6] and rec["dac"][-1] == -2048
     assert rec["following_error"][5] == 0.6 and rec["command"][0] == 1.0
     assert list(rec["events"]) == [1, 2, 4, 8, 0, 3] and list(rec["index_latch"]) == [365000, -25000, 0, 0, 0, -7]
+    assert rec["probes"] == 2 and rec["probe_tripped"] == 1 and list(rec["probe_latch"]) == [11, 12, 13, -14, 15, 16]
+    assert list(rec["probe_stop"]) == [0.25, 0.5, -0.75, 1.0, 1.25, 1.5]
 
 
 def test_curve_records_round_trip_and_every_bit_flip_is_caught():

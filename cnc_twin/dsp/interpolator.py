@@ -54,7 +54,7 @@ from cnc_twin.core.config import AxisConfig
 from cnc_twin.dsp import feed_slew
 from cnc_twin.dsp.chip import ChipRun, IndexMarks
 from cnc_twin.dsp.force import ForceController, ForceState
-from cnc_twin.dsp.probe import ProbeSegment, ProbeState, run_probe, start_probe
+from cnc_twin.dsp.probe import ProbeSegment, ProbeState
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, Curve, ForceWait, Surface, SurfaceRun, slew, stop_reserve
 from cnc_twin.dsp.record_intake import MODAL, RecordIntake
 from cnc_twin.dsp.spindle import spindle_turn
@@ -342,6 +342,21 @@ class SegmentInterpolator(RecordIntake):
             self._complete(seq)
         return counts, depth
 
+    def _start_probe(self, seq: int, seg: ProbeSegment) -> None:
+        self._start_move(seq, seg)
+        self.probe.start(seg, self.measured_force)
+
+    def _run_probe(self, seq: int, seg: ProbeSegment, depth: float) -> tuple[list[float], float]:
+        self.path_u = -1.0
+        stopping = self.probe.watch(seg, self.measured_force, self.actual)  # stops along its path once tripped
+        counts = self._advance_move(seq, seg, stopping=stopping)
+        if self.current is not None and stopping and self.override == 0.0:
+            self._complete(seq)
+        if self.current is None:  # at rest after the crossing, or at its end without one
+            self.probe.finish(seg, counts, self.actual)
+            self.programmed = self._position_of(counts)
+        return counts, depth
+
     def _run_move(self, seq: int, seg: MoveSegment, depth: float) -> tuple[list[float], float]:
         self.path_u = -1.0
         return self._advance_move(seq, seg), depth
@@ -490,11 +505,11 @@ START = {Block: SegmentInterpolator._start_block, StepRun: SegmentInterpolator._
          ChipCommand: SegmentInterpolator._start_chip, Curve: SegmentInterpolator._start_path,
          SurfaceRun: SegmentInterpolator._start_path, ForceWait: SegmentInterpolator._start_force_wait,
          SurfaceGeometry: SegmentInterpolator._start_surface, MoveSegment: SegmentInterpolator._start_move,
-         Dwell: SegmentInterpolator._start_dwell, ProbeSegment: start_probe}
+         Dwell: SegmentInterpolator._start_dwell, ProbeSegment: SegmentInterpolator._start_probe}
 """what each queue item does as it reaches the queue's head; any other is a modal record (MODAL)"""
 ADVANCE = {Block: SegmentInterpolator._run_block, StepRun: SegmentInterpolator._run_steps,
            ChipRun: SegmentInterpolator._run_chip, ForceWait: SegmentInterpolator._run_force_wait,
-           Dwell: SegmentInterpolator._run_dwell, MoveSegment: SegmentInterpolator._run_move, ProbeSegment: run_probe}
+           Dwell: SegmentInterpolator._run_dwell, MoveSegment: SegmentInterpolator._run_move, ProbeSegment: SegmentInterpolator._run_probe}
 """one period of each kind of running item; a new kind plugs in here, in START and in
 :data:`cnc_twin.dsp.record_intake.ACCEPT`"""
 MOVING = frozenset({MoveSegment, Block, StepRun, ChipRun, ProbeSegment})

@@ -55,45 +55,37 @@ class ProbeState:
     log: list[tuple[bool, list[int], list[float]]] = field(default_factory=list)
     """``(tripped, latch, stop)`` of every probe finished, in order"""
 
+    def start(self, seg: ProbeSegment, force: float) -> None:
+        """A probing move starts with the load cell at ``force`` [N] (a fault when already past)."""
+        self.active, self.hit = True, False
+        if crossed(seg, force):
+            way = "pressed to" if seg.kind in PRESSING else "below"
+            self.fault = (f"G38.{seg.kind} starts with the load cell already {way} its trip force "
+                          f"({force:.3g} N, trip {seg.trip_force:g} N)")
+
+    def watch(self, seg: ProbeSegment, force: float, actual) -> bool:
+        """One period's look at the load cell: latch the encoder counts ``actual`` at the first
+        crossing; whether the move is to stop."""
+        if not self.hit and crossed(seg, force):
+            self.hit = True
+            self.latch = [int(c) for c in actual]
+        return self.hit
+
+    def finish(self, seg: ProbeSegment, counts, actual) -> None:
+        """The move is done, the axes commanded at ``counts``: the result, and a fault for a
+        G38.2 / G38.4 that did not cross."""
+        self.active = False
+        self.count += 1
+        self.tripped = self.hit
+        if not self.hit:
+            self.latch = [int(c) for c in actual]
+            if seg.kind in MUST_TRIP:
+                self.fault = (f"G38.{seg.kind} ended without the load cell "
+                              f"{'reaching' if seg.kind in PRESSING else 'falling below'} {seg.trip_force:g} N")
+        self.stop = list(counts)
+        self.log.append((self.tripped, self.latch, self.stop))
+
 
 def crossed(seg: ProbeSegment, force: float) -> bool:
     """The load-cell ``force`` [N] is past ``seg``'s trip force in its direction."""
     return force >= seg.trip_force if seg.kind in PRESSING else force < seg.trip_force
-
-
-def start_probe(interp, seq: int, seg: ProbeSegment) -> None:
-    """The probing move reaches the head of the queue: it starts as a move (or faults at once
-    when the force is already past the trip)."""
-    interp._queued_periods -= seg.periods
-    interp._begin_move(seq, seg)
-    state = interp.probe
-    state.active, state.hit = True, False
-    if crossed(seg, interp.measured_force):
-        way = "pressed to" if seg.kind in PRESSING else "below"
-        state.fault = (f"G38.{seg.kind} starts with the load cell already {way} its trip force "
-                       f"({interp.measured_force:.3g} N, trip {seg.trip_force:g} N)")
-
-
-def run_probe(interp, seq: int, seg: ProbeSegment, depth: float) -> tuple[list[float], float]:
-    """One period of the probing move: latch and stop at the crossing (module docstring)."""
-    interp.path_u = -1.0
-    state = interp.probe
-    if not state.hit and crossed(seg, interp.measured_force):
-        state.hit = True
-        state.latch = [int(c) for c in interp.actual]
-    counts = interp._advance_move(seq, seg, stopping=state.hit)
-    if interp.current is not None and state.hit and interp.override == 0.0:
-        interp._complete(seq)
-    if interp.current is None:  # done: at rest after the crossing, or at its end without one
-        state.active = False
-        state.count += 1
-        state.tripped = state.hit
-        if not state.hit:
-            state.latch = [int(c) for c in interp.actual]
-            if seg.kind in MUST_TRIP:
-                state.fault = (f"G38.{seg.kind} ended without the load cell "
-                               f"{'reaching' if seg.kind in PRESSING else 'falling below'} {seg.trip_force:g} N")
-        state.stop = list(counts)
-        state.log.append((state.tripped, state.latch, state.stop))
-        interp.programmed = interp._position_of(counts)
-    return counts, depth

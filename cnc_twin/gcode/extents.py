@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnc_twin.gcode.path_ops import FeedPath, Operation, ToolAxisPath, Traverse
+from cnc_twin.gcode.path_ops import FeedPath, Operation, Probe, ToolAxisPath, Traverse
 
 
 def operation_points(op: Operation) -> np.ndarray | None:
@@ -22,6 +22,8 @@ def operation_points(op: Operation) -> np.ndarray | None:
         return np.vstack([q[:, :3] / q[:, 3:4] for q in pieces])
     if isinstance(op, ToolAxisPath):
         return np.asarray(op.points, dtype=float)[:, :3]
+    if isinstance(op, Probe):  # as far as its end when it does not trip
+        return np.asarray([op.start[:3], op.end[:3]], dtype=float)
     return None
 
 

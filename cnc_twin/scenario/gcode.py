@@ -217,7 +217,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     if any(isinstance(s, GcodeProbe) for s in steps):
         if model_file is None:
             raise ScenarioError(label, "program.file", f"{path} probes (G38.n): give its scenario a machine model file")
-        replay = ProbeReplay(spec, tuple(axes), Path(model_file), tuple(block_shift), label, folder, machine_tools,
+        replay = ProbeReplay(convert, spec, tuple(axes), Path(model_file), tuple(block_shift), label, folder, machine_tools,
                              None if home is None else tuple(home))
     workpiece = spec.workpiece
     if workpiece is None and any(isinstance(s, GcodeForce) for s in steps):

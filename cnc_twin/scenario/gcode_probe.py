@@ -107,6 +107,8 @@ class ProbeReplay:
     <cnc_twin.core.gcode_config.GcodeProgram.after_probe>`): the program read and converted again
     as at load, its probes answered by the card. Plain data, so the planner's job carries it."""
 
+    convert: object
+    """:func:`cnc_twin.scenario.gcode.convert` (handed in: that module imports this one)"""
     spec: object
     """the scenario's :class:`~cnc_twin.scenario.gcode.GcodeProgramSpec`"""
     axes: tuple[AxisConfig, ...]
@@ -119,10 +121,9 @@ class ProbeReplay:
 
     def __call__(self, answers: list[tuple[GcodeProbe, ProbeAnswer]]) -> tuple:
         from cnc_twin.machine.model_file import load_model_with_obstacles
-        from cnc_twin.scenario.gcode import convert
 
         model = load_model_with_obstacles(self.model_file, [], self.block_shift)
-        program = convert(self.spec, self.axes, model, self.label, self.folder, self.machine_tools, self.home,
+        program = self.convert(self.spec, self.axes, model, self.label, self.folder, self.machine_tools, self.home,
                           model_file=self.model_file, block_shift=self.block_shift, answers=list(answers))
         probes = [k for k, step in enumerate(program.steps) if isinstance(step, GcodeProbe)]
         if len(probes) < len(answers):  # the answers changed the program's course (an O-word on #5070)
