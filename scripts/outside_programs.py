@@ -233,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     keep = args.keep or Path(tempfile.mkdtemp(prefix="outside-runs-"))
     keep.mkdir(parents=True, exist_ok=True)
     rows = []
-    for path in programs:
+    for number, path in enumerate(programs):
         row = {"program": path.name, "lines": sum(1 for _ in path.open(errors="replace"))}
         verdict, message, box, touches = read(path, tools, oracle)
         if verdict != "read":
@@ -242,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
             setup = placement(box, low, high, args.in_air, touches)
             row["setup"] = setup
             row["reach_mm"] = None if box is None else [[float(v) for v in box[0]], [float(v) for v in box[1]]]
-            out = keep / path.stem[:60]
+            out = keep / f"{number:03d}_{path.stem[:56]}"  # numbered: long names share their first letters
             result = run(path, setup, args.in_air, out, args.timeout)
             row.update(result)
             if result["code"] == 0:

@@ -133,9 +133,10 @@ def _scenario(tmp_path: Path, probe: str, **program) -> Path:
 
 
 def test_a_probe_that_must_trip_and_does_not_faults(tmp_path):
-    """G38.2 ending 10 mm above the block: the card faults (PROBE) at the end of the move, as
-    LinuxCNC's motion errs; G38.3, the same move, accepts it and the program reads #5070 = 0."""
-    result = run_scenario(load_scenario(_scenario(tmp_path, "G38.2 Z10 F600")))
+    """G38.2 ending on the block's top, where the pad barely touches: the card faults (PROBE) at
+    the end of the move, as LinuxCNC's motion errs; G38.3 ending 10 mm above it accepts not
+    tripping and the program reads #5070 = 0."""
+    result = run_scenario(load_scenario(_scenario(tmp_path, "G38.2 Z0 F600")))
     assert result.metrics["fault"]["code"] == "PROBE"
     commanded_x = result.trace.columns()["command_X"]
     assert np.all(commanded_x == commanded_x[0])  # nothing after the probe ran
@@ -153,6 +154,8 @@ def test_a_probe_that_must_trip_and_does_not_faults(tmp_path):
     ("G38.2 X10 Z-30 F60", {}),                       # across the tool axis
     ("G38.4 Z-30 F60", {}),                           # "until clear" moving down
     ("G38.2 Z-30 F60", {"in_air": 50}),               # must touch, in the air
+    ("G38.2 Z10 F60", {}),                            # ends above the part
+    ("G0 X130\nG38.2 Z-30 F60", {}),                  # beside the part (its top +-100 mm, the pad 25 mm)
 ])
 def test_probes_the_pad_cannot_make_are_refused_at_load(tmp_path, probe, extra):
     path = _scenario(tmp_path, probe, **extra)
@@ -160,6 +163,6 @@ def test_probes_the_pad_cannot_make_are_refused_at_load(tmp_path, probe, extra):
         code, out, err = run_cli(command, str(path), "--out", str(tmp_path / "run")) if command == "run" \
             else run_cli(command, str(path))
         assert code == 2, (command, out, err)
-        assert len(err.strip().splitlines()) == 1 and "p.ngc:3:" in err, err
+        assert len(err.strip().splitlines()) == 1 and f"p.ngc:{2 + probe.count(chr(10)) + 1}:" in err, err
         assert not (tmp_path / "run").exists()
 

@@ -45,7 +45,7 @@ from cnc_twin.core.gcode_config import (
 )
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
-from cnc_twin.scenario.gcode_probe import ProbeReplay, ProbeSpec, probe_step, reader_answers
+from cnc_twin.scenario.gcode_probe import PartTop, ProbeReplay, ProbeSpec, probe_step, reader_answers
 from cnc_twin.scenario.gcode_setup import (WORK_SYSTEMS, WorkOffsetSpec, air_clearance, in_units, start_point,
                                            with_placement, work_offset_parameters)
 from cnc_twin.scenario.curve import convert as convert_curve
@@ -209,7 +209,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         raise ScenarioError(label, "program.in_air", f"the program presses on the workpiece (M100 at {path.name} line "
                             f"{pressing.line}): a run in the air cannot; leave in_air out to polish")
     try:
-        steps = _machine_steps(ops, spec, axes, model, label, where, head)
+        steps = _machine_steps(ops, spec, axes, model, label, where, head, _part_top(spec, model, head, label))
     except ScenarioError as exc:
         raise with_placement(exc, ops, axes, head) from None
     _check_force_paths(steps, where)
@@ -230,7 +230,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
                         after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
-def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list:
+def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head, part=None) -> list:
     """The program's operations as machine steps (SI, axis space), refusing at its line what the
     machine cannot run."""
     from cnc_twin.gcode import toolpath as tp
@@ -252,7 +252,7 @@ def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where:
             steps += _tool_axis_paths(op, spec, axes, model, label, where, head)
         elif isinstance(op, tp.Probe):
             end = _move(tp.Traverse(op.end, op.feed, op.line), axes, head, where)
-            steps.append(probe_step(op, end, spec.probe, head, where, force_on=force_on, air=spec.in_air))
+            steps.append(probe_step(op, end, spec.probe, head, where, force_on=force_on, air=spec.in_air, part=part))
         elif isinstance(op, tp.Pause):
             steps.append(GcodePause(op.seconds, op.line))
         elif isinstance(op, tp.SpindleChange):
@@ -296,6 +296,21 @@ def _workpiece(spec: GcodeWorkpieceSpec | None, model, head, label: Path) -> Gco
     _, surface_def = surface_in_world(surface, head.workpiece_origin, label, "program.workpiece.surface")
     return GcodeWorkpiece(surface=surface_def, preston=preston_model(spec.removal, pad_radius(model)),
                           friction=spec.friction, tile_size=surface.tile_size * units.MM)
+
+
+def _part_top(spec: GcodeProgramSpec, model, head, label: Path) -> PartTop | None:
+    """Where a probe can touch the part: the scene block's top as set up; None with a surface of
+    the program's own or no block."""
+    from cnc_twin.machine.workpiece import pad_radius
+
+    if spec.workpiece is not None and spec.workpiece.surface is not None:
+        return None
+    try:
+        net = _block_top(model, head, label).control_net
+    except ScenarioError:
+        return None
+    xs, ys = [p[0] for row in net for p in row], [p[1] for row in net for p in row]
+    return PartTop((min(xs), max(xs)), (min(ys), max(ys)), net[0][0][2], pad_radius(model) / units.MM)
 
 
 def _work_top(spec: GcodeProgramSpec, model, head, label: Path) -> float | None:

@@ -39,9 +39,23 @@ class ProbeSpec(Strict):
                               "pad is then pressed by about this over its stiffness)")
 
 
-def probe_step(op, move: GcodeMove, spec: ProbeSpec, head, where, *, force_on=None, air: float = 0.0) -> GcodeProbe:
+@dataclass(frozen=True)
+class PartTop:
+    """The top face of the scene's block where the part is set up, workpiece frame [mm], and the
+    pad's radius [mm]: where a probe down the tool axis can touch."""
+
+    x: tuple[float, float]
+    y: tuple[float, float]
+    z: float
+    pad_radius: float
+
+
+def probe_step(op, move: GcodeMove, spec: ProbeSpec, head, where, *, force_on=None, air: float = 0.0,
+               part: PartTop | None = None) -> GcodeProbe:
     """The machine step of a probing ``op`` (:class:`~cnc_twin.gcode.path_ops.Probe`), its end
-    already converted and checked against travel (``move``), or ``where``'s error at its line."""
+    already converted and checked against travel (``move``), or ``where``'s error at its line
+    (with ``part``, a G38.2 straight down that cannot reach the part's top is refused: it would
+    end without touching, a PROBE fault some time into the run)."""
     name = KINDS[op.kind]
     if force_on is not None:
         raise where(op.line, f"{name} while the grinding-force loop is on (M100 at line {force_on.line}): M101 first")
@@ -64,6 +78,15 @@ def probe_step(op, move: GcodeMove, spec: ProbeSpec, head, where, *, force_on=No
                     "pad's load cell feels force along that axis only")
     if op.feed <= 0.0:
         raise where(op.line, f"{name} with feed 0")
+    if part is not None and op.kind == 2 and abs(n[2]) == 1.0:
+        x, y, z = end[:3]
+        r = part.pad_radius
+        beside = not (part.x[0] - r < x < part.x[1] + r and part.y[0] - r < y < part.y[1] + r)
+        if beside or z > part.z:
+            raise where(op.line, f"{name} at X{x:.3f} Y{y:.3f} down to Z{z:.3f} cannot touch the part (its top X "
+                        f"{part.x[0]:g}..{part.x[1]:g} Y {part.y[0]:g}..{part.y[1]:g} at Z{part.z:g} mm, the pad "
+                        f"{r:g} mm in radius): it would end without contact; place the program on the part "
+                        "(program.work_offsets)")
     return GcodeProbe(end=move.end, feed=op.feed * units.MM / 60.0, kind=op.kind, trip_force=spec.trip_force,
                       line=op.line, offset=op.offset, scale=op.scale)
 
