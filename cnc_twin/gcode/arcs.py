@@ -50,9 +50,13 @@ end points (``@`` ``^``).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
-from fractions import Fraction
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # exact arithmetic only for R arcs' angles: imported there (1.5 ms a start-up)
+    from fractions import Fraction
 
 from cnc_twin.gcode.blocks import BlockError
 from cnc_twin.gcode.modal import G
@@ -151,6 +155,17 @@ def arc_move(plane: int, clockwise: bool, start: tuple[float, float, float], end
                    (center[0], center[1], center[2]), normal)
 
 
+def xy_offset_arc(clockwise: bool, start, end, i: float, j: float, metric: bool) -> ArcMove:
+    """The arc of a G17 G2 / G3 block given by I and / or J alone, centre relative (G91.1), with a
+    feed (the checks :func:`check_arc_words` makes cannot fail then): :func:`arc_move`'s result
+    for it, the common CAM arc's short way. ``start``, ``end``: x y z (program coordinates)."""
+    c1, c2 = _center_from_offsets(
+        G.G17, clockwise, start[0], start[1], end[0], end[1], False, i, j,
+        RADIUS_TOLERANCE_MM if metric else RADIUS_TOLERANCE_INCH,
+        CENTER_ARC_RADIUS_TOLERANCE_MM if metric else CENTER_ARC_RADIUS_TOLERANCE_INCH)
+    return ArcMove(end[0], end[1], c1, c2, -1 if clockwise else 1, end[2], (c1, c2, start[2]), 2)
+
+
 def check_arc_words(plane: int, words: dict[str, float], ijk_absolute: bool, *,
                     feed_error: str | None = None) -> int:
     """The checks of an arc block that need no geometry, in LinuxCNC's order; the turn count P
@@ -215,6 +230,16 @@ _ARC_TEXT = "%.4f, %.4f, %.4f, %.4f, %d, %.4f, %.4f, %.4f, %.4f"
 def glibc_hypot(x: float, y: float) -> float:
     """``hypot`` as glibc 2.35+ computes it without FMA (Borges' corrected ``sqrt(x² + y²)``), bit
     for bit: LinuxCNC's radii come from it and Python's ``math.hypot`` rounds some differently."""
+    ax, ay = abs(x), abs(y)
+    if ax < ay:
+        ax, ay = ay, ax
+    if _TINY_VALUE <= ay and ax <= _LARGE and ay > ax * _EPS:  # the common case (NaN fails every test)
+        h = math.sqrt(ax * ax + ay * ay)  # glibc's kernel (_hypot_kernel), inline: an arc takes two
+        if h <= 2.0 * ay:
+            delta = h - ay
+            return h - (ax * (2.0 * delta - ax) + (delta - 2.0 * (ax - ay)) * delta) / (2.0 * h)
+        delta = h - ax
+        return h - (2.0 * delta * (ax - 2.0 * ay) + ((4.0 * delta - ay) * ay + delta * delta)) / (2.0 * h)
     if not (math.isfinite(x) and math.isfinite(y)):
         return math.inf if math.isinf(x) or math.isinf(y) else x + y
     x, y = abs(x), abs(y)
@@ -318,18 +343,24 @@ def _round_bits(x: Fraction, bits: int) -> Fraction:
     q, r = divmod(num, den)
     if 2 * r > den or (2 * r == den and q & 1):
         q += 1
-    result = Fraction(q, 1 << shift) if shift >= 0 else Fraction(q << -shift)
+    result = type(x)(q, 1 << shift) if shift >= 0 else type(x)(q << -shift)
     return result if x > 0 else -result
 
 
-_HALF_PI_LONG = _round_bits(Fraction("1.570796326794896619231321691639751442"), 64)
-"""C's ``M_PI_2l``: π/2 as an x87 extended double (64-bit significand)"""
+@functools.cache
+def _half_pi_long() -> Fraction:
+    """C's ``M_PI_2l``: π/2 as an x87 extended double (64-bit significand)"""
+    from fractions import Fraction
+
+    return _round_bits(Fraction("1.570796326794896619231321691639751442"), 64)
 
 
 def _add_half_pi(angle: float, sign: int) -> float:
     """``angle + sign·M_PI_2l`` as C computes ``double theta = atan2(...) ± M_PI_2l``: in extended
     precision, then stored as a double (rounded twice)."""
-    return float(_round_bits(_round_bits(Fraction(angle) + sign * _HALF_PI_LONG, 64), 53))
+    from fractions import Fraction
+
+    return float(_round_bits(_round_bits(Fraction(angle) + sign * _half_pi_long(), 64), 53))
 
 
 def _round_to_int(value: float) -> int:

@@ -108,11 +108,21 @@ class Call:
     def text(self, sequence: int) -> str:
         """The whole line as ``rs274 -g`` prints it, ``sequence`` being the call's 1-based count."""
         number = "....." if self.number is None else self.number
-        whole = _LINE_TEXTS.get(self.name)
+        name = self.name
+        whole = _LINE_TEXTS.get(name)
         if whole is not None and len(self.values) == 6:  # most of a program's lines: one format
             return whole % (sequence, number, *self.values)
-        return f"{sequence:5d} N{number:<5} {self.name}({self.arguments})"
+        if name == "ARC_FEED":  # CAM's other common line: one format too when no value is NaN
+            m = self.payload
+            values = (m.first_end, m.second_end, m.first_center, m.second_center, m.rotation, m.axis_end,
+                      *self.values)
+            total = sum(values)
+            if total == total:  # (NaN, or inf - inf, compares unequal)
+                return _ARC_LINE % (sequence, number, *values)
+        return f"{sequence:5d} N{number:<5} {name}({self.arguments})"
 
 
 _LINE_TEXTS = {name: f"%5d N%-5s {name}({_F4_TEXTS[6]})" for name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED")}
 """the whole printed line of a straight move (``%-5s`` pads as ``:<5``, ``%5d`` as ``:5d``)"""
+_ARC_LINE = "%5d N%-5s ARC_FEED(%.4f, %.4f, %.4f, %.4f, %d, %.4f, %.4f, %.4f, %.4f)"
+"""the whole printed line of an arc (:func:`~cnc_twin.gcode.arcs.arc_feed_text`'s format)"""

@@ -51,6 +51,7 @@ import bisect
 import re
 from typing import TYPE_CHECKING
 
+from cnc_twin.gcode.arcs import xy_offset_arc
 from cnc_twin.gcode.blocks import NUMBER, n_text
 from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.modal import G
@@ -65,7 +66,8 @@ _COMMENTED = re.compile(r"([^();]*+)\(([^()]*+)\)[ \t]*+")
 _LINE = re.compile(r"(?:n([0-9]++))?+(?:g(0?[0-3]))?+" + "".join(rf"(?:{letter}({NUMBER}))?+" for letter in WORDS))
 """a common line, spaces dropped and letters lowered: groups N digits, G text, then one per
 letter of :data:`WORDS` (None when absent)"""
-G0, G1, G2, G3, G91, G94 = (int(code) for code in (G.G0, G.G1, G.G2, G.G3, G.G91, G.G94))
+G0, G1, G2, G3, G91, G94, G17, G21, G91_1 = (int(code) for code in (G.G0, G.G1, G.G2, G.G3, G.G91, G.G94, G.G17,
+                                                                      G.G21, G.G91_1))
 """the codes as plain numbers, as the reader keeps its modes (looking up an enum member, 70 ns,
 is a share of a line's time here)"""
 MOTIONS = {"0": G0, "00": G0, "1": G1, "01": G1, "2": G2, "02": G2, "3": G3, "03": G3}
@@ -154,11 +156,20 @@ def run_common_lines(interpreter: Interpreter, index: int) -> int:
                        p[4] if b is None else float(b), p[5] if c is None else float(c)]
             if arc:
                 interpreter.at(line, number)  # the arc's call and refusal name the line
-                values = {}  # the block's words, as the reader has them
-                for letter, text in zip(WORDS, words[2:]):
-                    if text is not None:
-                        values[letter] = float(text)
-                interpreter.motion.arc(motion, values, end)
+                if (r is None and k is None and (i is not None or j is not None) and s.plane == G17
+                        and s.ijk_distance == G91_1 and s.feed > 0.0):
+                    # CAM's arc (G17, I J, relative centre, a feed): what the motion runner's
+                    # arc makes of it, without the checks that cannot fail
+                    move = xy_offset_arc(motion == G2, p, end, 0.0 if i is None else float(i),
+                                         0.0 if j is None else float(j), s.units == G21)
+                    append(Call("ARC_FEED", (end[3], end[4], end[5]), line, number, move))
+                    s.tool_shift = [0.0] * 6
+                else:
+                    values = {}  # the block's words, as the reader has them
+                    for letter, text in zip(WORDS, words[2:]):
+                        if text is not None:
+                            values[letter] = float(text)
+                    interpreter.motion.arc(motion, values, end)
             else:
                 append(Call("STRAIGHT_TRAVERSE" if motion == G0 else "STRAIGHT_FEED", tuple(end), line, number))
                 s.tool_shift = [0.0] * 6

@@ -74,3 +74,9 @@ def rewrite_metrics(run_dir: Path, metrics: dict[str, Any]) -> None:
 
 def _write_metrics(path: Path, metrics: dict[str, Any]) -> None:
     path.write_text(json.dumps(metrics, indent=2) + "\n", encoding="utf-8")
+
+
+def mark_interrupted(run_dir: Path, metrics: dict, reason: str) -> None:
+    """Mark a written run directory's ``metrics.json`` interrupted, with ``reason``."""
+    metrics["status"], metrics["stop_reason"] = "interrupted", reason
+    rewrite_metrics(run_dir, metrics)
