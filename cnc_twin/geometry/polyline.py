@@ -12,6 +12,17 @@ def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     from scipy.spatial import cKDTree  # here: only curve and contour runs need it
 
     tree = cKDTree(poly)
+    out = np.empty(len(points))
+    for k in range(0, len(points), CHUNK):  # a long run's temporaries one piece at a time
+        out[k:k + CHUNK] = _nearest_distances(points[k:k + CHUNK], poly, tree)
+    return out
+
+
+CHUNK = 1 << 16
+"""points measured at a time (each point's distance is its own)"""
+
+
+def _nearest_distances(points: np.ndarray, poly: np.ndarray, tree) -> np.ndarray:
     # the segments next to the 4 nearest vertices: the nearest vertex alone can belong to another
     # part of the curve than the nearest segment (a closed curve's end beside its start, a long
     # first span's far vertex)

@@ -46,6 +46,11 @@ class _PathTrace:
         self.command, self.actual = trace.command[begin * tpp:stop * tpp], trace.actual[begin * tpp:stop * tpp]
         self.tool = trace.tool[begin:stop]
         self.counts_per_unit = trace.counts_per_unit
+        self._tpp = tpp
+
+    def at_period_ends(self, name: str) -> np.ndarray:
+        """As :meth:`Trace.at_period_ends <cnc_twin.trace.trace.Trace.at_period_ends>`, in the window."""
+        return self.period_signals[name][self._tpp - 1::self._tpp]
 
 
 def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:

@@ -9,6 +9,7 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import Scenario
+from cnc_twin.dsp.encoder import count_error
 from cnc_twin.trace.trace import Trace
 
 
@@ -18,15 +19,25 @@ def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_s
     sim_time = float(len(trace)) * scenario.timing.servo_period
     ferr: dict[str, Any] = {}
     final: dict[str, Any] = {}
+    n_axes = len(scenario.axes)
+    # piece by piece (a long run's whole error matrix would be twice its trace): maxima, and the
+    # sums of squares in the order np.mean sums them within a piece
+    peak, squares = np.zeros(n_axes), [[] for _ in range(n_axes)]
+    for piece in trace.chunks():
+        e = piece.following_error
+        if len(e):
+            peak = np.maximum(peak, np.max(np.abs(e), axis=0))
+            for i in range(n_axes):
+                squares[i].append(float(np.sum(e[:, i] * e[:, i])))
+    last = count_error.py_func(trace.command[-final_error_ticks:], trace.actual[-final_error_ticks:].astype(np.float64))
     for i, cfg in enumerate(scenario.axes):
-        e = trace.following_error[:, i]
         to_user = cfg.display_factor / cfg.counts_per_unit
-        max_c = float(np.max(np.abs(e))) if len(e) else 0.0
-        rms_c = float(np.sqrt(np.mean(e * e))) if len(e) else 0.0
+        max_c = float(peak[i]) if len(trace) else 0.0
+        rms_c = math.sqrt(math.fsum(squares[i]) / len(trace)) if len(trace) else 0.0
         ferr[cfg.name] = {"max_counts": max_c, "rms_counts": rms_c, "max": max_c * to_user,
                           "rms": rms_c * to_user, "unit": cfg.display_unit}
-        last = float(e[-final_error_ticks:].mean()) if len(e) else 0.0
-        final[cfg.name] = {"counts": last, "value": last * to_user, "unit": cfg.display_unit}
+        end = float(last[:, i].mean()) if len(trace) else 0.0
+        final[cfg.name] = {"counts": end, "value": end * to_user, "unit": cfg.display_unit}
     return {
         "scenario": scenario.name,
         "machine": dict(scenario.machine),

@@ -72,8 +72,8 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     curve = tip_curve(prog)
     tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period
-    u = trace.period_signals["path_u"][tpp - 1::tpp]
-    ds = trace.period_signals["path_ds"][tpp - 1::tpp]
+    u = trace.at_period_ends("path_u")
+    ds = trace.at_period_ends("path_ds")
     on = u >= 0.0
     cpu = trace.counts_per_unit
     home = np.asarray(scenario.home)
@@ -82,7 +82,7 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     true_tip = trace.tool[:len(actual_axes), :3].copy()  # sampled with the period's last tick, as the rows above
     depth = None
     if force_axis is not None:  # the force loop pushed X/Y/Z depth along -axis: put it back
-        depth = trace.period_signals["force_depth"][tpp - 1::tpp]
+        depth = trace.at_period_ends("force_depth")
         shift = depth[:, None] * np.asarray(force_axis)
         command_axes[:, :3] += shift
         actual_axes[:, :3] += shift

@@ -87,9 +87,9 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
     tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period
     ends = slice(tpp - 1, None, tpp)
-    u = trace.period_signals["path_u"][ends]
-    ds = trace.period_signals["path_ds"][ends]
-    depth = trace.period_signals["force_depth"][ends]
+    u = trace.at_period_ends("path_u")
+    ds = trace.at_period_ends("path_ds")
+    depth = trace.at_period_ends("force_depth")
     if not prog.paths:  # no curve: nothing fed along one (and no head geometry to read)
         return {"feed": {"time_s": 0.0, "ideal_time_s": 0.0, "below_95pct_s": 0.0, "share_at_95pct": None,
                          "moves_length_mm": 0.0}}
@@ -113,7 +113,7 @@ def against_program(trace: Trace, scenario: Scenario) -> dict[str, Any]:
             if not parts:
                 ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
             parts.append((tips, tool))
-    moving = _feed_moves(prog, all_tips, u, trace.period_signals["mark"][ends], T)
+    moving = _feed_moves(prog, all_tips, u, trace.at_period_ends("mark"), T)
     moves_length = 0.0
     if moving is not None:  # G1 moves run as coordinated moves (exact stop, or turning the head)
         time, ideal, below, moves_length = time + moving[0], ideal + moving[1], below + moving[2], moving[3]

@@ -12,23 +12,37 @@ from cnc_twin.trace.layout import column_unit
 from cnc_twin.trace.trace import Trace
 
 
-def write_trace(trace: Trace, path: Path, *, scenario_name: str) -> None:
-    """Write ``trace`` as Parquet, each field carrying its unit in the field metadata."""
+ROW_GROUP_PERIODS = 1 << 16
+"""periods per row group (65.5 s at 1 ms): the columns of one are made at a time"""
+
+
+def write_trace(trace: Trace, path: Path, *, scenario_name: str, group_periods: int = ROW_GROUP_PERIODS) -> None:
+    """Write ``trace`` as Parquet, each field carrying its unit in the field metadata, a row group
+    per ``group_periods`` periods (the flat columns of one are made at a time: a long run's
+    whole set would take three times its trace)."""
     import pyarrow as pa  # here: runs that write no files (sweeps, scripts) never import it
     import pyarrow.parquet as pq
 
-    fields, arrays = [], []
-    for name, values in trace.columns().items():
-        array = _arrow_array(pa, values)
-        fields.append(pa.field(name, array.type, metadata={"unit": column_unit(name)}))
-        arrays.append(array)
     meta = {
         "scenario": scenario_name,
         "axes": " ".join(AXES),
         "counts_per_unit": json.dumps(dict(zip(AXES, trace.counts_per_unit.tolist()))),
     }
-    table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
-    pq.write_table(table, path)
+    writer = None
+    try:
+        for piece in trace.chunks(group_periods):
+            fields, arrays = [], []
+            for name, values in piece.columns().items():
+                array = _arrow_array(pa, values)
+                fields.append(pa.field(name, array.type, metadata={"unit": column_unit(name)}))
+                arrays.append(array)
+            table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
+            if writer is None:
+                writer = pq.ParquetWriter(path, table.schema)
+            writer.write_table(table)
+    finally:
+        if writer is not None:
+            writer.close()
 
 
 def _arrow_array(pa, values: np.ndarray):

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.trace.layout import PERIOD_DTYPE, TOOL_FIELDS
+from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES, TOOL_FIELDS
 from cnc_twin.trace.trace import Trace
 
 
@@ -96,7 +96,10 @@ class Recorder:
         room (so a trace never holds much more memory than its signals)."""
         n = min(self.count, self.capacity)  # a scratch recorder holds the last period only
         periods = -(-n // self.ticks_per_period)
-        copy = copy or n < KEEP_FRACTION * self.capacity
+        # a long run's trace keeps its columns however much room is left: a copy would hold the
+        # signals twice at once (the columns hold at most 1.5 times them, see grow)
+        small = n * TICK_BYTES <= KEEP_ALWAYS_BYTES
+        copy = copy or (small and n < KEEP_FRACTION * self.capacity)
         take = (lambda a, m: a[:m].copy()) if copy else (lambda a, m: a[:m])
         return Trace(command=take(self.command, n), actual=take(self.actual, n), dac=take(self.dac, n),
                      pad_force=take(self.pad_force, n), periods=take(self.periods, periods),
@@ -108,3 +111,5 @@ class Recorder:
 KEEP_FRACTION = 0.9
 """a finished run's trace keeps the recorder's columns (views) when it filled at least this
 fraction of them; otherwise it copies what was recorded and the recorder's room is freed"""
+KEEP_ALWAYS_BYTES = 64 << 20
+"""a trace of more signal bytes than this keeps the recorder's columns whatever their room"""

@@ -67,21 +67,43 @@ class Trace:
     ticks_per_period: int
     counts_per_unit: np.ndarray
     tool: np.ndarray
+    first: int = 0
+    """the run's tick of the first row (a piece of a trace, :meth:`chunks`; 0 for a whole run)"""
 
     @property
     def time(self) -> np.ndarray:
         """Simulated time at which each tick sampled its inputs [s], shape ``(n,)``."""
-        return np.arange(len(self), dtype=np.int64) * self.servo_period
+        return np.arange(self.first, self.first + len(self), dtype=np.int64) * self.servo_period
 
     @property
     def period(self) -> np.ndarray:
         """Interpolation period of each tick, shape ``(n,)`` int64."""
-        return np.arange(len(self), dtype=np.int64) // self.ticks_per_period
+        return np.arange(self.first, self.first + len(self), dtype=np.int64) // self.ticks_per_period
+
+    def chunks(self, periods: int = 1 << 16):
+        """The trace in consecutive pieces of ``periods`` whole periods (the last may be shorter),
+        each a :class:`Trace` of views with its ``first`` tick: what works through a long run
+        piece by piece (the file's row groups, the metrics) holds one piece's temporaries at a
+        time, not the whole run's."""
+        tpp, n = self.ticks_per_period, len(self)
+        for p0 in range(0, max(1, -(-n // tpp)), periods):
+            t0, t1 = p0 * tpp, min(n, (p0 + periods) * tpp)
+            yield Trace(command=self.command[t0:t1], actual=self.actual[t0:t1], dac=self.dac[t0:t1],
+                        pad_force=self.pad_force[t0:t1], periods=self.periods[p0:p0 + periods],
+                        servo_period=self.servo_period, ticks_per_period=tpp, counts_per_unit=self.counts_per_unit,
+                        tool=self.tool[p0:p0 + periods], first=self.first + t0)
 
     @property
     def following_error(self) -> np.ndarray:
         """command - actual [counts], shape ``(n, 6)``, as the card computes it (32-bit wrap)."""
         return count_error.py_func(self.command, self.actual.astype(np.float64))
+
+    def at_period_ends(self, name: str) -> np.ndarray:
+        """A per-period signal at the end of each whole period, shape ``(whole periods,)``: what
+        ``period_signals[name][ticks_per_period - 1::ticks_per_period]`` gives, without making it
+        for every tick first (int64, or float64 for the float fields)."""
+        values = self.periods[name][: self.whole_periods]
+        return values.astype(np.float64 if name in FLOAT_PERIOD_FIELDS else np.int64)
 
     @property
     def period_signals(self) -> PeriodSignals:
