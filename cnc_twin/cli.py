@@ -104,6 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
     gcode.add_argument("--tool-table", type=Path, default=None, help="LinuxCNC tool table (default: the machine's)")
     gcode.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
     gcode.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
+    gcode.add_argument("--max-calls", type=int, metavar="N", help="calls before a program counts as endless (2000000)")
 
     bench = sub.add_parser("bench", help="twin wall time against bare MuJoCo stepping, in one process")
     bench.add_argument("scenario", nargs="?", type=input_path,
@@ -457,7 +458,8 @@ def _gcode(args: argparse.Namespace) -> int:
 
     gc.disable()  # one program listed, then the process ends: the collector would only walk the calls (10 %)
     lines, error = list_program(args.program, args.tool_table or bundled_tool_table(),  # as run reads them
-                                args.tool_units if args.tool_table else "mm", args.canon, args.subroutine_path)
+                                args.tool_units if args.tool_table else "mm", args.canon, args.subroutine_path,
+                                max_calls=args.max_calls)
     print("\n".join(lines))
     code = EXIT_OK if not error else EXIT_BAD_INPUT
     if error:

@@ -76,9 +76,10 @@ MODES = frozenset((G0, G1, G2, G3))
 """motion modes in which a common line's axis words without G move"""
 
 
-def run_common_lines(interpreter: Interpreter, index: int) -> int:
-    """Run the common lines from 0-based ``index`` on, while the state lets them run; the index
-    of the first line not run (``index`` itself when that line is not taken)."""
+def run_common_lines(interpreter: Interpreter, index: int, most: int | None = None) -> int:
+    """Run the common lines from 0-based ``index`` on, while the state lets them run, ``most``
+    lines at most (None: no bound); the index of the first line not run (``index`` itself when
+    that line is not taken)."""
     s = interpreter.state
     if s.feed_mode != G94 or interpreter.motion.nurbs is not None:
         return index
@@ -87,6 +88,8 @@ def run_common_lines(interpreter: Interpreter, index: int) -> int:
     long = source.too_long
     k = bisect.bisect_left(long, index)
     stop = min(source.end, long[k] if k < len(long) else source.end)
+    if most is not None:
+        stop = min(stop, index + max(0, most))
     append = interpreter.calls.append
     match_line = _LINE.fullmatch
     match_commented = _COMMENTED.fullmatch

@@ -30,8 +30,9 @@ OPENERS = ("if", "while", "repeat", "do")
 """keywords whose label LinuxCNC records when it runs them"""
 RETURNED = ("_value", "_value_returned")
 """the named parameters a subroutine's return sets"""
-MAX_ITERATIONS = 10_000_000
-"""loop passes before the reader gives up on a program that never ends"""
+MAX_ITERATIONS = 2_000_000
+"""O-word lines run before the reader gives up on a program that never ends (a loop making no
+calls, which the calls' bound does not see: about 10 s of reading)"""
 
 
 class SeekError(BlockError):
@@ -137,7 +138,8 @@ class Flow:
         when a subroutine returns past the top level."""
         self.passes += 1
         if self.passes > MAX_ITERATIONS:
-            raise BlockError(f"more than {MAX_ITERATIONS} loop passes: the program does not end")
+            raise BlockError(f"more than {MAX_ITERATIONS} O-word lines run: the loop here runs on, the program "
+                             "does not end")
         o_line = self.source.o_lines[index]
         keyword, rest = self._keyword(o_line)
         if not keyword:  # a Fanuc-style program number line: nothing to run

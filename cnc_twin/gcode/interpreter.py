@@ -35,6 +35,7 @@ from cnc_twin.gcode.comments import CALLS, read_comment
 from cnc_twin.gcode.common_lines import run_common_lines
 from cnc_twin.gcode.expressions import INTEGER_TOLERANCE, Parameters
 from cnc_twin.gcode.flow import Flow
+from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
 from cnc_twin.gcode.probing import Probe, standalone_probe
@@ -84,7 +85,7 @@ class Interpreter:
 
     def __init__(self, source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
                  parameters: Mapping[int, float] | None = None, probe: Probe | None = None,
-                 subroutine_path: Sequence[Path] = ()):
+                 subroutine_path: Sequence[Path] = (), max_calls: int = MAX_CALLS):
         self.probe: Probe = probe or standalone_probe
         self.params = Parameters()
         self.params.numbered.update(parameters or {})
@@ -97,6 +98,7 @@ class Interpreter:
         self.motion = MotionRunner(self)
         self._line, self._number = 0, None
         self.state.install_live_parameters(lambda: self._line)
+        self.max_calls = max_calls
 
     @property
     def source(self) -> Source:
@@ -121,8 +123,10 @@ class Interpreter:
         index = self.source.first
         try:
             while True:
+                if len(self.calls) > self.max_calls:
+                    self._runaway()
                 if COMMON_LINES:
-                    index = run_common_lines(self, index)
+                    index = run_common_lines(self, index, self.max_calls + 1 - len(self.calls))
                 if index >= self.source.end:
                     if self.source.percent_end:
                         self._line, self._number = 0, None
@@ -155,6 +159,18 @@ class Interpreter:
             raise ProgramError(line, str(exc), self.calls, self.printed, file) from None
         self._reset()
         return Reading(self.calls, self.printed, self.flow.files.texts())
+
+    def _runaway(self) -> None:
+        """Refuse a program past ``max_calls`` calls, at the line of the loop that runs on (the
+        innermost open one), else where the reading is."""
+        loops = self.flow.loops
+        where = "the program is longer than that"
+        if loops:
+            loop = loops[-1]
+            self._line = loop.start + 1
+            where = f"the {loop.kind} loop o{loop.name} here runs on"
+        raise BlockError(f"more than {self.max_calls} canonical calls: {where} (the bound: program.max_calls, "
+                         "gcode --max-calls)")
 
     def _check_length(self, start: int, stop: int) -> None:
         """Refuse the first line in ``start`` ..< ``stop`` (0-based) that is too long to read."""
@@ -488,7 +504,7 @@ class Interpreter:
 
 def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
                  parameters: Mapping[int, float] | None = None, probe: Probe | None = None,
-                 subroutine_path: Sequence[Path] = ()) -> Reading:
+                 subroutine_path: Sequence[Path] = (), max_calls: int = MAX_CALLS) -> Reading:
     """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused.
 
     ``parameters``: numbered parameters as LinuxCNC's parameter file (``.var``) holds them at the
@@ -499,9 +515,10 @@ def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | N
     None: rs274's standalone answer (:func:`~cnc_twin.gcode.probing.standalone_probe`). A G10 L1 /
     L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``:
     folders a called subroutine's file is looked for in after the program's own
-    (:mod:`~cnc_twin.gcode.subfiles`)."""
+    (:mod:`~cnc_twin.gcode.subfiles`). ``max_calls``: the calls a program may make before it is
+    refused as one that does not end (at the line of its innermost open loop)."""
     interpreter = Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
-                              subroutine_path=subroutine_path)
+                              subroutine_path=subroutine_path, max_calls=max_calls)
     # The calls hold no reference cycles; the cyclic collector's passes over their growing list
     # cost a fifth of a long program's reading (measured), so it waits until the program is read.
     paused = gc.isenabled()

@@ -34,9 +34,10 @@ def read_tool_table(path: Path | None, units: str) -> ToolTable:
 
 
 def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bool,
-                 subroutine_path: Sequence[Path] = ()) -> tuple[list[str], str | None]:
+                 subroutine_path: Sequence[Path] = (), *, max_calls: int | None = None) -> tuple[list[str], str | None]:
     """The listing's lines and the error line (None when the program was read whole);
-    ``subroutine_path``: folders to look for called subroutines' files in after the program's."""
+    ``subroutine_path``: folders to look for called subroutines' files in after the program's;
+    ``max_calls``: the reader's bound on calls (None: its default)."""
     missing = next((folder for folder in subroutine_path if not Path(folder).is_dir()), None)
     if missing is not None:
         return [], f"{missing}: no such folder (--subroutine-path)"
@@ -50,7 +51,8 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
     except OSError as exc:
         return [], f"{path}: cannot read the program ({exc.strerror})"
     try:
-        reading = read_program(source, tools, subroutine_path=subroutine_path)
+        reading = read_program(source, tools, subroutine_path=subroutine_path,
+                               **({} if max_calls is None else {"max_calls": max_calls}))
         calls, printed, error = reading.calls, reading.printed, None
     except ProgramError as exc:
         calls, printed, error = exc.calls, exc.printed, f"{exc.file or path}:{exc.line}: {exc.message}"

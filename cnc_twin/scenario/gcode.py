@@ -44,6 +44,7 @@ from cnc_twin.core.gcode_config import (
     GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
 from cnc_twin.scenario.gcode_probe import PartTop, ProbeReplay, ProbeSpec, probe_step, reader_answers
 from cnc_twin.scenario.gcode_setup import (WORK_SYSTEMS, WorkOffsetSpec, air_clearance, in_units, start_point,
@@ -94,6 +95,8 @@ class GcodeProgramSpec(Strict):
         default_factory=dict, description="where each work system's zero sits in the workpiece frame [mm, deg] (G54: "
         "the program's zero unless it selects another), as LinuxCNC's parameter file holds them after a touch-off")
     probe: ProbeSpec = ProbeSpec()
+    max_calls: int = Field(MAX_CALLS, ge=1, le=100_000_000, description="canonical calls the program may make "
+                           "before it is refused as one that does not end (at its innermost open loop's line)")
     in_air: float = Field(0.0, ge=0, le=1000, description="[mm] run the whole program this far above where it is "
                           "written (a dry run: the machine moves as programmed, the pad never reaches the work)")
 
@@ -109,7 +112,7 @@ class _Where:
 
 
 def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path, *, start=None,
-               parameters=None, subroutine_path=(), probe=None):
+               parameters=None, subroutine_path=(), probe=None, max_calls: int = MAX_CALLS):
     """The canonical calls of the program at ``path``, its :class:`~cnc_twin.gcode.source.Source`
     and the subroutine files it called (path -> text), or a ScenarioError at its line (a
     subroutine file's own; ``start``, ``parameters``, ``subroutine_path``: as
@@ -131,7 +134,7 @@ def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path
         raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
     try:
         reading = read_program(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path,
-                               probe=probe)
+                               probe=probe, max_calls=max_calls)
         return reading.calls, source, reading.files
     except ProgramError as exc:
         raise _Where(exc.file or path)(exc.line, exc.message) from None
@@ -195,7 +198,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     sub_folders = [_find(name, folder, label, f"program.subroutine_path[{k}]", is_folder=True)
                    for k, name in enumerate(spec.subroutine_path)]
     calls, source, sub_files = read_calls(path, table, tool_units, label, start=start_units, parameters=parameters,
-                                          subroutine_path=sub_folders, probe=reader_answers(answers, head))
+                                          subroutine_path=sub_folders, probe=reader_answers(answers, head),
+                                          max_calls=spec.max_calls)
     where = _Where(path)
     try:
         ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,

@@ -12,8 +12,8 @@ from cnc_twin.trace.layout import column_unit
 from cnc_twin.trace.trace import Trace
 
 
-ROW_GROUP_PERIODS = 1 << 16
-"""periods per row group (65.5 s at 1 ms): the columns of one are made at a time"""
+ROW_GROUP_PERIODS = 1 << 14
+"""periods per row group (16.4 s at 1 ms, 65 536 rows at 4 ticks a period): the columns of one are made at a time"""
 
 
 def write_trace(trace: Trace, path: Path, *, scenario_name: str, group_periods: int = ROW_GROUP_PERIODS) -> None:

@@ -1,0 +1,78 @@
+"""A program that does not end is refused in one line at the line of its loop, with its memory
+bounded meanwhile (the reader's bounds: ``program.max_calls`` / ``gcode --max-calls`` on the
+calls, 2 000 000 by default, and the O-word lines run for a loop that makes no calls)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import run_cli
+
+MOVING = """G21 G90 F1000
+G0 X0 Y0 Z5
+o100 while [1]
+  G1 X1
+  G1 X0
+o100 endwhile
+M2
+"""
+STILL = """G21 G90 F1000
+G0 X0 Y0 Z5
+o<spin> while [1]
+  #1 = [#1 + 1]
+o<spin> endwhile
+M2
+"""
+MEMORY_BOUND_MB = 1500
+"""what a process catching the moving loop at the default bound may take at its peak"""
+
+
+def _cnc_twin(*args: str) -> tuple[int, str, float]:
+    """``cnc-twin ARGS`` as its own process: exit code, standard error, peak memory [MB]."""
+    process = subprocess.Popen([sys.executable, "-m", "cnc_twin", *args], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    err = process.stderr.read()
+    _, status, usage = os.wait4(process.pid, 0)
+    process.stderr.close()
+    return os.waitstatus_to_exitcode(status), err, usage.ru_maxrss / 1024.0
+
+
+def _scenario(tmp_path: Path, text: str, **program) -> Path:
+    (tmp_path / "p.ngc").write_text(text)
+    extra = "".join(f"  {k}: {v}\n" for k, v in program.items())
+    (tmp_path / "s.yaml").write_text(f"name: endless\nprogram:\n  type: gcode\n  file: p.ngc\n{extra}")
+    return tmp_path / "s.yaml"
+
+
+@pytest.mark.parametrize("command", ["gcode", "validate"])
+def test_an_endless_loop_is_refused_at_its_line_in_bounded_memory(tmp_path, command):
+    path = _scenario(tmp_path, MOVING)
+    code, err, peak = _cnc_twin(command, str(tmp_path / "p.ngc" if command == "gcode" else path))
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and "p.ngc:3:" in err, err
+    assert peak < MEMORY_BOUND_MB, peak
+
+
+def test_a_loop_that_makes_no_calls_is_refused_at_its_loop(tmp_path):
+    (tmp_path / "p.ngc").write_text(STILL)
+    code, out, err = run_cli("gcode", tmp_path / "p.ngc")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "p.ngc:3:" in err or "p.ngc:5:" in err, err  # the loop's while or endwhile
+
+
+def test_the_bound_is_the_scenario_s_to_set(tmp_path):
+    """program.max_calls: a program within it reads whole, one past it is refused, at the line
+    reading had reached when no loop is open."""
+    lines = "G21 G90 F1000\nG0 X0 Y0 Z5\n" + "".join(f"G1 X{k % 2}\n" for k in range(200)) + "M2\n"
+    code, _, err = run_cli("validate", _scenario(tmp_path, lines, max_calls=1000))
+    assert code == 0, err
+    (tmp_path / "b").mkdir()
+    code, _, err = run_cli("validate", _scenario(tmp_path / "b", lines, max_calls=100))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "p.ngc:" in err, err
+    code, _, err = run_cli("gcode", tmp_path / "b" / "p.ngc", "--max-calls", "100")
+    assert code == 2 and "p.ngc:" in err
