@@ -63,7 +63,16 @@ class Element:
         return q[:3] / q[3]
 
     def direction(self, at_end: bool) -> np.ndarray:
-        """Unit tangent at the start or the end (the first control point off the end point)."""
+        """Unit tangent at the start or the end (the first control point off the end point); a
+        line's, the same at both ends, is made once (the joins ask for it again and again)."""
+        if self.kind == "line":
+            cached = self.__dict__.get("_line_direction")
+            if cached is None:
+                cached = self.__dict__["_line_direction"] = self._direction(False)
+            return cached
+        return self._direction(at_end)
+
+    def _direction(self, at_end: bool) -> np.ndarray:
         piece = self.pieces[-1][::-1] if at_end else self.pieces[0]
         xyz = piece[:, :3] / piece[:, 3:4]
         for q in xyz[1:]:

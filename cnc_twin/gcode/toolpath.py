@@ -198,21 +198,23 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
             canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             end = canon.machine(v)
-            rotary = here is not None and np.any(end[3:] != here[3:])
-            if name == "STRAIGHT_FEED" and here is not None and not rotary:
+            # which axes move, compared as Python floats (np.any on a 3-vector costs more than a line's rest)
+            e, h = end.tolist(), (None if here is None else here.tolist())
+            rotary = h is not None and e[3:] != h[3:]
+            if name == "STRAIGHT_FEED" and h is not None and not rotary:
                 if tilting:
                     close()
-                if np.any(end[:3] != here[:3]):
+                if e[:3] != h[:3]:
                     path.append((line_element(here[:3], end[:3], call.line), _modes(canon, here)))
-            elif (name == "STRAIGHT_FEED" and here is not None and canon.control[0] == "CANON_CONTINUOUS"
-                  and canon.control[1] > 0.0 and end[5] == here[5] and np.any(end[:3] != here[:3])):
+            elif (name == "STRAIGHT_FEED" and h is not None and canon.control[0] == "CANON_CONTINUOUS"
+                  and canon.control[1] > 0.0 and e[5] == h[5] and e[:3] != h[:3]):
                 # a G1 turning A / B as the tip moves, under G64 P: gathered for a 5-axis fit
                 if path:
                     close()
                 tilting.append((here.copy(), end.copy(), call.line, (canon.feed, canon.control)))
             else:
                 close()
-                rotary_only = here is not None and not np.any(end[:3] != here[:3])
+                rotary_only = h is not None and e[:3] == h[:3]
                 feed = None
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
@@ -294,7 +296,8 @@ def _feed_paths(path: list[tuple[Element, tuple]], default_blend: float) -> list
 
 def _turn(a: Element, b: Element) -> float:
     """Angle [rad] the path turns from ``a``'s end to ``b``'s start."""
-    c = float(np.clip(np.dot(a.direction(True), b.direction(False)), -1.0, 1.0))
+    c = float(np.dot(a.direction(True), b.direction(False)))
+    c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)  # np.clip's result (NaN kept), without its cost on a scalar
     return math.acos(c)
 
 
