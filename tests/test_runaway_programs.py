@@ -66,13 +66,17 @@ def test_a_loop_that_makes_no_calls_is_refused_at_its_loop(tmp_path):
 
 
 def test_the_bound_is_the_scenario_s_to_set(tmp_path):
-    """program.max_calls: a program within it reads whole, one past it is refused, at the line
-    reading had reached when no loop is open."""
-    lines = "G21 G90 F1000\nG0 X0 Y0 Z5\n" + "".join(f"G1 X{k % 2}\n" for k in range(200)) + "M2\n"
-    code, _, err = run_cli("validate", _scenario(tmp_path, lines, max_calls=1000))
+    """program.max_calls: a loop within it reads whole, one past it is refused at the loop's
+    line; lines written out count for nothing (they end with the file)."""
+    loop = "G21 G90 F1000\nG0 X0 Y0 Z5\n#1 = 0\no7 while [#1 LT 100]\n  G1 X1\n  G1 X0\n  #1 = [#1 + 1]\no7 endwhile\nM2\n"
+    code, _, err = run_cli("validate", _scenario(tmp_path, loop, max_calls=1000))
     assert code == 0, err
     (tmp_path / "b").mkdir()
-    code, _, err = run_cli("validate", _scenario(tmp_path / "b", lines, max_calls=100))
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "p.ngc:" in err, err
-    code, _, err = run_cli("gcode", tmp_path / "b" / "p.ngc", "--max-calls", "100")
-    assert code == 2 and "p.ngc:" in err
+    code, _, err = run_cli("validate", _scenario(tmp_path / "b", loop, max_calls=150))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "p.ngc:4:" in err, err
+    code, _, err = run_cli("gcode", tmp_path / "b" / "p.ngc", "--max-calls", "150")
+    assert code == 2 and "p.ngc:4:" in err
+    (tmp_path / "c").mkdir()
+    written = "G21 G90 F1000\nG0 X0 Y0 Z5\n" + "".join(f"G1 X{k % 2}\n" for k in range(300)) + "M2\n"
+    code, _, err = run_cli("validate", _scenario(tmp_path / "c", written, max_calls=100))
+    assert code == 0, err

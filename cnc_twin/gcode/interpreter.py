@@ -122,11 +122,15 @@ class Interpreter:
         self._preamble()
         index = self.source.first
         try:
+            looped, seen = 0, len(self.calls)  # calls made while a loop was open; calls counted
             while True:
-                if len(self.calls) > self.max_calls:
-                    self._runaway()
+                if self.flow.loops:  # only a loop can run on: a program's own lines end with its file
+                    looped += len(self.calls) - seen
+                    if looped > self.max_calls:
+                        self._runaway()
+                seen = len(self.calls)
                 if COMMON_LINES:
-                    index = run_common_lines(self, index, self.max_calls + 1 - len(self.calls))
+                    index = run_common_lines(self, index, self.max_calls + 1 - looped if self.flow.loops else None)
                 if index >= self.source.end:
                     if self.source.percent_end:
                         self._line, self._number = 0, None
@@ -161,16 +165,12 @@ class Interpreter:
         return Reading(self.calls, self.printed, self.flow.files.texts())
 
     def _runaway(self) -> None:
-        """Refuse a program past ``max_calls`` calls, at the line of the loop that runs on (the
-        innermost open one), else where the reading is."""
-        loops = self.flow.loops
-        where = "the program is longer than that"
-        if loops:
-            loop = loops[-1]
-            self._line = loop.start + 1
-            where = f"the {loop.kind} loop o{loop.name} here runs on"
-        raise BlockError(f"more than {self.max_calls} canonical calls: {where} (the bound: program.max_calls, "
-                         "gcode --max-calls)")
+        """Refuse a program past ``max_calls`` calls made in loops, at the line of the loop that
+        runs on (the innermost open one)."""
+        loop = self.flow.loops[-1]
+        self._line = loop.start + 1
+        raise BlockError(f"more than {self.max_calls} canonical calls in loops: the {loop.kind} loop o{loop.name} here "
+                         "runs on (the bound: program.max_calls, gcode --max-calls)")
 
     def _check_length(self, start: int, stop: int) -> None:
         """Refuse the first line in ``start`` ..< ``stop`` (0-based) that is too long to read."""
@@ -515,8 +515,9 @@ def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | N
     None: rs274's standalone answer (:func:`~cnc_twin.gcode.probing.standalone_probe`). A G10 L1 /
     L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``:
     folders a called subroutine's file is looked for in after the program's own
-    (:mod:`~cnc_twin.gcode.subfiles`). ``max_calls``: the calls a program may make before it is
-    refused as one that does not end (at the line of its innermost open loop)."""
+    (:mod:`~cnc_twin.gcode.subfiles`). ``max_calls``: the calls a program may make in its loops
+    before it is refused as one that does not end (at the line of its innermost open loop); its
+    own lines, however many, end with its file."""
     interpreter = Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
                               subroutine_path=subroutine_path, max_calls=max_calls)
     # The calls hold no reference cycles; the cyclic collector's passes over their growing list

@@ -2,6 +2,6 @@
 schema names the default without importing the reader)."""
 
 MAX_CALLS = 2_000_000
-"""canonical calls a program may make before the reader refuses it as running on (a loop that
-does not end, or more than the machine's memory holds read whole: about 0.3 kB a call read, more
-once converted)"""
+"""canonical calls a program may make while a loop (``while``, ``do``, ``repeat``) is open before
+the reader refuses it as running on: a loop that does not end, caught before the calls it made
+fill the memory (about 0.3 kB a call read); lines written out, however many, end with the file"""

@@ -95,8 +95,8 @@ class GcodeProgramSpec(Strict):
         default_factory=dict, description="where each work system's zero sits in the workpiece frame [mm, deg] (G54: "
         "the program's zero unless it selects another), as LinuxCNC's parameter file holds them after a touch-off")
     probe: ProbeSpec = ProbeSpec()
-    max_calls: int = Field(MAX_CALLS, ge=1, le=100_000_000, description="canonical calls the program may make "
-                           "before it is refused as one that does not end (at its innermost open loop's line)")
+    max_calls: int = Field(MAX_CALLS, ge=1, le=100_000_000, description="canonical calls the program may make in "
+                           "its loops before it is refused as one that does not end (at its innermost open loop's line)")
     in_air: float = Field(0.0, ge=0, le=1000, description="[mm] run the whole program this far above where it is "
                           "written (a dry run: the machine moves as programmed, the pad never reaches the work)")
 
