@@ -3,7 +3,7 @@ length (``python benchmarks/bench_long_programs.py [--passes 25 250 2500] [--jso
 
 The program is a 3-axis CAM-style raster as CAM writes a finishing pass over a waved surface:
 ``passes`` passes of 200 mm along X, 0.5 mm apart in Y (250 passes cover 125 mm of the 200 x 150 mm
-block), a G1 line every 0.1 mm with Z following ``0.5 sin(x / 10) cos(y / 15)`` mm, four
+block; more go over it again, back and forth, as a polishing job repeats), a G1 line every 0.1 mm with Z following ``0.5 sin(x / 10) cos(y / 15)`` mm, four
 decimals, under ``G64 P0.01`` at F3000, zig-zag (the step over is one more G1). 250 passes are
 500 000 lines, about 50 m of path and 1100 s of machining; the same bytes every time.
 
@@ -39,6 +39,9 @@ STEP_OVER = 0.5
 """[mm] between passes"""
 FEED = 3000.0
 """[mm/min]"""
+ROWS = 250
+"""passes across the face (125 mm of the block's 150 mm); a longer program goes over it again,
+back and forth, as a polishing job repeats its raster"""
 CNC_TWIN = Path(sys.executable).parent / "cnc-twin"
 MAXRSS = "bench-maxrss-kb:"
 
@@ -47,12 +50,13 @@ def raster_text(passes: int) -> str:
     """The program of ``passes`` passes (module docstring)."""
     points = int(round(LENGTH / STEP))
     xs = [-0.5 * LENGTH + STEP * k for k in range(points + 1)]
-    y0 = -0.5 * STEP_OVER * (passes - 1)
+    y0 = -0.5 * STEP_OVER * (min(passes, ROWS) - 1)
     out = [f"(a {passes}-pass raster over a waved surface: benchmarks/bench_long_programs.py)",
            "G21 G90 G17 G94 G64 P0.01", "G0 Z5", f"G0 X{xs[0]:.4f} Y{y0:.4f}",
            f"G1 Z{0.5 * math.sin(xs[0] / 10.0) * math.cos(y0 / 15.0):.4f} F600", f"F{FEED:g}"]
     for k in range(passes):
-        y = y0 + STEP_OVER * k
+        row = k % ROWS if (k // ROWS) % 2 == 0 else ROWS - 1 - k % ROWS  # back over the face every ROWS passes
+        y = y0 + STEP_OVER * row
         row = xs if k % 2 == 0 else xs[::-1]
         cy = math.cos(y / 15.0)
         first = 0 if k else 1

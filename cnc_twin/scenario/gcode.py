@@ -206,6 +206,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
                             start=start, air=spec.in_air)
     except tp.ToolpathError as exc:
         raise where(exc.line, exc.message) from None
+    del calls  # a long program's calls are most of its memory here: gone before the steps are made
     if not any(isinstance(op, (tp.Traverse, tp.FeedPath)) for op in ops):
         raise ScenarioError(label, "program.file", f"{path} moves nothing")
     pressing = next((op for op in ops if isinstance(op, tp.ForceChange) and op.setpoint is not None), None)
@@ -216,6 +217,8 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         steps = _machine_steps(ops, spec, axes, model, label, where, head, _part_top(spec, model, head, label))
     except ScenarioError as exc:
         raise with_placement(exc, ops, axes, head) from None
+    clearance = air_clearance(ops, _work_top(spec, model, head, label))
+    del ops  # the programmed elements: the steps keep what the run and its measures need
     _check_force_paths(steps, where)
     replay = None
     if any(isinstance(s, GcodeProbe) for s in steps):
@@ -230,7 +233,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
-                        air=spec.in_air * units.MM, air_clearance=air_clearance(ops, _work_top(spec, model, head, label)),
+                        air=spec.in_air * units.MM, air_clearance=clearance,
                         after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
