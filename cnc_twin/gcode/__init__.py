@@ -19,6 +19,7 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 - :mod:`~cnc_twin.gcode.nurbs`         G5.2 / G5.3 and G6.2 curves into NURBS
 - :mod:`~cnc_twin.gcode.motion`        the motion step of a block
 - :mod:`~cnc_twin.gcode.interpreter`   a whole program run into canonical calls
+- :mod:`~cnc_twin.gcode.outcome`       what a reading gives: its calls, or its refusal
 - :mod:`~cnc_twin.gcode.limits`        the bound on a program that does not end (its calls)
 - :mod:`~cnc_twin.gcode.common_lines`  a CAM program's common lines run at once (the fast path), as the
   interpreter runs them

@@ -23,8 +23,6 @@ import bisect
 import gc
 import re
 from collections.abc import Mapping, Sequence
-
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from cnc_twin.gcode.blocks import Block, BlockError, apply_assignments
@@ -38,6 +36,7 @@ from cnc_twin.gcode.flow import Flow
 from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.gcode.modal import CANNED_CYCLES, G, GGroup, M, MGroup, modal_codes
 from cnc_twin.gcode.motion import MotionRunner
+from cnc_twin.gcode.outcome import ProgramError, Reading
 from cnc_twin.gcode.probing import Probe, standalone_probe
 from cnc_twin.gcode.reading import read_line
 from cnc_twin.gcode.source import O_NAME, Source
@@ -53,31 +52,6 @@ COMMON_LINES = True
 in the tests that compare it with the full path"""
 NON_MODAL_STEPS = (G.G10, G.G28, G.G28_1, G.G30, G.G30_1, G.G92, G.G92_1, G.G92_2, G.G92_3)
 """the group 0 codes run in the G10 / G28 / G30 / G92 step (G4 and G53 have steps of their own)"""
-
-
-class ProgramError(ValueError):
-    """A program the reader refuses: ``line`` (1-based; 0 for the file as a whole), the message
-    in LinuxCNC's wording where it has one, and ``calls`` made before it (for comparisons);
-    ``file``: the subroutine file ``line`` is in, None for the program's own."""
-
-    def __init__(self, line: int, message: str, calls: list[Call] | None = None, printed: list[str] | None = None,
-                 file: Path | None = None):
-        self.line = line
-        self.message = message
-        self.calls = calls or []
-        self.printed = printed or []
-        self.file = file
-        super().__init__(f"line {line}: {message}")
-
-
-@dataclass
-class Reading:
-    """A program read whole: its calls in order, what ``(print,...)`` comments printed, and
-    the subroutine files it called (path -> text as read)."""
-
-    calls: list[Call]
-    printed: list[str]
-    files: dict[Path, str] = field(default_factory=dict)
 
 
 class Interpreter:
