@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cnc_twin.geometry.bezier import homogeneous, piece_length, piece_points
+from cnc_twin.geometry.bezier import piece_length, piece_points
 
 
 class ToolpathError(ValueError):
@@ -77,7 +77,7 @@ class Element:
         xyz = piece[:, :3] / piece[:, 3:4]
         for q in xyz[1:]:
             d = (xyz[0] - q) if at_end else (q - xyz[0])
-            norm = float(np.linalg.norm(d))
+            norm = math.sqrt(float(d.dot(d)))  # np.linalg.norm's own sum and root, without its checks
             if norm > 1e-12:
                 return d / norm
         return np.zeros(3)
@@ -199,7 +199,12 @@ Operation = Traverse | FeedPath | Pause | SpindleChange | ForceChange | ToolAxis
 # -- element geometry ---------------------------------------------------------------------------
 
 def line_element(start: np.ndarray, end: np.ndarray, line: int) -> Element:
-    return Element([homogeneous([start, end], [1.0, 1.0])], line, "line")
+    """A line from ``start`` to ``end`` (each (3,) [mm]): one degree-1 piece of weights 1 (made
+    directly: :func:`~cnc_twin.geometry.bezier.homogeneous`'s general path costs a CAM line most
+    of its conversion, and multiplying by a weight of 1 changes no bit)."""
+    piece = np.empty((2, 4))
+    piece[0, :3], piece[1, :3], piece[:, 3] = start, end, 1.0
+    return Element([piece], line, "line")
 
 
 REFERENCE_STEP = 0.05

@@ -274,7 +274,7 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
 
 def _modes(canon: _Canon, here: np.ndarray) -> tuple:
     """What a feed element carries that may end a path: feed, held A B C, control mode."""
-    return (canon.feed, tuple(float(x) for x in here[3:]), canon.control)
+    return (canon.feed, tuple(here[3:].tolist()), canon.control)
 
 
 def _feed_paths(path: list[tuple[Element, tuple]], default_blend: float) -> list[FeedPath]:
