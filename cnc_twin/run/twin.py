@@ -27,6 +27,7 @@ import numpy as np
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import PLANNER_FAULTS, Scenario
 from cnc_twin.core.deferred_signals import signals_deferred
+from cnc_twin.core.heap import return_freed_memory
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import Supervisor
@@ -78,6 +79,7 @@ class Twin:
         self.notices = self.kind.notices(scenario)
         """what the run will do otherwise than the program asks, one line each (said before the
         run by the CLI, kept in ``metrics.json``)"""
+        return_freed_memory()  # what loading the program freed, before the run's memory grows
         obstacles = [(f.position, f.size) for f in scenario.faults if f.kind == "collision"]
         self.plant, self.removal, self.tiling = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
