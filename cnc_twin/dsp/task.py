@@ -296,13 +296,13 @@ class DspTask:
         n = self.servo.n_axes
         interp = self.interpolator
         port = self.port
-        probe = interp.probe
+        tripped, latch, stop = interp.probe.last()
         # frame[0:3n] is command, actual, DAC code: the status block's field order.
         port.publish(None, k, values=(
             k, self.state, self.fault, port.fifo.fill(), self.expected_seq, interp.last_seq_executed,
             self.records_accepted, self.records_rejected, port.missed_exchanges, self.underrun_periods,
             interp.queued_periods, k * self.period, interp.override, frame[3 * n],
             *frame[0:3 * n], *map(float.__sub__, frame[0:n], frame[n:2 * n]),
-            *self.pending_events, *self.index_latch, probe.count, probe.tripped, *probe.latch, *probe.stop,
+            *self.pending_events, *self.index_latch, len(interp.probe.log), tripped, *latch, *stop,
         ))
         self.pending_events = [0] * n

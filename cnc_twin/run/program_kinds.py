@@ -23,7 +23,6 @@ Hooks, each with a default that serves a point-to-point program:
 from __future__ import annotations
 
 import dataclasses
-
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple

@@ -78,7 +78,8 @@ class RecordError(ValueError):
 
 
 _MOVE = struct.Struct("<6d4dI")
-_PROBE = struct.Struct("<6d4dIdHH")
+_PROBE_TAIL = struct.Struct("<dHH")
+"""what a Probe adds to a Move's payload: trip force, kind, pad"""
 _DWELL = struct.Struct("<I")
 _F64 = struct.Struct("<d")
 _SPINDLE = struct.Struct("<HHd")
@@ -252,14 +253,13 @@ def _decode_move(payload: bytes, _words) -> Move:
 
 
 def _encode_probe(record: Probe) -> bytes:
-    p = record.profile
-    return _PROBE.pack(*record.end, p.t_acc, p.t_flat, p.v_peak, p.accel, record.periods, record.trip_force,
-                       record.kind, 0)
+    return _encode_move(record) + _PROBE_TAIL.pack(record.trip_force, record.kind, 0)
 
 
 def _decode_probe(payload: bytes, _words) -> Probe:
-    v = _PROBE.unpack(payload)
-    return Probe(end=tuple(v[:6]), profile=Trapezoid(*v[6:10]), periods=v[10], trip_force=v[11], kind=v[12])
+    move = _decode_move(payload[:_MOVE.size], None)
+    trip_force, kind, _ = _PROBE_TAIL.unpack(payload[_MOVE.size:])
+    return Probe(end=move.end, profile=move.profile, periods=move.periods, trip_force=trip_force, kind=kind)
 
 
 def _encode_step_contour(record: StepContour) -> bytes:
@@ -323,7 +323,7 @@ PAYLOADS = (
     Payload(14, Mark, lambda r: _MARK.pack(r.number), lambda p, _: Mark(number=_MARK.unpack(p)[0]), _MARK.size // 2),
     Payload(15, ChipCommand, _encode_chip, _decode_chip, _CHIP.size // 2),
     Payload(16, GeometryPart, _encode_part, _decode_part, None),
-    Payload(17, Probe, _encode_probe, _decode_probe, _PROBE.size // 2),
+    Payload(17, Probe, _encode_probe, _decode_probe, (_MOVE.size + _PROBE_TAIL.size) // 2),
 )
 """every record type on the wire, by code"""
 BY_KIND = {p.kind: p for p in PAYLOADS}
