@@ -272,7 +272,7 @@ class PeriodBatch:
         servo.frame_from(rec.command[last], rec.pad_force[last])
         dsp.write_period_fields(0)  # a batched period raises no events
         # the period records: the fields that stay constant, then those that change per period
-        periods = rec.periods[0:1] if rec.scratch else rec.periods[k:k + done]
+        periods = rec.periods[0:1] if rec.scratch else rec.periods[rec.period_row(k):rec.period_row(k) + done]
         periods[:] = tuple(servo.frame[servo.period_slot:])
         if not rec.scratch:
             periods["path_u"] = out["path_u"][:done]

@@ -41,6 +41,10 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
                   extra=None) -> Path:
     """Write the run directory atomically: a hidden temporary folder renamed when complete.
 
+    ``trace``: a :class:`Trace`, written; or a long run's
+    :class:`~cnc_twin.trace.trace_file.TraceFile`, its file moved in (copied if it is already in
+    another run directory).
+
     ``extra(folder)`` may add files (the rerun recording) before the rename.
     """
     run_dir = Path(run_dir)
@@ -49,9 +53,14 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
+    in_file = hasattr(trace, "move_to")  # a long run's trace, already in its file
+    was = (trace.path, trace.staged) if in_file else None
     try:
         (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8")
-        write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+        if in_file:
+            trace.move_to(tmp / TRACE_FILE)
+        else:
+            write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
         if extra is not None:
             extra(tmp)
         _write_metrics(tmp / METRICS_FILE, metrics)
@@ -59,8 +68,13 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
             raise FileExistsError(f"run directory {run_dir} already exists")
         os.replace(tmp, run_dir)
     except BaseException:
+        if in_file and was[1] and trace.path != was[0]:  # the run's file goes back where it was, not lost
+            shutil.move(trace.path, was[0])
+            trace.path, trace.staged = was
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    if in_file:
+        trace.path = run_dir / TRACE_FILE
     return run_dir
 
 

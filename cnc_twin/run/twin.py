@@ -20,7 +20,9 @@ missed exchange, and a starved card holds (FEED_HOLD) until records arrive again
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -40,6 +42,8 @@ from cnc_twin.run.faults import FaultInjector
 from cnc_twin.run.metrics import compute_metrics
 from cnc_twin.run.program_kinds import kind_of, lookahead_periods
 from cnc_twin.run.result import RunResult
+from cnc_twin.run.run_dir import TRACE_FILE
+from cnc_twin.trace.parquet import ROW_GROUP_PERIODS
 from cnc_twin.trace.recorder import Recorder
 from cnc_twin.trace.trace import Trace
 from cnc_twin.whiteboard.block import Whiteboard
@@ -129,6 +133,28 @@ class Twin:
         self.period_batch = None
         """the run's :class:`~cnc_twin.run.period_batch.PeriodBatch`, if it had one"""
         self.late_periods = self.missed_ticks = 0
+        self.trace_file: Path | None = None
+        """where a run longer than the recorder's window writes its trace while it runs (the
+        CLI's: staged beside the run directory); None: a temporary folder of its own, removed
+        with the result's trace unless :meth:`RunResult.write` moved the file into a run directory"""
+        self.trace_group_periods = ROW_GROUP_PERIODS
+        """[periods] per row group of the trace's file; the recorder's window is SPILL_GROUPS of them"""
+        self._trace_folder: Path | None = None
+
+    def trace_writer(self):
+        """The :class:`~cnc_twin.trace.parquet.TraceWriter` of a run that outgrew the recorder's
+        window (the recorder calls it then, once)."""
+        from cnc_twin.trace.parquet import TraceWriter
+
+        path = self.trace_file
+        if path is None:
+            self._trace_folder = Path(tempfile.mkdtemp(prefix="cnc-twin-trace-"))
+            path = self._trace_folder / TRACE_FILE
+        return TraceWriter(path, scenario_name=self.scenario.name, counts_per_unit=self._counts_per_unit(),
+                           group_periods=self.trace_group_periods)
+
+    def _counts_per_unit(self) -> np.ndarray:
+        return np.array([a.counts_per_unit for a in self.scenario.axes])
 
     def request_stop(self, reason: str) -> None:
         """Stop at the next interpolation period; what was recorded so far is kept."""
@@ -192,7 +218,13 @@ class Twin:
             retransmits = int(wb.retransmits[0])
             self.plan_us, self.plan_blocks = int(wb.plan_us[0]), int(wb.plan_blocks[0])
         finally:
-            # Every step guarded: whatever failed above, the planner is reaped and the segment unlinked.
+            # Every step guarded: whatever failed above, the planner is reaped and the segment
+            # unlinked, and a long run's trace file is closed whole (readable).
+            try:
+                if self.recorder is not None:
+                    self.recorder.finish_file()
+            except Exception:
+                pass  # the run's own failure, if any, is the one to tell
             try:
                 if wb is not None:
                     signal_shutdown(wb, planner.bells.ring_pc if planner is not None else None)
@@ -214,15 +246,22 @@ class Twin:
     def partial_trace(self, *, copy: bool = True) -> Trace:
         """The signals recorded so far, as a :class:`~cnc_twin.trace.trace.Trace` (a copy, unless
         ``copy=False`` once the run is over)."""
-        sc = self.scenario
-        return self.recorder.trace(servo_period=sc.timing.servo_period, copy=copy,
-                                   counts_per_unit=np.array([a.counts_per_unit for a in sc.axes]))
+        return self.recorder.trace(servo_period=self.scenario.timing.servo_period, copy=copy,
+                                   counts_per_unit=self._counts_per_unit())
 
     def _result(self, dsp: DspTask, wall_time: float, periods: int, retransmits: int) -> RunResult:
         self.scenario = self.kind.as_run(self.scenario, dsp)  # what ran is what is measured and shown
         sc = self.scenario
         assert self.recorder is not None
-        trace = self.partial_trace(copy=False)  # by now, the whole run
+        if self.recorder.spilled:  # a long run: its trace is in its file
+            from cnc_twin.trace.trace_file import TraceFile
+
+            self.recorder.finish_file()
+            trace = TraceFile(self.recorder.writer.path, servo_period=sc.timing.servo_period,
+                              ticks_per_period=sc.timing.ticks_per_period, counts_per_unit=self._counts_per_unit(),
+                              temporary_folder=self._trace_folder)
+        else:
+            trace = self.partial_trace(copy=False)  # by now, the whole run
         if not self.record:
             return RunResult(scenario=sc, trace=trace, metrics={"status": "complete", "wall_time_s": wall_time,
                                                                 "periods": periods}, model=self.plant.model)

@@ -164,13 +164,17 @@ class PeriodSamples:
 
     @classmethod
     def take(cls, source, first: int, stop: int) -> "PeriodSamples":
-        """Periods ``first .. stop - 1`` from a :class:`Trace` or a :class:`Recorder` (same
-        column names), copied."""
+        """Periods ``first .. stop - 1`` of the run from a :class:`Trace` or a :class:`Recorder`
+        (same column names; either may hold a stretch of the run from its tick ``first``, a whole
+        period), copied."""
+        if hasattr(source, "period_samples"):  # a trace in its file: read from the row groups concerned
+            return source.period_samples(first, stop)
         tpp = source.ticks_per_period
-        ticks = np.arange(first, stop) * tpp + (tpp - 1)
+        base = source.first // tpp  # the period of the source's first row
+        ticks = np.arange(first - base, stop - base) * tpp + (tpp - 1)
         return cls(first=first, command=source.command[ticks], actual=source.actual[ticks],
                    dac=source.dac[ticks], pad_force=source.pad_force[ticks],
-                   periods=source.periods[first:stop].copy())
+                   periods=source.periods[first - base:stop - base].copy())
 
     @classmethod
     def join(cls, parts: list["PeriodSamples"]) -> "PeriodSamples":

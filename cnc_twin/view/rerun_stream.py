@@ -110,10 +110,12 @@ class RecordingProcess:
 
     def observe(self, twin) -> None:
         """The twin's observer: sends the whole periods recorded since the last send, once at
-        least :attr:`min_stretch` have gathered."""
-        done = twin.recorder.count // self._ticks_per_period
-        if done - self.sent_periods >= self.min_stretch:
-            self._send_periods(twin.recorder, done)
+        least :attr:`min_stretch` have gathered, or the recorder's window is full (a long run's
+        recorder then moves its window on)."""
+        recorder = twin.recorder
+        done = recorder.count // self._ticks_per_period
+        if done - self.sent_periods >= self.min_stretch or (done > self.sent_periods and recorder.count >= recorder.room):
+            self._send_periods(recorder, done)
 
     def finish(self, result, *, timeout: float = FINISH_TIMEOUT) -> Path | None:
         """:meth:`hand_over` then :meth:`wait`: the finished recording's file (None without one)."""
