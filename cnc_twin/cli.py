@@ -124,10 +124,9 @@ def main(argv: list[str] | None = None) -> int:
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
                 "gcode": _gcode, "list": _list}
     if args.whole_process and args.command not in ("run", "sweep"):
-        # The program's start handlers (cnc_twin/entry.py) end it at once; from here Ctrl-C is a
-        # KeyboardInterrupt and SIGTERM ends these commands as Ctrl-C does: through the runs'
-        # cleanup (planner processes, shared memory), not by an immediate exit. run and sweep
-        # keep the start handlers until their SignalGuard takes over (nothing to clean before).
+        # The start handlers (cnc_twin/entry.py) end the program at once; from here Ctrl-C is a KeyboardInterrupt
+        # and SIGTERM ends these commands as Ctrl-C does: through the runs' cleanup (planners, shared memory).
+        # run and sweep keep the start handlers until their SignalGuard takes over (nothing to clean before).
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, terminate)
     try:
@@ -153,8 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
-        # What the reader took is what it wanted: end quietly, not with a traceback. Python's own
-        # flush of stdout at exit would raise again, so stdout goes nowhere from here.
+        # The reader took what it wanted: end quietly. Python's flush of stdout at exit would raise again: to /dev/null
         if args.whole_process:
             with open(os.devnull, "w") as devnull:
                 os.dup2(devnull.fileno(), sys.stdout.fileno())
@@ -240,6 +238,7 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
+    twin.trace_file = run_dir.parent / f".{run_dir.name}.trace-{os.getpid()}.parquet"  # a long run's, moved in
     for notice in twin.notices:  # before any motion, once (metrics.json keeps them too)
         print(f"note: {source}: {notice}", file=sys.stderr)
     from cnc_twin.run.progress import ProgressBar
@@ -264,6 +263,7 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
         if staged is not None:  # not moved in (still there): the run stopped with an error
             recorder.close()  # first: a signal before the run began can find it still creating the file
             staged.unlink(missing_ok=True)
+        twin.trace_file.unlink(missing_ok=True)  # likewise
 
 
 def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners,

@@ -2,8 +2,9 @@
 (:func:`cnc_twin.run.path_metrics.path_metrics`), then the figures over the whole program.
 
 The trace's periods on a curve (``path_u >= 0``) fall into runs, one per card curve, in program
-order (:func:`~cnc_twin.run.program_check.curve_runs`). Each run is measured against its own
-curve; the whole against the program as written: :mod:`cnc_twin.run.program_check`. On a path run with the force loop on (M100), the
+order (:mod:`~cnc_twin.run.curve_windows`). Each run is measured against its own curve as it ends,
+from its window of the trace; the whole against the program as written:
+:mod:`cnc_twin.run.program_check`. On a path run with the force loop on (M100), the
 chord and contour errors are measured after taking the loop's offset along the tool axis off
 (the trace's ``force_depth``); the axis peaks keep it.
 
@@ -19,55 +20,40 @@ import numpy as np
 
 from cnc_twin.core.config import GcodeProgram, Scenario
 from cnc_twin.geometry.kinematics import tool_axis
-from cnc_twin.run.program_check import curve_runs, pressed_paths
+from cnc_twin.run.curve_windows import curve_windows
+from cnc_twin.run.program_check import ProgramCheck, pressed_paths
 from cnc_twin.trace.trace import Trace
 
 
-class _PathTrace:
-    """The trace seen by one path: a window from two periods before it to its last period (so
-    what follows, a rapid move's start, is not counted in the path's axis peaks; the period before
-    it is, as a curve run's), ``path_u`` -1 before the path, ``period_offset`` the window's first
-    period in the run. A window, not the run up to the path: a program of thousands of paths is
-    measured in time proportional to its length, not to the square of it."""
-
-    def __init__(self, trace: Trace, first: int, stop: int):
-        """``first``, ``stop``: the path's first and one-past-last period."""
-        tpp = trace.ticks_per_period
-        begin = max(0, first - 2)
-        self.period_offset = begin
-        signals = trace.period_signals
-
-        def window(name: str) -> np.ndarray:
-            return np.repeat(signals.per_period(name)[begin:stop].astype(np.float64), tpp)
-
-        u = window("path_u")
-        u[:(first - begin) * tpp] = -1.0
-        self.period_signals = {"path_u": u, "path_ds": window("path_ds"), "force_depth": window("force_depth")}
-        self.command, self.actual = trace.command[begin * tpp:stop * tpp], trace.actual[begin * tpp:stop * tpp]
-        self.tool = trace.tool[begin:stop]
-        self.counts_per_unit = trace.counts_per_unit
-        self._tpp = tpp
-
-    def at_period_ends(self, name: str) -> np.ndarray:
-        """As :meth:`Trace.at_period_ends <cnc_twin.trace.trace.Trace.at_period_ends>`, in the window."""
-        return self.period_signals[name][self._tpp - 1::self._tpp]
-
-
-def gcode_metrics(trace: Trace, scenario: Scenario) -> dict[str, Any]:
-    """Chord error, feed fluctuation, contour error [um] and axis peaks over the program's feed
-    paths, and each path's own (``paths``: the program line it starts at, length, errors)."""
+def gcode_run_metrics(trace: Trace, scenario: Scenario, *, periods: int = 1 << 16) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The run's path figures (:func:`path_figures`) and its check against the program
+    (:class:`~cnc_twin.run.program_check.ProgramCheck`), from one pass over the trace a piece at a
+    time: each feed path is measured as its curve run ends
+    (:func:`~cnc_twin.run.curve_windows.curve_windows`, ``periods`` a piece)."""
     from cnc_twin.run.path_metrics import path_metrics
 
     prog: GcodeProgram = scenario.program
-    u = trace.period_signals.per_period("path_u").astype(np.float64)
-    per_path = []
+    check = ProgramCheck(scenario)
     pressed = pressed_paths(prog)
-    for path, (first, stop) in zip(prog.paths, curve_runs(u)):
-        axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
-        window = _PathTrace(trace, first, stop)
-        m = path_metrics(window, dataclasses.replace(scenario, program=path.curve), force_axis=axis,
-                         period_offset=window.period_offset)
-        per_path.append((path, m))
+    paths = iter(prog.paths)
+    per_path = []
+    for samples, runs in curve_windows(trace, periods):
+        check.add_periods(samples)
+        for run in runs:
+            path = next(paths, None)
+            if path is None:  # more runs than paths: none is a path of the program
+                continue
+            axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
+            per_path.append((path, path_metrics(run.window, dataclasses.replace(scenario, program=path.curve),
+                                                force_axis=axis)))
+            check.add_path(path, run.window.slice(run.first, run.stop))
+    return path_figures(prog, per_path), check.result()
+
+
+def path_figures(prog: GcodeProgram, per_path: list) -> dict[str, Any]:
+    """Chord error, feed fluctuation, contour error [um] and axis peaks over the program's feed
+    paths, and each path's own (``paths``: the program line it starts at, length, errors), from
+    ``per_path``: ``(path, its path_metrics)`` for each path run."""
     out: dict[str, Any] = {"file": str(prog.file), "feed_paths": len(prog.paths), "paths_run": len(per_path)}
     measured = [(p, m) for p, m in per_path if "chord_error_um" in m]
     out["length_mm"] = float(sum(m["length_mm"] for _, m in per_path))

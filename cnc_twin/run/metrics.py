@@ -9,7 +9,6 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import Scenario
-from cnc_twin.dsp.encoder import count_error
 from cnc_twin.trace.trace import Trace
 
 
@@ -23,13 +22,18 @@ def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_s
     # piece by piece (a long run's whole error matrix would be twice its trace): maxima, and the
     # sums of squares in the order np.mean sums them within a piece
     peak, squares = np.zeros(n_axes), [[] for _ in range(n_axes)]
+    force_peak, tail = -np.inf, None
     for piece in trace.chunks():
         e = piece.following_error
         if len(e):
             peak = np.maximum(peak, np.max(np.abs(e), axis=0))
             for i in range(n_axes):
                 squares[i].append(float(np.sum(e[:, i] * e[:, i])))
-    last = count_error.py_func(trace.command[-final_error_ticks:], trace.actual[-final_error_ticks:].astype(np.float64))
+            force_peak = max(force_peak, float(np.max(piece.pad_force)))
+            # the last ticks' errors, reaching into the piece before when this one is shorter
+            tail = e[-final_error_ticks:] if tail is None or len(e) >= final_error_ticks else \
+                np.vstack([tail, e])[-final_error_ticks:]
+    last = tail if tail is not None else np.zeros((0, n_axes))
     for i, cfg in enumerate(scenario.axes):
         to_user = cfg.display_factor / cfg.counts_per_unit
         max_c = float(peak[i]) if len(trace) else 0.0
@@ -50,6 +54,6 @@ def compute_metrics(trace: Trace, scenario: Scenario, *, wall_time: float, dac_s
         "following_error": ferr,
         "final_following_error": final,
         "dac_saturation_ticks": dict(zip(AXES, dac_saturations)),
-        "pad_force_max_n": float(np.max(trace.pad_force)) if len(trace) else 0.0,
+        "pad_force_max_n": force_peak if len(trace) else 0.0,
         "mujoco_warnings": warnings,
     }

@@ -36,7 +36,7 @@ from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.geometry.tip_path import tip_curve
-from cnc_twin.trace.trace import Trace
+from cnc_twin.trace.trace import PeriodSamples, Trace
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
@@ -57,8 +57,7 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
 
 
 def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
-                 plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None,
-                 period_offset: int = 0) -> dict[str, Any]:
+                 plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None) -> dict[str, Any]:
     """The contour metrics of a curve run (see the module docstring); lengths in um.
 
     ``force_axis``: the tool axis (world frame, unit) of a run with the force loop on. The loop's
@@ -66,23 +65,23 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     first, so the chord error, the contour error (tracking) and the axis peaks are the path's;
     the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
     reported beside them, without limits (the force loop's correction, not the planned path).
-    ``period_offset``: the run's period at which ``trace`` begins (a window of it), for the times
-    the violations give."""
+    ``trace``: the run's trace, or its periods' samples (:class:`PeriodSamples`: a window of the
+    run from its period ``first``, which the violations' times count from)."""
     prog = scenario.program
     curve = tip_curve(prog)
-    tpp = scenario.timing.ticks_per_period
     T = scenario.timing.interpolation_period
-    u = trace.at_period_ends("path_u")
-    ds = trace.at_period_ends("path_ds")
+    ends = trace if isinstance(trace, PeriodSamples) else PeriodSamples.whole(trace)
+    u = ends.signal("path_u")
+    ds = ends.signal("path_ds")
     on = u >= 0.0
-    cpu = trace.counts_per_unit
+    cpu = ends.counts_per_unit
     home = np.asarray(scenario.home)
-    command_axes = trace.command[tpp - 1::tpp] / cpu + home
-    actual_axes = trace.actual[tpp - 1::tpp] / cpu + home
-    true_tip = trace.tool[:len(actual_axes), :3].copy()  # sampled with the period's last tick, as the rows above
+    command_axes = ends.command / cpu + home
+    actual_axes = ends.actual / cpu + home
+    true_tip = ends.tool[:, :3].copy()  # sampled with the period's last tick, as the rows above
     depth = None
     if force_axis is not None:  # the force loop pushed X/Y/Z depth along -axis: put it back
-        depth = trace.at_period_ends("force_depth")
+        depth = ends.signal("force_depth")
         shift = depth[:, None] * np.asarray(force_axis)
         command_axes[:, :3] += shift
         actual_axes[:, :3] += shift
@@ -118,7 +117,7 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     acc = np.diff(v, axis=0) / T
     jerk = np.diff(acc, axis=0) / T
     # the period a difference belongs to: v[k] spans periods first+k .. first+k+1 (and so on)
-    first = seg[0] - 1 + period_offset  # in the run (``trace`` may be a window starting at period_offset)
+    first = seg[0] - 1 + ends.first  # in the run (``ends`` may be a window of it)
     out["axis_peaks"] = {}
     violations = []
     for i, name in enumerate(names):

@@ -329,14 +329,11 @@ class GcodeKind(ProgramKind):
         twin.interpolator.force.warm_up()  # M100 runs the force loop
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
-        from cnc_twin.run.gcode_metrics import gcode_metrics
+        from cnc_twin.run.gcode_metrics import gcode_polish_metrics, gcode_run_metrics
 
-        from cnc_twin.run.program_check import against_program
-
-        out: dict[str, Any] = {"path": gcode_metrics(trace, twin.scenario), "program": against_program(trace, twin.scenario)}
+        path, program = gcode_run_metrics(trace, twin.scenario)
+        out: dict[str, Any] = {"path": path, "program": program}
         if twin.removal is not None:
-            from cnc_twin.run.gcode_metrics import gcode_polish_metrics
-
             out["polish"] = gcode_polish_metrics(trace, twin.scenario.program, twin.removal, wall_time)
         return out
 

@@ -150,6 +150,7 @@ class Twin:
         if path is None:
             self._trace_folder = Path(tempfile.mkdtemp(prefix="cnc-twin-trace-"))
             path = self._trace_folder / TRACE_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
         return TraceWriter(path, scenario_name=self.scenario.name, counts_per_unit=self._counts_per_unit(),
                            group_periods=self.trace_group_periods)
 

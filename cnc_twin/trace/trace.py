@@ -149,10 +149,11 @@ class Trace:
 @dataclass
 class PeriodSamples:
     """The recorded signals at the last tick of periods ``first .. first + n - 1``: all that an
-    export reads of a run (``n`` whole periods).
+    export and the path metrics read of a run (``n`` whole periods).
 
     command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 [code];
-    pad_force : (n,) float64 [N]; periods : (n,) :data:`PERIOD_DTYPE`.
+    pad_force : (n,) float64 [N]; periods : (n,) :data:`PERIOD_DTYPE`; tool : (n, 6) float64 [m]
+    (:data:`TOOL_FIELDS`); counts_per_unit : (6,) as the trace's.
     """
 
     first: int
@@ -161,6 +162,8 @@ class PeriodSamples:
     dac: np.ndarray
     pad_force: np.ndarray
     periods: np.ndarray
+    tool: np.ndarray
+    counts_per_unit: np.ndarray | None = None
 
     @classmethod
     def take(cls, source, first: int, stop: int) -> "PeriodSamples":
@@ -172,9 +175,17 @@ class PeriodSamples:
         tpp = source.ticks_per_period
         base = source.first // tpp  # the period of the source's first row
         ticks = np.arange(first - base, stop - base) * tpp + (tpp - 1)
+        rows = slice(first - base, stop - base)
         return cls(first=first, command=source.command[ticks], actual=source.actual[ticks],
                    dac=source.dac[ticks], pad_force=source.pad_force[ticks],
-                   periods=source.periods[first - base:stop - base].copy())
+                   periods=source.periods[rows].copy(), tool=source.tool[rows].copy(),
+                   counts_per_unit=getattr(source, "counts_per_unit", None))
+
+    @classmethod
+    def whole(cls, trace: Trace) -> "PeriodSamples":
+        """Every whole period of ``trace`` (a run, or a piece of one)."""
+        base = trace.first // trace.ticks_per_period
+        return cls.take(trace, base, base + trace.whole_periods)
 
     @classmethod
     def join(cls, parts: list["PeriodSamples"]) -> "PeriodSamples":
@@ -184,8 +195,22 @@ class PeriodSamples:
         for a, b in zip(parts, parts[1:]):
             if b.first != a.first + len(a):
                 raise ValueError(f"stretches not consecutive: periods {a.first}+{len(a)} then {b.first}")
-        return cls(first=parts[0].first, **{name: np.concatenate([getattr(p, name) for p in parts])
-                                            for name in ("command", "actual", "dac", "pad_force", "periods")})
+        return cls(first=parts[0].first, counts_per_unit=parts[0].counts_per_unit,
+                   **{name: np.concatenate([getattr(p, name) for p in parts]) for name in SAMPLED})
+
+    def slice(self, first: int, stop: int) -> "PeriodSamples":
+        """Periods ``first .. stop - 1`` of the run (within these), as views."""
+        rows = slice(first - self.first, stop - self.first)
+        return PeriodSamples(first=first, counts_per_unit=self.counts_per_unit,
+                             **{name: getattr(self, name)[rows] for name in SAMPLED})
+
+    def signal(self, name: str) -> np.ndarray:
+        """A per-period field as :meth:`Trace.at_period_ends` gives it (int64, or float64 for the float fields)."""
+        return self.periods[name].astype(np.float64 if name in FLOAT_PERIOD_FIELDS else np.int64)
 
     def __len__(self) -> int:
         return len(self.pad_force)
+
+
+SAMPLED = ("command", "actual", "dac", "pad_force", "periods", "tool")
+"""the arrays of a :class:`PeriodSamples`, one row per period"""

@@ -140,7 +140,7 @@ class TraceFile:
                 parts.append(PeriodSamples.take(piece, max(first, p0), min(stop, p1)))
             if p1 >= stop:
                 break
-        return PeriodSamples.join(parts) if parts else PeriodSamples.take(self.load(), first, first)
+        return PeriodSamples.join(parts) if parts else PeriodSamples.take(self._empty(), 0, 0)
 
     def load(self) -> Trace:
         """The whole trace in memory (read once, kept)."""

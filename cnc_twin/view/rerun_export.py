@@ -429,6 +429,7 @@ def export_run(trace: Trace, scenario: Scenario, metrics: dict, *, rrd: Path | N
     """
     exporter = RunExporter(scenario, model=model)
     exporter.start(rrd=rrd, spawn=spawn)
-    exporter.send(PeriodSamples.take(trace, 0, trace.whole_periods))
+    for piece in trace.chunks():  # a long run's file a piece at a time
+        exporter.send(PeriodSamples.whole(piece))
     exporter.finish(len(trace), metrics, exchange_latency, figures)
     return rrd
