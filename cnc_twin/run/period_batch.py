@@ -19,7 +19,7 @@ from cnc_twin.dsp import curve_stepper
 from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.path_blocks import SLEW_MARGIN, Block, ForceWait, SurfaceRun
 from cnc_twin.dsp.supervisor import LIMITS, SUPERVISOR
-from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS
+from cnc_twin.dsp.task import QUEUE_AHEAD, SOLO_LIVENESS_PERIODS, TIMED_PERIODS
 from cnc_twin.motion.segments import MoveSegment
 from cnc_twin.polishing import removal_kernel
 from cnc_twin.run import c_clock
@@ -231,7 +231,8 @@ class PeriodBatch:
         servo_args = self._servo_args((rec.command, rec.actual, rec.dac, rec.pad_force, rec.tool), rec.row(t),
                                       0 if rec.scratch else servo.ticks_per_period)
         # DspTask times the interpolation on a curve and on the way to one (its first block queued)
-        timed = c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
+        timed = (c_clock.AVAILABLE and (interp.path_u >= 0.0 or interp.on_curve)
+                 and len(dsp.interpolator_ns) < TIMED_PERIODS)
         done = run_periods(n_max, mode, k, servo_args, self.feed, profile, curve_args, axis_args, move, axis_state,
                            self.check, self.supervision, self.process, force_args, lines, self._removal_args,
                            self.out, (timed, self.interp_ns, self._timespec))
