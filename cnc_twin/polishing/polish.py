@@ -241,36 +241,65 @@ def polished_band(program: SurfaceProgram, uv: np.ndarray, scales: tuple[float, 
 def force_metrics(trace: Trace, setpoint_n: float) -> dict[str, Any]:
     """Force tracking after the ramp, and the overshoot at first contact (``setpoint_n``: the
     programmed force [N], reported as it is; tracking is judged against the setpoint in effect in
-    each period)."""
-    state = trace.period_signals["force_state"]
-    setpoint = trace.period_signals["force_setpoint"]
-    force = trace.pad_force
-    servo_period = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
-    track = state == ForceState.TRACK
+    each period). Read a piece of the trace at a time (a run of hours is not held whole): the
+    sums of each piece are added exactly."""
+    servo_period = trace.servo_period
+    settle = int(CONTACT_SETTLE / servo_period) if servo_period > 0 else 0
+    sums = {"e2": [], "rel2": [], "force": []}
+    worst_rel, tracked, reduced = 0.0, 0, 0
+    first_ramp = first_track = None  # [tick]
+    peak = -np.inf  # the force's peak from the first ramp to CONTACT_SETTLE after the first tracking
+    for piece in trace.chunks():
+        signals = piece.period_signals
+        state, force = signals["force_state"], piece.pad_force
+        track = state == ForceState.TRACK
+        if first_ramp is None and np.any(state == ForceState.RAMP):
+            first_ramp = piece.first + int(np.argmax(state == ForceState.RAMP))
+        if first_track is None and np.any(track):
+            first_track = piece.first + int(np.argmax(track))
+        if first_ramp is not None:
+            stop = len(piece) if first_track is None else first_track + settle - piece.first
+            window = force[max(0, first_ramp - piece.first):max(0, stop)]
+            if len(window):
+                peak = max(peak, float(np.max(window)))
+        if not np.any(track):
+            continue
+        setpoint = signals["force_setpoint"][track]
+        e = force[track] - setpoint
+        rel = e / np.maximum(setpoint, 1e-9)
+        sums["e2"].append(float(np.sum(e * e)))
+        sums["rel2"].append(float(np.sum(rel * rel)))
+        sums["force"].append(float(np.sum(force[track])))
+        worst_rel = max(worst_rel, float(np.max(np.abs(rel))))
+        tracked += int(np.count_nonzero(track))
+        reduced += int(np.count_nonzero(signals["feed_factor"][track] < 1.0))
     out: dict[str, Any] = {"setpoint_n": setpoint_n}
-    if not np.any(track):
+    if not tracked:
         out["tracking"] = None
         return out
-    e = force[track] - setpoint[track]
-    rel = e / np.maximum(setpoint[track], 1e-9)
     out["tracking"] = {
-        "rms_error_n": float(np.sqrt(np.mean(e * e))),
-        "rms_error_pct": float(100.0 * np.sqrt(np.mean(rel * rel))),
-        "max_error_pct": float(100.0 * np.max(np.abs(rel))),
-        "mean_force_n": float(np.mean(force[track])),
-        "time_s": float(np.count_nonzero(track) * servo_period),
+        "rms_error_n": float(np.sqrt(math.fsum(sums["e2"]) / tracked)),
+        "rms_error_pct": float(100.0 * np.sqrt(math.fsum(sums["rel2"]) / tracked)),
+        "max_error_pct": float(100.0 * worst_rel),
+        "mean_force_n": math.fsum(sums["force"]) / tracked,
+        "time_s": float(tracked * servo_period),
     }
-    contact = np.flatnonzero(state == ForceState.RAMP)
-    first_track = int(np.flatnonzero(track)[0])
-    if contact.size:
-        window = slice(int(contact[0]), first_track + int(CONTACT_SETTLE / servo_period))
-        peak = float(np.max(force[window]))
-        goal = float(setpoint[first_track])
-        out["first_contact"] = {"time_s": float(trace.time[contact[0]]), "peak_n": peak,
+    if first_ramp is not None and first_ramp < first_track + settle:
+        goal = float(_setpoint_at(trace, first_track))
+        out["first_contact"] = {"time_s": float(first_ramp * servo_period), "peak_n": peak,
                                 "overshoot_pct": float(100.0 * max(0.0, peak - goal) / goal)}
-    reduced = trace.period_signals["feed_factor"][track] < 1.0
-    out["reduced_feed_s"] = float(np.count_nonzero(reduced) * servo_period)
+    out["reduced_feed_s"] = float(reduced * servo_period)
     return out
+
+
+def _setpoint_at(trace: Trace, tick: int) -> float:
+    """The force setpoint in effect at the run's ``tick``."""
+    period = tick // trace.ticks_per_period
+    for piece in trace.chunks():
+        first = piece.first // trace.ticks_per_period
+        if period < first + len(piece.periods):
+            return float(piece.periods["force_setpoint"][period - first])
+    raise IndexError(tick)
 
 
 def removal_metrics(tracker: RemovalTracker, wall_time: float, band: np.ndarray | None = None) -> dict[str, Any]:
@@ -304,8 +333,11 @@ def preston_by_hand(trace: Trace, preston: Preston, spindle_speed: float) -> flo
 
     The cross-check of the removal map on a flat plate (on a curved face the pressure is not
     uniform, and the formula does not apply)."""
-    state = trace.period_signals["force_state"]
-    active = (state == ForceState.RAMP) | (state == ForceState.TRACK) | (state == ForceState.RAMP_DOWN)
-    dt = float(trace.time[1] - trace.time[0]) if len(trace) > 1 else 0.0
-    impulse = float(np.sum(trace.period_signals["force_setpoint"][active])) * dt
+    impulse = []
+    for piece in trace.chunks():  # a piece at a time: a run of hours is not held whole
+        state = piece.period_signals["force_state"]
+        active = (state == ForceState.RAMP) | (state == ForceState.TRACK) | (state == ForceState.RAMP_DOWN)
+        impulse.append(float(np.sum(piece.period_signals["force_setpoint"][active])))
+    dt = trace.servo_period if len(trace) > 1 else 0.0
+    impulse = math.fsum(impulse) * dt
     return preston.k * 2.0 * abs(spindle_speed) * preston.pad_radius / 3.0 * impulse

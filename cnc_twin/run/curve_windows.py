@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from cnc_twin.trace.trace import PeriodSamples, Trace
+from cnc_twin.trace.trace import PIECE_PERIODS, PeriodSamples, Trace
 
 BEFORE = 2
 """periods before a curve run that its window holds too (the axis peaks' differences begin there)"""
@@ -43,7 +43,7 @@ def run_bounds(u: np.ndarray, before: float = -1.0, first: int = 0) -> tuple[np.
     return starts, stops
 
 
-def curve_windows(trace: Trace, periods: int = 1 << 16) -> Iterator[tuple[PeriodSamples, list[CurveRun]]]:
+def curve_windows(trace: Trace, periods: int = PIECE_PERIODS) -> Iterator[tuple[PeriodSamples, list[CurveRun]]]:
     """``(samples, runs)`` for each piece of ``trace`` (``periods`` long) in order: the piece's
     whole periods' samples, and the curve runs that ended within it (the last run also at the
     trace's end). The runs and their windows do not depend on ``periods``."""

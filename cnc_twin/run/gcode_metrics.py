@@ -22,10 +22,10 @@ from cnc_twin.core.config import GcodeProgram, Scenario
 from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.run.curve_windows import curve_windows
 from cnc_twin.run.program_check import ProgramCheck, pressed_paths
-from cnc_twin.trace.trace import Trace
+from cnc_twin.trace.trace import PIECE_PERIODS, Trace
 
 
-def gcode_run_metrics(trace: Trace, scenario: Scenario, *, periods: int = 1 << 16) -> tuple[dict[str, Any], dict[str, Any]]:
+def gcode_run_metrics(trace: Trace, scenario: Scenario, *, periods: int = PIECE_PERIODS) -> tuple[dict[str, Any], dict[str, Any]]:
     """The run's path figures (:func:`path_figures`) and its check against the program
     (:class:`~cnc_twin.run.program_check.ProgramCheck`), from one pass over the trace a piece at a
     time: each feed path is measured as its curve run ends

@@ -15,11 +15,12 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.trace.layout import column_unit
-from cnc_twin.trace.trace import Trace
+from cnc_twin.trace.trace import PIECE_PERIODS, Trace
 
 
-ROW_GROUP_PERIODS = 1 << 14
-"""periods per row group (16.4 s at 1 ms, 65 536 rows at 4 ticks a period): the columns of one are made at a time"""
+ROW_GROUP_PERIODS = PIECE_PERIODS
+"""periods per row group (16.4 s at 1 ms, 65 536 rows at 4 ticks a period): the columns of one are
+made at a time; a piece of the trace as the metrics read it"""
 
 
 class TraceWriter:

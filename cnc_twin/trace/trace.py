@@ -19,6 +19,11 @@ from cnc_twin.dsp.frame import PERIOD_FIELDS
 from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES, TOOL_FIELDS
 
 
+PIECE_PERIODS = 1 << 14
+"""periods in a piece of a trace worked through piece by piece (:meth:`Trace.chunks`): a row group
+of its file (16.4 s at 1 ms), so a trace in memory and in its file are cut alike"""
+
+
 class PeriodSignals(Mapping):
     """The per-period signals, one value per servo tick on access (``signals["state"]``: (n,));
     stored once per period. Integer fields come out as int64, the others as float64."""
@@ -80,7 +85,7 @@ class Trace:
         """Interpolation period of each tick, shape ``(n,)`` int64."""
         return np.arange(self.first, self.first + len(self), dtype=np.int64) // self.ticks_per_period
 
-    def chunks(self, periods: int = 1 << 16):
+    def chunks(self, periods: int = PIECE_PERIODS):
         """The trace in consecutive pieces of ``periods`` whole periods (the last may be shorter),
         each a :class:`Trace` of views with its ``first`` tick: what works through a long run
         piece by piece (the file's row groups, the metrics) holds one piece's temporaries at a

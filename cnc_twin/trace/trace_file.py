@@ -18,7 +18,7 @@ import numpy as np
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.trace.layout import PERIOD_DTYPE, TOOL_FIELDS
-from cnc_twin.trace.trace import PeriodSamples, Trace
+from cnc_twin.trace.trace import PIECE_PERIODS, PeriodSamples, Trace
 
 WHOLE_ARRAYS = ("command", "actual", "dac", "pad_force", "periods", "tool", "time", "period", "following_error",
                 "period_signals", "columns", "at_period_ends", "nbytes", "held_nbytes")
@@ -77,7 +77,7 @@ class TraceFile:
         periods = -(-self._rows // self.ticks_per_period)
         return self._rows * TICK_BYTES + periods * (PERIOD_DTYPE.itemsize + TOOL_BYTES)
 
-    def chunks(self, periods: int = 1 << 16):
+    def chunks(self, periods: int = PIECE_PERIODS):
         """The trace in consecutive pieces of ``periods`` whole periods (the last may be shorter),
         each a :class:`Trace` with its ``first`` tick, as :meth:`Trace.chunks` cuts the trace in
         memory (so what sums piece by piece sums the same numbers in the same order), read a
@@ -102,7 +102,7 @@ class TraceFile:
         source = pq.ParquetFile(self.path)
         first = 0
         for i, rows in enumerate(self._groups):
-            yield self._piece(source.read_row_group(i), first)
+            yield self._piece(source.read_row_group(i, columns=STORED), first)
             first += rows
 
     def _empty(self) -> Trace:
@@ -156,6 +156,9 @@ class TraceFile:
 
 SIGNALS = ("command", "actual", "dac", "pad_force", "periods", "tool")
 """what a :class:`Trace` stores"""
+STORED = ([f"{prefix}_{axis}" for prefix in ("command", "actual", "dac") for axis in AXES]
+          + ["pad_force", *PERIOD_DTYPE.names, *TOOL_FIELDS])
+"""the file's columns a :class:`Trace` is made of (not those computed from them: time, period, ferr)"""
 
 
 def _joined(pieces: list[Trace]) -> Trace:
