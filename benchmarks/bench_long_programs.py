@@ -11,7 +11,8 @@ For each length, each in its own process with its peak memory from GNU time (``%
 wall time: ``cnc-twin gcode --canon`` (to /dev/null) beside LinuxCNC's ``rs274 -g`` when the
 oracle is unpacked (``scripts/fetch_linuxcnc_oracle.py``), ``cnc-twin validate``, and ``cnc-twin
 run --in-air 10 --no-rrd`` (the raster 10 mm above where it is written: a dry run, so the pad
-never touches), with the run's own clock from its ``metrics.json``. A process killed (the
+never touches), with the run's own clock and the twin's memory while it ran (when its clock
+started, and the most it held from then to the end: ``memory_mb``) from its ``metrics.json``. A process killed (the
 out-of-memory killer, or ``--timeout``) is reported as such. Speed and memory are measured and
 printed, not asserted; a row per run goes to ``--json``.
 """
@@ -120,10 +121,13 @@ def main(argv: list[str] | None = None) -> int:
                 row["sim_s"] = metrics.get("sim_time_s")
                 row["run_clock_s"] = metrics.get("wall_time_s")
                 row["final_state"] = metrics.get("final_state")
+                row["memory_mb"] = metrics.get("memory_mb")  # the twin's own, from the clock's start to its end
             rows.append(row)
             notes = row["said"][:90] if row["code"] not in (0,) else ""
             if name == "run" and "sim_s" in row:
                 notes = f"{row['sim_s']:.0f} s simulated, the run's clock {row['run_clock_s']:.1f} s, {row['final_state']}"
+                if row["memory_mb"]:
+                    notes += f"; while running {row['memory_mb']['at_start']:.0f} -> {row['memory_mb']['run_max']:.0f} MB"
             print(f"{passes:>6} {lines:>9} {name:<10} {str(row['code']):>4} {row['wall_s']:>8.1f} "
                   f"{(row['rss_mb'] or 0):>8.0f}  {notes}", flush=True)
             if args.json:

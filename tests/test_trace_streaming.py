@@ -59,6 +59,10 @@ def test_a_long_run_is_in_its_file_and_reads_back_bit_for_bit(runs):
         a, b = getattr(held.trace, name), getattr(back, name)
         assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), name
     assert streamed.trace.command.tobytes() == held.trace.command.tobytes()  # a Trace's attributes, from the file
+    # the twin's memory sampled when the clock started, each time the window moved on, at the end
+    memory = streamed.metrics["memory_mb"]
+    assert memory["samples"] == 2 + held.trace.whole_periods // (SPILL_GROUPS * GROUP)
+    assert 0 < memory["at_start"] <= memory["run_max"]
 
 
 def test_the_streamed_file_is_the_file_written_whole(runs, tmp_path):

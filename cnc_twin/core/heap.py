@@ -1,4 +1,4 @@
-"""Giving freed memory back to the system (glibc's ``malloc_trim``).
+"""Giving freed memory back to the system (glibc's ``malloc_trim``), and how much the process holds.
 
 A long program's load frees most of what it made (its calls, its operations); the C heap keeps
 those pages for the process unless asked to return them, and a run of hours then starts holding
@@ -24,3 +24,20 @@ def return_freed_memory() -> None:
             _TRIM = False
     if _TRIM:
         _TRIM(0)
+
+
+def resident_bytes() -> int | None:
+    """The process's resident memory now [bytes] (Linux's ``/proc/self/statm``); None elsewhere."""
+    try:
+        with open("/proc/self/statm", "rb") as statm:
+            return int(statm.read().split()[1]) * _PAGE
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+try:
+    import os as _os
+
+    _PAGE = _os.sysconf("SC_PAGE_SIZE")
+except (AttributeError, ValueError, OSError):
+    _PAGE = 4096

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from cnc_twin.core import units
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.core.heap import resident_bytes
 from cnc_twin.dsp.supervisor import STOP_DISABLE
 from cnc_twin.dsp.task import DspTask
 from cnc_twin.trace.recorder import Recorder
@@ -122,6 +123,9 @@ class Clock:
         """the plant's calls: the encoders' positions, the load cell, the drives, the physics; the recorder's"""
         self._last_tick = self.ticks_per_period - 1
         self.late_periods = self.missed_ticks = 0
+        self.memory = [resident_bytes()]
+        """the process's resident memory [bytes] when the clock starts, each time a long run's
+        recorder window moves on, and at the end (None where it cannot be read)"""
         # the steady middle of curve blocks (surface paths too), moves and dwells, many periods
         # per compiled call, the removal map's updates included (lockstep only: real time paces
         # every period)
@@ -167,6 +171,7 @@ class Clock:
                     twin.observer(twin)
                 recorder.make_room(t)
                 room = recorder.room
+                self.memory.append(resident_bytes())
             if injector is not None and k >= injector.next_period:
                 injector.begin_period(k)
             if injector is not None and injector.hang_ticks:  # variant: hung card
@@ -199,6 +204,7 @@ class Clock:
                     break
         wall_time = time.perf_counter() - wall_start
         recorder.count = t
+        self.memory.append(resident_bytes())
         if self.progress is not None and twin.stop_reason is None:
             self.progress(k, k)  # the bar ends at what was simulated, not at the estimate
         return ClockResult(wall_time, k, self.late_periods, self.missed_ticks)

@@ -140,6 +140,8 @@ class Twin:
         self.trace_group_periods = ROW_GROUP_PERIODS
         """[periods] per row group of the trace's file; the recorder's window is SPILL_GROUPS of them"""
         self._trace_folder: Path | None = None
+        self.memory: list[int | None] = []
+        """the process's resident memory [bytes] through the run (:attr:`Clock.memory <cnc_twin.run.clock.Clock.memory>`)"""
 
     def trace_writer(self):
         """The :class:`~cnc_twin.trace.parquet.TraceWriter` of a run that outgrew the recorder's
@@ -212,6 +214,7 @@ class Twin:
             self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
             self.begun = True
             wall_time, periods, self.late_periods, self.missed_ticks = clock.run()
+            self.memory = clock.memory
             if dsp.planner_lost or dsp.fault == FaultCode.PLANNER_START:
                 reason = planner.failure()
                 if reason is not None:
@@ -246,7 +249,8 @@ class Twin:
 
     def partial_trace(self, *, copy: bool = True) -> Trace:
         """The signals recorded so far, as a :class:`~cnc_twin.trace.trace.Trace` (a copy, unless
-        ``copy=False`` once the run is over)."""
+        ``copy=False`` once the run is over); of a run longer than the recorder's window, those the
+        window holds (from the trace's ``first`` tick: the rest is in the run's file)."""
         return self.recorder.trace(servo_period=self.scenario.timing.servo_period, copy=copy,
                                    counts_per_unit=self._counts_per_unit())
 
@@ -272,6 +276,10 @@ class Twin:
         )
         port = dsp.port
         latency = np.asarray(port.latency_ns, dtype=np.float64) / 1e3
+        resident = [m / 1e6 for m in self.memory if m is not None]
+        if resident:  # the run's own memory, beside the process's peak (which a long program's load may set)
+            metrics["memory_mb"] = {"at_start": round(resident[0], 1), "run_max": round(max(resident), 1),
+                                    "samples": len(resident)}
         metrics["mode"] = sc.timing.mode
         metrics["command_output"] = sc.command_output
         if self.drives is not None:
