@@ -18,7 +18,7 @@ from cnc_twin.polishing import removal_kernel as rk
 from cnc_twin.run.twin import Twin
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
 
-TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path"}
+TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path", "memory_mb"}
 """wall-clock figures, different between any two runs"""
 RIGID = dict(BUNDLED_MACHINES["rigid"])
 SHORT_FREEFORM = {"program.path.margin": 45.0, **RIGID}

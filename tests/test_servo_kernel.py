@@ -10,7 +10,7 @@ from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import load_scenario
 from cnc_twin.run.twin import Twin
 
-TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path"}
+TIMING_KEYS = {"wall_time_s", "real_time_factor", "whiteboard", "path", "memory_mb"}
 """wall-clock figures, different between any two runs (the rest of metrics must agree)"""
 
 

@@ -27,8 +27,8 @@ from conftest import run_cli
 
 GROUP = 256
 """periods per row group in these runs: the recorder's window is SPILL_GROUPS of them (1024 periods)"""
-CLOCKED = {"wall_time_s", "real_time_factor", "whiteboard", "planning", "interpolator_us_per_period"}
-"""metrics of the wall clock, different in every run"""
+CLOCKED = {"wall_time_s", "real_time_factor", "whiteboard", "planning", "interpolator_us_per_period", "memory_mb"}
+"""metrics of the wall clock and the process's memory, different in every run"""
 
 
 def _figures(metrics):
