@@ -4,7 +4,6 @@ calls, 2 000 000 by default, and the O-word lines run for a loop that makes no c
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -33,13 +32,21 @@ MEMORY_BOUND_MB = 1500
 
 
 def _cnc_twin(*args: str) -> tuple[int, str, float]:
-    """``cnc-twin ARGS`` as its own process: exit code, standard error, peak memory [MB]."""
-    process = subprocess.Popen([sys.executable, "-m", "cnc_twin", *args], stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True)
-    err = process.stderr.read()
-    _, status, usage = os.wait4(process.pid, 0)
-    process.stderr.close()
-    return os.waitstatus_to_exitcode(status), err, usage.ru_maxrss / 1024.0
+    """``cnc-twin ARGS`` as its own process: exit code, standard error, peak memory [MB].
+
+    Started by a small Python process that reports its child's peak: Linux counts a process's
+    peak from the memory of the process that forked it (a pytest worker may hold a GB)."""
+    done = subprocess.run([sys.executable, "-c", _MEASURED, sys.executable, "-m", "cnc_twin", *args],
+                          capture_output=True, text=True)
+    code, peak_kb = done.stdout.split()
+    return int(code), done.stderr, int(peak_kb) / 1024.0
+
+
+_MEASURED = ("import os, subprocess, sys\n"
+             "child = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)\n"
+             "_, status, usage = os.wait4(child.pid, 0)\n"
+             "print(os.waitstatus_to_exitcode(status), usage.ru_maxrss)")
+"""the measuring process's program: run argv, print its exit code and peak RSS [kB]"""
 
 
 def _scenario(tmp_path: Path, text: str, **program) -> Path:
