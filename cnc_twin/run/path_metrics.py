@@ -36,7 +36,7 @@ from cnc_twin.geometry.kinematics import HeadGeometry
 from cnc_twin.geometry.nurbs import NurbsCurve
 from cnc_twin.geometry.polyline import point_to_polyline
 from cnc_twin.geometry.tip_path import tip_curve
-from cnc_twin.trace.trace import PeriodSamples, Trace
+from cnc_twin.trace.trace import PeriodSamples
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
@@ -56,7 +56,7 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
     return out
 
 
-def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
+def path_metrics(ends: PeriodSamples, scenario: Scenario, *, interpolator_ns: np.ndarray | None = None,
                  plan_us: int = 0, plan_blocks: int = 0, force_axis: tuple | None = None) -> dict[str, Any]:
     """The contour metrics of a curve run (see the module docstring); lengths in um.
 
@@ -65,12 +65,12 @@ def path_metrics(trace: Trace, scenario: Scenario, *, interpolator_ns: np.ndarra
     first, so the chord error, the contour error (tracking) and the axis peaks are the path's;
     the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
     reported beside them, without limits (the force loop's correction, not the planned path).
-    ``trace``: the run's trace, or its periods' samples (:class:`PeriodSamples`: a window of the
-    run from its period ``first``, which the violations' times count from)."""
+    ``ends``: the run's signals at its periods' ends (:class:`PeriodSamples`: the whole run's,
+    ``PeriodSamples.whole(trace)``, or a window of it from its period ``first``, which the
+    violations' times count from)."""
     prog = scenario.program
     curve = tip_curve(prog)
     T = scenario.timing.interpolation_period
-    ends = trace if isinstance(trace, PeriodSamples) else PeriodSamples.whole(trace)
     u = ends.signal("path_u")
     ds = ends.signal("path_ds")
     on = u >= 0.0

@@ -179,8 +179,9 @@ class CurveKind(_PathKind):
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.path_metrics import path_metrics
+        from cnc_twin.trace.trace import PeriodSamples
 
-        return {"path": path_metrics(trace, twin.scenario, interpolator_ns=np.asarray(dsp.interpolator_ns),
+        return {"path": path_metrics(PeriodSamples.whole(trace), twin.scenario, interpolator_ns=np.asarray(dsp.interpolator_ns),
                                      plan_us=twin.plan_us, plan_blocks=twin.plan_blocks)}
 
     def describe(self, program: NurbsProgram) -> str:
