@@ -257,6 +257,7 @@ def force_metrics(trace: Trace, setpoint_n: float) -> dict[str, Any]:
             first_ramp = piece.first + int(np.argmax(state == ForceState.RAMP))
         if first_track is None and np.any(track):
             first_track = piece.first + int(np.argmax(track))
+            goal = float(signals["force_setpoint"][first_track - piece.first])  # the setpoint it tracks first
         if first_ramp is not None:
             stop = len(piece) if first_track is None else first_track + settle - piece.first
             window = force[max(0, first_ramp - piece.first):max(0, stop)]
@@ -285,21 +286,10 @@ def force_metrics(trace: Trace, setpoint_n: float) -> dict[str, Any]:
         "time_s": float(tracked * servo_period),
     }
     if first_ramp is not None and first_ramp < first_track + settle:
-        goal = float(_setpoint_at(trace, first_track))
         out["first_contact"] = {"time_s": float(first_ramp * servo_period), "peak_n": peak,
                                 "overshoot_pct": float(100.0 * max(0.0, peak - goal) / goal)}
     out["reduced_feed_s"] = float(reduced * servo_period)
     return out
-
-
-def _setpoint_at(trace: Trace, tick: int) -> float:
-    """The force setpoint in effect at the run's ``tick``."""
-    period = tick // trace.ticks_per_period
-    for piece in trace.chunks():
-        first = piece.first // trace.ticks_per_period
-        if period < first + len(piece.periods):
-            return float(piece.periods["force_setpoint"][period - first])
-    raise IndexError(tick)
 
 
 def removal_metrics(tracker: RemovalTracker, wall_time: float, band: np.ndarray | None = None) -> dict[str, Any]:

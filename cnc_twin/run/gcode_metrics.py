@@ -21,7 +21,7 @@ import numpy as np
 from cnc_twin.core.config import GcodeProgram, Scenario
 from cnc_twin.geometry.kinematics import tool_axis
 from cnc_twin.run.curve_windows import curve_windows
-from cnc_twin.run.program_check import ProgramCheck, pressed_paths
+from cnc_twin.run.program_check import ProgramCheck
 from cnc_twin.trace.trace import PIECE_PERIODS, Trace
 
 
@@ -34,7 +34,6 @@ def gcode_run_metrics(trace: Trace, scenario: Scenario, *, periods: int = PIECE_
 
     prog: GcodeProgram = scenario.program
     check = ProgramCheck(scenario)
-    pressed = pressed_paths(prog)
     paths = iter(prog.paths)
     per_path = []
     for samples, runs in curve_windows(trace, periods):
@@ -43,7 +42,7 @@ def gcode_run_metrics(trace: Trace, scenario: Scenario, *, periods: int = PIECE_
             path = next(paths, None)
             if path is None:  # more runs than paths: none is a path of the program
                 continue
-            axis = tool_axis(*path.curve.hold[:2]) if id(path) in pressed else None
+            axis = tool_axis(*path.curve.hold[:2]) if id(path) in check.pressed else None
             per_path.append((path, path_metrics(run.window, dataclasses.replace(scenario, program=path.curve),
                                                 force_axis=axis)))
             check.add_path(path, run.window.slice(run.first, run.stop))

@@ -63,6 +63,12 @@ TOOL_BYTES = len(TOOL_FIELDS) * 8
 TICK_BYTES = 6 * 8 + 6 * 4 + 6 * 2 + 8
 """one servo tick's signals: command float64 x6, actual int32 x6, DAC code int16 x6, force float64"""
 
+
+def raw_bytes(ticks: int, periods: int) -> int:
+    """The raw bytes of ``ticks`` servo ticks' and ``periods`` periods' recorded signals:
+    :data:`TICK_BYTES` a tick, one :data:`PERIOD_DTYPE` and :data:`TOOL_BYTES` a period."""
+    return ticks * TICK_BYTES + periods * (PERIOD_DTYPE.itemsize + TOOL_BYTES)
+
 UNITS = {"time": "s", "period": "1", "command": "counts", "actual": "counts", "ferr": "counts",
          "dac": "code", "pad_force": "N", "state": "1", "fault": "1", "fifo_fill": "words",
          "feed_override": "1", "missed_exchanges": "1", "records_rejected": "1", "last_seq_executed": "1",

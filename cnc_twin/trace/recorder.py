@@ -10,14 +10,13 @@ and the window starts again, so its memory does not grow with the run.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from collections.abc import Callable
-
 from cnc_twin.trace.layout import PERIOD_DTYPE, TICK_BYTES, TOOL_FIELDS
-from cnc_twin.trace.trace import Trace
+from cnc_twin.trace.trace import PIECE_PERIODS, Trace
 
 SPILL_GROUPS = 4
 """a spilling recorder's window, in row groups of its file (4 x 16 384 periods: 65.5 s at 1 ms,
@@ -54,7 +53,7 @@ class Recorder:
     """
 
     def __init__(self, n_periods: int, ticks_per_period: int, n_axes: int = len(AXES), *, scratch: bool = False,
-                 spill: Callable | None = None, spill_group_periods: int = 1 << 14, servo_period: float = 0.0):
+                 spill: Callable | None = None, spill_group_periods: int = PIECE_PERIODS, servo_period: float = 0.0):
         self.ticks_per_period = ticks_per_period
         self.servo_period = servo_period
         self.n_axes = n_axes

@@ -16,7 +16,7 @@ import numpy as np
 from cnc_twin.core.axes import AXES
 from cnc_twin.dsp.encoder import count_error
 from cnc_twin.dsp.frame import PERIOD_FIELDS
-from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, PERIOD_DTYPE, TICK_BYTES, TOOL_BYTES, TOOL_FIELDS
+from cnc_twin.trace.layout import FLOAT_PERIOD_FIELDS, TOOL_FIELDS, raw_bytes
 
 
 PIECE_PERIODS = 1 << 14
@@ -143,7 +143,7 @@ class Trace:
     def raw_nbytes(self) -> int:
         """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick, one
         :data:`PERIOD_DTYPE` and :data:`TOOL_BYTES` per period."""
-        return len(self) * TICK_BYTES + len(self.periods) * (PERIOD_DTYPE.itemsize + TOOL_BYTES)
+        return raw_bytes(len(self), len(self.periods))
 
     def held_nbytes(self) -> int:
         """Bytes of memory the trace keeps alive (whole recorder columns when it holds views)."""

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from cnc_twin.core.axes import AXES
-from cnc_twin.trace.layout import PERIOD_DTYPE, TOOL_FIELDS
+from cnc_twin.trace.layout import PERIOD_DTYPE, TOOL_FIELDS, raw_bytes
 from cnc_twin.trace.trace import PIECE_PERIODS, PeriodSamples, Trace
 
 WHOLE_ARRAYS = ("command", "actual", "dac", "pad_force", "periods", "tool", "time", "period", "following_error",
@@ -72,10 +72,7 @@ class TraceFile:
 
     def raw_nbytes(self) -> int:
         """As :meth:`Trace.raw_nbytes`."""
-        from cnc_twin.trace.layout import TICK_BYTES, TOOL_BYTES
-
-        periods = -(-self._rows // self.ticks_per_period)
-        return self._rows * TICK_BYTES + periods * (PERIOD_DTYPE.itemsize + TOOL_BYTES)
+        return raw_bytes(self._rows, -(-self._rows // self.ticks_per_period))
 
     def chunks(self, periods: int = PIECE_PERIODS):
         """The trace in consecutive pieces of ``periods`` whole periods (the last may be shorter),
