@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import bisect
 import re
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from cnc_twin.gcode.blocks import BlockError, normalise
 
@@ -26,6 +29,11 @@ O_NAME = r"<[^>]*>|\d+"
 """an O-word's name as normalised: ``<name>`` or a number"""
 _O_LINE = re.compile(rf"^(?:n[\d.]*)?o({O_NAME})([a-z]*)(.*)$")
 _BLOCK_DELETE = re.compile(r"^\s*/")
+_TRAILING_SPACE = re.compile(r"[ \t\v\f\r]+(?=\n|\Z)")
+"""white space that ends a line (C's ``isspace`` less the newline), which LinuxCNC strips"""
+_LETTER_O = re.compile(r"[oO]")
+_PERCENT_ALONE = re.compile(r"^[^\S\n]*%[^\S\n]*$", re.MULTILINE)
+"""a line of ``%`` alone, white space around it (``str.strip``'s)"""
 
 
 class SourceError(ValueError):
@@ -58,6 +66,70 @@ def _byte_length(line: str) -> int:
     return len(line.encode("utf-8", "surrogateescape")) if not line.isascii() else len(line)
 
 
+def _newlines(text: str) -> np.ndarray:
+    """Offsets of ``text``'s newline characters, increasing (int64)."""
+    if text.isascii():  # a byte a character: numpy finds them at memory speed
+        return np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == 10)
+    return np.fromiter((m.start() for m in re.finditer("\n", text)), np.int64)
+
+
+class _LineOffsets:
+    """Which line a character offset is on, in a text whose newlines are at ``ends``."""
+
+    def __init__(self, ends: np.ndarray):
+        self.ends = ends
+
+    def index(self, offset: int) -> int:
+        return int(np.searchsorted(self.ends, offset))
+
+    def line(self, text: str, k: int) -> str:
+        start = int(self.ends[k - 1]) + 1 if k else 0
+        return text[start:int(self.ends[k])]
+
+
+class Lines:
+    """A program's lines as a sequence of strings (no newline characters), held as one ``text``
+    (each line ended by a newline) and the offset of each line's start: indexing cuts the line out."""
+
+    def __init__(self, text: str, ends: np.ndarray):
+        self.text = text
+        self._starts = array("q", np.concatenate([[0], ends + 1]).astype(np.int64).tobytes())
+        """each line's first character, then the text's length (one past the last newline)"""
+
+    def __len__(self) -> int:
+        return len(self._starts) - 1
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[j] for j in range(*k.indices(len(self)))]
+        if k < 0:
+            k += len(self)
+        if not 0 <= k < len(self):
+            raise IndexError("line index out of range")
+        starts = self._starts
+        return self.text[starts[k]:starts[k + 1] - 1]
+
+    def __iter__(self):
+        starts, text = self._starts, self.text
+        for k in range(len(starts) - 1):
+            yield text[starts[k]:starts[k + 1] - 1]
+
+    def containing(self, pattern: re.Pattern, start: int = 0):
+        """Indices (from ``start`` on, increasing) of the lines ``pattern`` matches in (searched
+        in the whole text at once: compiled with ``re.MULTILINE``, ``^`` and ``$`` are a line's
+        ends; a pattern must not match across a newline)."""
+        if start >= len(self):
+            return
+        found = pattern.finditer(self.text, self._starts[start])
+        starts = self._starts
+        last = -1
+        for match in found:
+            k = bisect.bisect_right(starts, match.start()) - 1
+            if k != last:
+                last = k
+                yield k
+
+
 MAX_LINE = 253
 """characters (bytes) in a line, newline not counted, that LinuxCNC refuses as too long"""
 
@@ -78,25 +150,34 @@ class Source:
         self.path: Path | None = None
         """the file read (:meth:`read`), else None"""
         # LinuxCNC's lines end at a newline only (a CR, a form feed... are characters of the
-        # line), without the white space that ends them
-        raw = text.split("\n")
-        if raw[-1] == "":
-            raw.pop()
-        self.lines = [line.rstrip(C_SPACE) for line in raw]
+        # line), without the white space that ends them. A CAM program of millions of lines is
+        # kept as one text and its lines' offsets, not a list of strings (a tenth of the memory)
+        raw_ends = _newlines(text)
+        if len(raw_ends) and raw_ends[-1] == len(text) - 1:
+            raw_starts = np.concatenate([[0], raw_ends[:-1] + 1])
+        else:
+            raw_starts = np.concatenate([[0], raw_ends + 1]) if text else np.zeros(0, np.int64)
+            raw_ends = np.append(raw_ends, len(text)) if text else raw_ends
+        raw_lengths = raw_ends - raw_starts
         self.escaped: dict[int, str] = {}
         """0-based index -> the line with its bytes that are not UTF-8 as surrogate escapes (the
         text :meth:`read` gives), for the lines that have some: ``lines`` holds them as U+FFFD,
         one for one"""
+        body = _TRAILING_SPACE.sub("", text)
+        if not body.endswith("\n") and len(raw_lengths):
+            body += "\n"
         if not text.isascii():
-            for k, line in enumerate(self.lines):
-                if _ESCAPED.search(line):
-                    self.escaped[k] = line
-                    self.lines[k] = _ESCAPED.sub("\ufffd", line)
+            line_of = _LineOffsets(_newlines(body))
+            for match in _ESCAPED.finditer(body):
+                k = line_of.index(match.start())
+                if k not in self.escaped:
+                    self.escaped[k] = line_of.line(body, k)
+            body = _ESCAPED.sub("\ufffd", body)  # one character for one: the offsets hold
+        self.lines = Lines(body, _newlines(body))
         # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
         # (a CR counts) is "Command too long" wherever it is read, a line passed over too
-        longest = max(map(len, raw), default=0)  # most files have no line that long: known at once
-        self.too_long = [k for k, line in enumerate(raw) if len(line) >= MAX_LINE and _byte_length(line) >= MAX_LINE
-                         ] if longest >= MAX_LINE else []
+        self.too_long = [int(k) for k in np.flatnonzero(raw_lengths >= MAX_LINE)
+                         if _byte_length(text[raw_starts[k]:raw_ends[k]]) >= MAX_LINE]
         self.first, self.end, self.percent_end = 0, len(self.lines), False
         self.percent_start = False
         for k, line in enumerate(self.lines):
@@ -105,14 +186,13 @@ class Source:
                     self.first, self.percent_start = k + 1, True
                     # closed by a line of "%" alone; a "%" with more on its line is read as a block
                     # (and refused there, "Bad character '%' used", as LinuxCNC does)
-                    closing = next((j for j in range(k + 1, len(self.lines)) if self.lines[j].strip() == "%"), None)
+                    closing = self._percent_line(k + 1)
                     if closing is not None:
                         self.end, self.percent_end = closing, True
                 break
         self.o_lines: dict[int, OLine] = {}
-        for k in range(self.first, self.end):
-            text_k = self.lines[k]
-            if "o" not in text_k and "O" not in text_k:
+        for k in self.lines.containing(_LETTER_O):
+            if not self.first <= k < self.end:
                 continue
             o_line = self._o_line(k)
             if o_line is not None:
@@ -130,7 +210,16 @@ class Source:
     def percent_missing_after(self, index: int) -> bool:
         """After a program end at ``index`` in a file opened by ``%``: no line after it is a
         lone ``%`` (LinuxCNC then notes it in a comment)."""
-        return self.percent_start and not any(line.strip() == "%" for line in self.lines[index + 1:])
+        return self.percent_start and self._percent_line(index + 1) is None
+
+    def _percent_line(self, start: int) -> int | None:
+        """The first line from index ``start`` on that is a ``%`` alone (white space around it)."""
+        return next((k for k in self.lines.containing(_PERCENT_ALONE, start)), None)
+
+    @property
+    def text(self) -> str:
+        """The lines as read, each ended by a newline (an empty file: one newline)."""
+        return self.lines.text or "\n"
 
     def o_lines_after(self, start: int) -> list[OLine]:
         """The O-word lines after index ``start``, in order."""

@@ -61,4 +61,4 @@ class SubroutineFiles:
 
     def texts(self) -> dict[Path, str]:
         """The files read, by path: their text as read (a run directory keeps them)."""
-        return {path: "\n".join(source.lines) + "\n" for path, source in self.read.items()}
+        return {path: source.text for path, source in self.read.items()}

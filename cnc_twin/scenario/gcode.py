@@ -231,7 +231,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         workpiece = GcodeWorkpieceSpec()
     # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
-    return GcodeProgram(file=path, text="\n".join(source.lines) + "\n", steps=tuple(steps), lines=len(source.lines),
+    return GcodeProgram(file=path, text=source.text, steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
                         air=spec.in_air * units.MM, air_clearance=clearance,
                         after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
