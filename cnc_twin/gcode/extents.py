@@ -7,6 +7,8 @@ on the workpiece (``cnc-twin gcode``), and what the beyond-travel refusal points
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from cnc_twin.gcode.path_ops import FeedPath, Operation, Probe, ToolAxisPath, Traverse
@@ -27,14 +29,17 @@ def operation_points(op: Operation) -> np.ndarray | None:
     return None
 
 
-def extents(ops: list[Operation]) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(low, high)`` (each (3,) [mm]): the box of every point the operations reach; None when
-    nothing moves."""
-    chunks = [p for p in (operation_points(op) for op in ops) if p is not None]
-    if not chunks:
-        return None
-    points = np.vstack(chunks)
-    return points.min(axis=0), points.max(axis=0)
+def extents(ops: Iterable[Operation]) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(low, high)`` (each (3,) [mm]): the box of every point the operations reach (taken one
+    at a time: a stream of them is never held); None when nothing moves."""
+    low = high = None
+    for op in ops:
+        points = operation_points(op)
+        if points is None:
+            continue
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        low, high = (lo, hi) if low is None else (np.minimum(low, lo), np.maximum(high, hi))
+    return None if low is None else (low, high)
 
 
 def describe(box: tuple[np.ndarray, np.ndarray]) -> str:

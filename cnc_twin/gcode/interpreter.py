@@ -90,6 +90,16 @@ class Interpreter:
 
     # -- the program -------------------------------------------------------------------------
     def run(self) -> Reading:
+        """The program read whole (:func:`read_program`)."""
+        for _ in self.stream(None):
+            pass
+        return Reading(self.calls, self.printed, self.flow.files.texts())
+
+    def stream(self, batch: int | None):
+        """Run the program, handing out its calls as it goes: each time ``batch`` calls or more
+        are made, at a line's end, they are yielded (a list) and no longer kept; the rest stay in
+        :attr:`calls` when the program ends (``batch`` None: all of them). A refused program
+        raises :class:`ProgramError` with the calls made since the last batch."""
         if self.source.too_long[:1] == [0]:  # LinuxCNC reads the first line on opening, before its reset
             self._preamble(opening=True)
             raise ProgramError(1, "Command too long", self.calls, self.printed)
@@ -102,9 +112,15 @@ class Interpreter:
                     looped += len(self.calls) - seen
                     if looped > self.max_calls:
                         self._runaway()
+                if batch is not None and len(self.calls) >= batch:
+                    handed, self.calls = self.calls, []
+                    yield handed
                 seen = len(self.calls)
                 if COMMON_LINES:
-                    index = run_common_lines(self, index, self.max_calls + 1 - looped if self.flow.loops else None)
+                    most = self.max_calls + 1 - looped if self.flow.loops else None
+                    if batch is not None:  # a line makes a call or a few: the batch stays about its size
+                        most = batch if most is None else min(most, batch)
+                    index = run_common_lines(self, index, most)
                 if index >= self.source.end:
                     if self.source.percent_end:
                         self._line, self._number = 0, None
@@ -136,7 +152,6 @@ class Interpreter:
             file = None if self.source is self.flow.main else (self.source.path or Path(self.source.name))
             raise ProgramError(line, str(exc), self.calls, self.printed, file) from None
         self._reset()
-        return Reading(self.calls, self.printed, self.flow.files.texts())
 
     def _runaway(self) -> None:
         """Refuse a program past ``max_calls`` calls made in loops, at the line of the loop that

@@ -16,6 +16,7 @@ pauses, spindle and force changes, probing moves. Corner blending in :func:`_ble
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +30,7 @@ from cnc_twin.gcode.path_ops import (
 )
 from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans
 
-__all__ = ["operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange", "Operation", "Pause",
+__all__ = ["operations", "iter_operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange", "Operation", "Pause",
            "Probe", "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
 """the operations are re-exported: what the program becomes is looked for here"""
 
@@ -43,6 +44,12 @@ DEFAULT_AXIS_TOLERANCE = 0.05
 """[deg] how far a fitted tool axis may turn from the programmed one (A / B words)"""
 DEFAULT_BLEND = 0.01
 """[mm] blend tolerance of G64 without P (LinuxCNC: "as fast as possible", no limit)"""
+PATH_ELEMENTS = 20_000
+"""programmed elements of one feed path at most: a longer chain of blended lines (a CAM raster of
+hours under G64 is one) is cut into paths of this many, each ending in an exact stop on its last
+programmed vertex, so a program is prepared a bounded piece at a time. A cut costs a stop a few
+tens of milliseconds long; the card already stops every few hundred of a fitted path's spans
+(``CARD_CONTROL_POINTS``)"""
 
 
 def _arc_piece_points(center, e1, e2, radius, a0, sweep, n, z0, dz, normal):
@@ -156,19 +163,32 @@ class _Canon:
         return self.g92 + self.g5x + self.tool + self.air
 
 
-def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
+def operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
                axis_tolerance: float = DEFAULT_AXIS_TOLERANCE, start=None, air: float = 0.0) -> list[Operation]:
-    """The operations of a program read whole (:func:`~cnc_twin.gcode.interpreter.read_program`);
+    """The operations of a program's calls (:func:`iter_operations`), all of them."""
+    return list(iter_operations(calls, default_blend=default_blend, axis_tolerance=axis_tolerance, start=start,
+                                air=air))
+
+
+def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
+                    axis_tolerance: float = DEFAULT_AXIS_TOLERANCE, start=None, air: float = 0.0,
+                    path_elements: int = PATH_ELEMENTS) -> Iterator[Operation]:
+    """The operations of a program's canonical calls in order
+    (:func:`~cnc_twin.gcode.interpreter.read_program`, or
+    :meth:`~cnc_twin.gcode.interpreter.Interpreter.stream` as they are made), each yielded as
+    soon as the calls after it end it: a program of any length is held a feed path at a time.
     ``axis_tolerance`` [deg]: how far a fitted tool axis may turn from the programmed one;
     ``start``: where the machine stands when the program starts (x y z a b c, machine point in mm /
     deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
-    ``air`` [mm]: every point raised this far along Z (the program proved in the air).
+    ``air`` [mm]: every point raised this far along Z (the program proved in the air);
+    ``path_elements``: a feed path (or a run of G1 lines turning the head) of more programmed
+    elements is cut there, an exact stop on the programmed vertex (:data:`PATH_ELEMENTS`).
 
     Raises :class:`ToolpathError` for what reads but cannot run: an arc, a curve or a probing move
     as the first motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
     """
     canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
-    ops: list[Operation] = []
+    ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
     here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset
     path: list[tuple[Element, tuple]] = []  # elements of the open feed path, with their modes
@@ -183,6 +203,11 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
             tilting.clear()
 
     for call in calls:
+        if ops:
+            yield from ops
+            ops.clear()
+        if len(path) >= path_elements or len(tilting) >= path_elements:
+            close()
         name, v = call.name, call.values
         if name == "USE_LENGTH_UNITS":
             canon.scale = INCH if v[0] == G.G20 else 1.0
@@ -266,10 +291,9 @@ def operations(calls: list[Call], *, default_blend: float = DEFAULT_BLEND,
             close()
             ops.append(ForceChange(None, call.line))
         elif name == "PROGRAM_END":
-            close()
             break
     close()
-    return ops
+    yield from ops
 
 
 def _modes(canon: _Canon, here: np.ndarray) -> tuple:

@@ -46,6 +46,7 @@ from cnc_twin.core.gcode_config import (
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
+from cnc_twin.scenario.gcode_read import ProgramStream, Where
 from cnc_twin.scenario.gcode_probe import PartTop, ProbeReplay, ProbeSpec, probe_step, reader_answers
 from cnc_twin.scenario.gcode_setup import (WORK_SYSTEMS, WorkOffsetSpec, air_clearance, in_units, start_point,
                                            with_placement, work_offset_parameters)
@@ -99,45 +100,6 @@ class GcodeProgramSpec(Strict):
                            "its loops before it is refused as one that does not end (at its innermost open loop's line)")
     in_air: float = Field(0.0, ge=0, le=1000, description="[mm] run the whole program this far above where it is "
                           "written (a dry run: the machine moves as programmed, the pad never reaches the work)")
-
-
-class _Where:
-    """Errors at a program line: ``FILE:LINE: message`` (exit 2 in the CLI)."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def __call__(self, line: int, message: str) -> ScenarioError:
-        return ScenarioError(f"{self.path}:{line}", "", message)
-
-
-def read_calls(path: Path, tool_table: Path | None, tool_units: str, label: Path, *, start=None,
-               parameters=None, subroutine_path=(), probe=None, max_calls: int = MAX_CALLS):
-    """The canonical calls of the program at ``path``, its :class:`~cnc_twin.gcode.source.Source`
-    and the subroutine files it called (path -> text), or a ScenarioError at its line (a
-    subroutine file's own; ``start``, ``parameters``, ``subroutine_path``: as
-    :func:`~cnc_twin.gcode.interpreter.read_program` takes them, in the tool table's units; ``probe``:
-    its answers to probing moves, None: rs274's standalone ones)."""
-    from cnc_twin.gcode.interpreter import ProgramError, read_program
-    from cnc_twin.gcode.listing import read_tool_table
-    from cnc_twin.gcode.source import Source, SourceError
-
-    try:
-        tools = read_tool_table(tool_table, tool_units)
-    except ValueError as exc:
-        raise ScenarioError(label, "program.tool_table", str(exc)) from None
-    try:
-        source = Source.read(path)
-    except SourceError as exc:
-        raise (_Where(path)(exc.line, str(exc)) if exc.line else ScenarioError(path, "", str(exc))) from None
-    except OSError as exc:
-        raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
-    try:
-        reading = read_program(source, tools, start=start, parameters=parameters, subroutine_path=subroutine_path,
-                               probe=probe, max_calls=max_calls)
-        return reading.calls, source, reading.files
-    except ProgramError as exc:
-        raise _Where(exc.file or path)(exc.line, exc.message) from None
 
 
 def _kept_subroutines(files: dict[Path, str], program_folder: Path, names: list[str],
@@ -197,28 +159,21 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     parameters.update(work_offset_parameters(spec.work_offsets, per_mm))
     sub_folders = [_find(name, folder, label, f"program.subroutine_path[{k}]", is_folder=True)
                    for k, name in enumerate(spec.subroutine_path)]
-    calls, source, sub_files = read_calls(path, table, tool_units, label, start=start_units, parameters=parameters,
-                                          subroutine_path=sub_folders, probe=reader_answers(answers, head),
-                                          max_calls=spec.max_calls)
-    where = _Where(path)
+    stream = ProgramStream(path, table, tool_units, label,
+                           reader=dict(start=start_units, parameters=parameters, subroutine_path=sub_folders,
+                                       probe=reader_answers(answers, head), max_calls=spec.max_calls),
+                           shaping=dict(default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,
+                                        start=start, air=spec.in_air))
+    where = stream.where
+    # the program read, shaped and made into steps as it is read: held a feed path at a time
     try:
-        ops = tp.operations(calls, default_blend=spec.blend_tolerance, axis_tolerance=spec.axis_tolerance,
-                            start=start, air=spec.in_air)
-    except tp.ToolpathError as exc:
-        raise where(exc.line, exc.message) from None
-    del calls  # a long program's calls are most of its memory here: gone before the steps are made
-    if not any(isinstance(op, (tp.Traverse, tp.FeedPath)) for op in ops):
-        raise ScenarioError(label, "program.file", f"{path} moves nothing")
-    pressing = next((op for op in ops if isinstance(op, tp.ForceChange) and op.setpoint is not None), None)
-    if spec.in_air and pressing is not None:
-        raise ScenarioError(label, "program.in_air", f"the program presses on the workpiece (M100 at {path.name} line "
-                            f"{pressing.line}): a run in the air cannot; leave in_air out to polish")
-    try:
-        steps = _machine_steps(ops, spec, axes, model, label, where, head, _part_top(spec, model, head, label))
+        steps = _machine_steps(_grounded(stream.operations(), spec, path, label), spec, axes, model, label, where,
+                               head, _part_top(spec, model, head, label))
     except ScenarioError as exc:
-        raise with_placement(exc, ops, axes, head) from None
-    clearance = air_clearance(ops, _work_top(spec, model, head, label))
-    del ops  # the programmed elements: the steps keep what the run and its measures need
+        raise with_placement(exc, stream.box, axes, head) from None
+    if not stream.moved:
+        raise ScenarioError(label, "program.file", f"{path} moves nothing")
+    clearance = air_clearance(stream.lowest, _work_top(spec, model, head, label))
     _check_force_paths(steps, where)
     replay = None
     if any(isinstance(s, GcodeProbe) for s in steps):
@@ -231,13 +186,26 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         workpiece = GcodeWorkpieceSpec()
     # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
+    source, sub_files = stream.source, stream.files
     return GcodeProgram(file=path, text=source.text, steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
                         air=spec.in_air * units.MM, air_clearance=clearance,
                         after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
 
 
-def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head, part=None) -> list:
+def _grounded(ops, spec: GcodeProgramSpec, path: Path, label: Path):
+    """``ops`` as they come, refusing a program that presses on the workpiece (M100) in a run in
+    the air."""
+    from cnc_twin.gcode import toolpath as tp
+
+    for op in ops:
+        if spec.in_air and isinstance(op, tp.ForceChange) and op.setpoint is not None:
+            raise ScenarioError(label, "program.in_air", f"the program presses on the workpiece (M100 at {path.name} "
+                                f"line {op.line}): a run in the air cannot; leave in_air out to polish")
+        yield op
+
+
+def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where: Where, head, part=None) -> list:
     """The program's operations as machine steps (SI, axis space), refusing at its line what the
     machine cannot run."""
     from cnc_twin.gcode import toolpath as tp
@@ -282,7 +250,7 @@ def _machine_steps(ops, spec: GcodeProgramSpec, axes, model, label: Path, where:
     return steps
 
 
-def _check_force_paths(steps: list, where: _Where) -> None:
+def _check_force_paths(steps: list, where: Where) -> None:
     """Every M100 has a feed path after it before its M101 (the loop switches on at its start)."""
     for k, step in enumerate(steps):
         if isinstance(step, GcodeForce) and step.control is not None:
@@ -355,7 +323,7 @@ def _block_top(model, head, label: Path) -> SurfaceSpec:
                        control_net=[[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]])
 
 
-def _move(op, axes: tuple[AxisConfig, ...], head, where: _Where) -> GcodeMove:
+def _move(op, axes: tuple[AxisConfig, ...], head, where: Where) -> GcodeMove:
     """A traverse: the tip's point through the ``head`` kinematics at the target A / B."""
     a, b, c = (v * units.DEG for v in op.end[3:])
     tip = head.world_from_workpiece(np.array([op.end[:3]]) * units.MM)
@@ -397,7 +365,7 @@ def _pieces_in_cards(path) -> list[list[tuple]]:
     return [flat[k:k + per_curve] for k in range(0, len(flat), per_curve)]
 
 
-def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list[GcodePath]:
+def _paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: Where, head) -> list[GcodePath]:
     """A feed path as one or more card curves: a lone curve block as programmed when the card's
     memory holds it, else the path's Bezier pieces joined (:func:`_pieces_in_cards`)."""
     from cnc_twin.geometry.bezier import join
@@ -442,7 +410,7 @@ def _reference(op, head) -> GcodeReference:
         fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
 
 
-def _tool_axis_paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> list[GcodePath]:
+def _tool_axis_paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where: Where, head) -> list[GcodePath]:
     """A run of G1 lines turning the head, fitted (tip and tool-axis curves on one knot vector),
     as one card curve with its tool-axis curve; cut in halves, each fitted again, while the card's
     memory cannot hold it (a stop between them)."""
@@ -459,7 +427,7 @@ def _tool_axis_paths(op, spec: GcodeProgramSpec, axes, model, label: Path, where
     return [p for half in halves for p in _tool_axis_paths(half, spec, axes, model, label, where, head)]
 
 
-def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where: _Where, head) -> GcodePath:
+def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where: Where, head) -> GcodePath:
     """One fitted run as one card curve (CardMemoryError when the card cannot hold it)."""
     curve_spec = validate(NurbsCurveProgram, {
         "type": "nurbs_curve", "degree": 3, "knots": op.knots.tolist(), "control_points": op.points.tolist(),
@@ -487,7 +455,7 @@ def _chord_tolerance(spec: GcodeProgramSpec, op) -> float:
     return op.tolerance if op.tolerance is not None else DEFAULT_CHORD_TOLERANCE
 
 
-def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes, model, label: Path, where: _Where,
+def _card_curve(op, spec: GcodeProgramSpec, degree, knots, weights, points, axes, model, label: Path, where: Where,
                 lines: tuple, line: int | None = None):
     """One card curve of a feed path, checked against travel and the card's memory (with its
     program-line marks ``lines``) at ``line``."""

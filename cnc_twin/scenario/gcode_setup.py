@@ -52,14 +52,17 @@ def in_units(point: tuple[float, ...], per_mm: float) -> tuple[float, ...]:
     return (*(v * per_mm for v in point[:3]), *point[3:])
 
 
-def with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
+def with_placement(exc: ScenarioError, box_of, axes, head) -> ScenarioError:
     """A program that leaves an axis's soft limits, and whose tip goes beyond what the machine
     reaches with the head upright, is refused with both boxes (workpiece frame), so the user sees
-    the work offset that places it; any other refusal as it is."""
-    from cnc_twin.gcode.extents import describe, extents
+    the work offset that places it; any other refusal as it is. ``box_of()``: the program's box
+    (:func:`~cnc_twin.gcode.extents.extents`), asked for only for such a refusal."""
+    from cnc_twin.gcode.extents import describe
 
-    box = extents(ops)
-    if box is None or not any(cfg.allowed is not None and cfg.allowed_name in exc.message for cfg in axes[:3]):
+    if not any(cfg.allowed is not None and cfg.allowed_name in exc.message for cfg in axes[:3]):
+        return exc
+    box = box_of()
+    if box is None:
         return exc
     shift = (np.asarray(head.pivot_home) + np.asarray(head.tool_offset) - np.asarray(head.workpiece_origin)) / units.MM
     reach = (np.array([cfg.allowed[0] for cfg in axes[:3]]) / units.MM + shift,
@@ -70,10 +73,7 @@ def with_placement(exc: ScenarioError, ops, axes, head) -> ScenarioError:
                          f"reaches {describe(reach)} (workpiece frame, head upright): program.work_offsets places it")
 
 
-def air_clearance(ops, top: float | None) -> float | None:
-    """[m] the program's lowest point (as it runs, raised) above the workpiece's top ``top`` [mm,
-    workpiece frame]; None without a top or a move."""
-    from cnc_twin.gcode.extents import extents
-
-    box = extents(ops) if top is not None else None
-    return None if box is None else float(box[0][2] - top) * units.MM
+def air_clearance(lowest: float | None, top: float | None) -> float | None:
+    """[m] the program's ``lowest`` point [mm] (as it runs, raised) above the workpiece's top
+    ``top`` [mm, workpiece frame]; None without a top or a move."""
+    return None if lowest is None or top is None else float(lowest - top) * units.MM
