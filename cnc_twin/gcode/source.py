@@ -29,7 +29,7 @@ O_NAME = r"<[^>]*>|\d+"
 """an O-word's name as normalised: ``<name>`` or a number"""
 _O_LINE = re.compile(rf"^(?:n[\d.]*)?o({O_NAME})([a-z]*)(.*)$")
 _BLOCK_DELETE = re.compile(r"^\s*/")
-_TRAILING_SPACE = re.compile(r"[ \t\v\f\r]+(?=\n|\Z)")
+_TRAILING_SPACE = re.compile(r"[ \t\v\f\r]+(?=\n)")
 """white space that ends a line (C's ``isspace`` less the newline), which LinuxCNC strips"""
 _LETTER_O = re.compile(r"[oO]")
 _PERCENT_ALONE = re.compile(r"^[^\S\n]*%[^\S\n]*$", re.MULTILINE)
@@ -163,9 +163,7 @@ class Source:
         """0-based index -> the line with its bytes that are not UTF-8 as surrogate escapes (the
         text :meth:`read` gives), for the lines that have some: ``lines`` holds them as U+FFFD,
         one for one"""
-        body = _TRAILING_SPACE.sub("", text)
-        if not body.endswith("\n") and len(raw_lengths):
-            body += "\n"
+        body = _TRAILING_SPACE.sub("", text if not text or text.endswith("\n") else text + "\n")
         if not text.isascii():
             line_of = _LineOffsets(_newlines(body))
             for match in _ESCAPED.finditer(body):
