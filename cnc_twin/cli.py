@@ -9,7 +9,6 @@ still writes its run directory, marked ``"status": "interrupted"`` in ``metrics.
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 import signal
 import sys
@@ -454,13 +453,13 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _gcode(args: argparse.Namespace) -> int:
-    from cnc_twin.gcode.listing import list_program
+    from cnc_twin.gcode.listing import LineWriter, list_program
 
-    gc.disable()  # one program listed, then the process ends: the collector would only walk the calls (10 %)
+    out = LineWriter(sys.stdout)  # a long program's listing written as it is read, never held
     lines, error = list_program(args.program, args.tool_table or bundled_tool_table(),  # as run reads them
                                 args.tool_units if args.tool_table else "mm", args.canon, args.subroutine_path,
-                                max_calls=args.max_calls)
-    print("\n".join(lines))
+                                max_calls=args.max_calls, out=out)
+    out.finish(lines)
     code = EXIT_OK if not error else EXIT_BAD_INPUT
     if error:
         print(f"error: {error}", file=sys.stderr)

@@ -159,8 +159,13 @@ class _Canon:
 
     @property
     def offset(self) -> np.ndarray:
-        """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg]."""
-        return self.g92 + self.g5x + self.tool + self.air
+        """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg] (summed
+        again only when one of them is set anew: every line asks)."""
+        parts = (self.g92, self.g5x, self.tool, self.air)
+        kept = self.__dict__.get("_offset")
+        if kept is None or any(x is not y for x, y in zip(kept[0], parts)):
+            kept = self.__dict__["_offset"] = (parts, self.g92 + self.g5x + self.tool + self.air)
+        return kept[1]
 
 
 def operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
@@ -319,10 +324,16 @@ def _feed_paths(path: list[tuple[Element, tuple]], default_blend: float) -> list
 
 
 def _turn(a: Element, b: Element) -> float:
-    """Angle [rad] the path turns from ``a``'s end to ``b``'s start."""
+    """Angle [rad] the path turns from ``a``'s end to ``b``'s start (kept on ``b`` with ``a``: the
+    joins, the fit runs and the blends each ask for it)."""
+    kept = b.__dict__.get("_turn_from")
+    if kept is not None and kept[0] is a:
+        return kept[1]
     c = float(np.dot(a.direction(True), b.direction(False)))
     c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)  # np.clip's result (NaN kept), without its cost on a scalar
-    return math.acos(c)
+    turn = math.acos(c)
+    b.__dict__["_turn_from"] = (a, turn)
+    return turn
 
 
 def _joins(a: Element, b: Element, control: tuple) -> bool:
