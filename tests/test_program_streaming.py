@@ -77,19 +77,33 @@ def test_a_long_feed_path_is_cut_with_an_exact_stop_on_its_vertex():
     calls = read_program(Source(text), ToolTable()).calls
     whole = [op for op in tp.operations(calls) if isinstance(op, tp.FeedPath)]
     cut = [op for op in tp.iter_operations(calls, path_elements=1000) if isinstance(op, tp.FeedPath)]
-    programmed = [e for op in whole for e in op.program]
-    assert max(len(op.program) for op in whole) > 4000
-    assert max(len(op.program) for op in cut) <= 1000 and len(cut) >= 5
-    # the same programmed elements, in order, each path starting where the last one stopped
-    pieces = [e for op in cut for e in op.program]
-    assert [(e.line, e.start.tolist(), e.end.tolist()) for e in pieces] == [
-        (e.line, e.start.tolist(), e.end.tolist()) for e in programmed]
+    assert max(_programmed(op) for op in whole) > 4000
+    assert max(_programmed(op) for op in cut) <= 1000 and len(cut) >= 5
+    # the same programmed path, each cut path starting where the last one stopped
+    poly = np.concatenate([tp.programmed_geometry(op.program)[0][1:] for op in cut])
+    assert np.array_equal(poly, np.concatenate([tp.programmed_geometry(op.program)[0][1:] for op in whole]))
     for before, after in zip(cut, cut[1:]):
         assert np.array_equal(before.end, after.start)  # a programmed vertex, not a blend's end
-        assert np.array_equal(before.end, before.program[-1].end)
+        assert np.array_equal(before.end, tp.programmed_geometry(before.program)[0][-1])
     # below the bound, nothing changes
     kept = [op for op in tp.iter_operations(calls, path_elements=10**6) if isinstance(op, tp.FeedPath)]
     assert [(op.line, len(op.elements)) for op in kept] == [(op.line, len(op.elements)) for op in whole]
+
+
+def _programmed(op) -> int:
+    """Programmed elements of a feed path (a chain's lines each)."""
+    return sum(len(e.lines) if isinstance(e, tp.LineChain) else 1 for e in op.program)
+
+
+def test_a_chain_turns_as_its_lines_do():
+    from cnc_twin.gcode.feed_paths import element_turn, chain_turns
+
+    calls = read_program(Source((programs_dir() / "cam_raster.ngc").read_text()), ToolTable()).calls
+    for op in tp.iter_operations(calls):
+        for item in getattr(op, "program", []):
+            if isinstance(item, tp.LineChain):
+                lines = [tp.line_element(p, q, 0) for p, q in zip(item.points, item.points[1:])]
+                assert chain_turns(item.points) == [element_turn(a, b) for a, b in zip(lines, lines[1:])]
 
 
 def _peak_reading(text: str) -> float:

@@ -91,6 +91,31 @@ class Element:
 
 
 @dataclass
+class LineChain:
+    """Consecutive programmed G1 lines of one feed path, held as one array: ``points`` ((n + 1, 3)
+    [mm]; line k from point k to k + 1), ``lines`` (n,) the program line of each, ``turns``
+    (n - 1,) [rad] the turn at each inner point (:func:`~cnc_twin.gcode.feed_paths.chain_turns`).
+    A CAM program's millions of lines are held so, not as an :class:`Element` each."""
+
+    points: np.ndarray
+    lines: list[int]
+    turns: list[float]
+    kind = "lines"
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.points[0]
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.points[-1]
+
+    def part(self, first: int, stop: int) -> "LineChain":
+        """Its lines ``first`` ..< ``stop``."""
+        return LineChain(self.points[first:stop + 1], self.lines[first:stop], self.turns[first:stop - 1])
+
+
+@dataclass
 class Traverse:
     end: tuple[float, ...]
     """X, Y, Z [mm] (tip, workpiece frame), A, B, C [deg]"""
@@ -112,8 +137,9 @@ class FeedPath:
     tolerance: float | None = None
     """the path's G64 P [mm] (its corner blends' tolerance, and the card's chord tolerance on it);
     None under G61 / G61.1 or a G64 without P"""
-    program: list[Element] = field(default_factory=list)
-    """the elements as programmed, before corner blends and fits (what the run is measured against)"""
+    program: list[Element | LineChain] = field(default_factory=list)
+    """the elements as programmed, before corner blends and fits (what the run is measured
+    against), the lines in chains"""
 
     @property
     def start(self) -> np.ndarray:
@@ -212,16 +238,24 @@ REFERENCE_STEP = 0.05
 radius's chord then strays 0.016 um from it)"""
 
 
-def programmed_geometry(elements: list[Element]) -> tuple[np.ndarray, np.ndarray]:
+def programmed_geometry(elements: list[Element | LineChain]) -> tuple[np.ndarray, np.ndarray]:
     """The programmed path as a polyline ((k, 3) mm: lines by their ends, arcs and curves sampled
-    every :data:`REFERENCE_STEP`) and its vertices ((m, 3) mm: each element's ends)."""
-    points, vertices = [elements[0].start], [elements[0].start]
+    every :data:`REFERENCE_STEP`) and its vertices ((m, 3) mm: each element's ends); a path of
+    lines alone gives the same array for both."""
+    points, vertices = [elements[0].start[None]], [elements[0].start[None]]
     for e in elements:
+        if isinstance(e, LineChain):
+            points.append(e.points[1:])
+            vertices.append(e.points[1:])
+            continue
         if e.kind != "line":
             for q in e.pieces:
                 t = np.linspace(0.0, 1.0, max(8, math.ceil(piece_length(q) / REFERENCE_STEP)) + 1)[1:]
-                points.extend(piece_points(q, t))
+                points.append(np.asarray(piece_points(q, t)))
         else:
-            points.append(e.end)
-        vertices.append(e.end)
-    return np.array(points), np.array(vertices)
+            points.append(e.end[None])
+        vertices.append(e.end[None])
+    polyline = np.concatenate(points)
+    if all(isinstance(e, LineChain) or e.kind == "line" for e in elements):
+        return polyline, polyline
+    return polyline, np.concatenate(vertices)

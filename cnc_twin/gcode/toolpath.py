@@ -22,11 +22,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cnc_twin.gcode.canon import Call
-from cnc_twin.gcode.line_fit import FIT_CORNER, MIN_SEGMENTS, fit_lines, tool_axis_paths
+from cnc_twin.gcode.feed_paths import chain_turns, feed_paths
+from cnc_twin.gcode.line_fit import tool_axis_paths
 from cnc_twin.gcode.modal import G
 from cnc_twin.gcode.path_ops import (
-    Element, FeedPath, ForceChange, Operation, Pause, Probe, SpindleChange, ToolAxisPath, ToolpathError, Traverse,
-    line_element, programmed_geometry,
+    Element, FeedPath, ForceChange, LineChain, Operation, Pause, Probe, SpindleChange, ToolAxisPath, ToolpathError,
+    Traverse, line_element, programmed_geometry,
 )
 from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans
 
@@ -36,10 +37,6 @@ __all__ = ["operations", "iter_operations", "arc_element", "curve_element", "Ele
 
 INCH = 25.4
 """[mm]"""
-TANGENT_ANGLE = 1e-4
-"""[rad] a join turning less than this is tangent: the path runs through it without a blend"""
-BLEND_MAX_ANGLE = math.radians(120.0)
-"""[rad] a corner turning more than this is not blended (a reversal): the path stops there"""
 DEFAULT_AXIS_TOLERANCE = 0.05
 """[deg] how far a fitted tool axis may turn from the programmed one (A / B words)"""
 DEFAULT_BLEND = 0.01
@@ -157,14 +154,26 @@ class _Canon:
         """Program point x y z a b c -> the machine's (workpiece frame) point, mm / deg."""
         return self.to_mm(values) + self.offset
 
+    def point(self, values) -> list[float]:
+        """:meth:`machine` in Python floats, the same numbers (each ``value * scale + offset``
+        for x y z, ``value + offset`` for a b c, as numpy's element-wise operations make them)
+        at a tenth of its cost: a CAM program's every line asks."""
+        o, s = self.offset_list, self.scale
+        return [values[0] * s + o[0], values[1] * s + o[1], values[2] * s + o[2],
+                values[3] + o[3], values[4] + o[4], values[5] + o[5]]
+
     @property
     def offset(self) -> np.ndarray:
-        """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg] (summed
-        again only when one of them is set anew: every line asks)."""
+        """G92 + G5x + tool length offset (+ the run's raise in Z), x y z a b c [mm / deg]."""
+        return self.g92 + self.g5x + self.tool + self.air
+
+    @property
+    def offset_list(self) -> list[float]:
+        """:attr:`offset` as Python floats, kept until an offset is set again."""
         parts = (self.g92, self.g5x, self.tool, self.air)
-        kept = self.__dict__.get("_offset")
-        if kept is None or any(x is not y for x, y in zip(kept[0], parts)):
-            kept = self.__dict__["_offset"] = (parts, self.g92 + self.g5x + self.tool + self.air)
+        kept = self.__dict__.get("_offset_list")
+        if kept is None or kept[0][0] is not parts[0] or kept[0][1] is not parts[1] or kept[0][2] is not parts[2]:
+            kept = self.__dict__["_offset_list"] = (parts, self.offset.tolist())
         return kept[1]
 
 
@@ -196,13 +205,17 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
     here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset
-    path: list[tuple[Element, tuple]] = []  # elements of the open feed path, with their modes
+    path: list[tuple[Element | _OpenChain, tuple]] = []  # the open feed path's elements, with their modes
+    held = 0  # programmed elements in it (a chain's lines each)
     tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
 
     def close() -> None:
+        nonlocal held
         if path:
-            ops.extend(_feed_paths(path, default_blend))
+            ops.extend(feed_paths([(item.closed() if isinstance(item, _OpenChain) else item, m) for item, m in path],
+                                  default_blend))
             path.clear()
+            held = 0
         if tilting:
             ops.extend(tool_axis_paths(tilting, math.radians(axis_tolerance)))
             tilting.clear()
@@ -211,7 +224,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
         if ops:
             yield from ops
             ops.clear()
-        if len(path) >= path_elements or len(tilting) >= path_elements:
+        if held >= path_elements or len(tilting) >= path_elements:
             close()
         name, v = call.name, call.values
         if name == "USE_LENGTH_UNITS":
@@ -227,29 +240,34 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
         elif name == "SET_MOTION_CONTROL_MODE":
             canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
-            end = canon.machine(v)
             # which axes move, compared as Python floats (np.any on a 3-vector costs more than a line's rest)
-            e, h = end.tolist(), (None if here is None else here.tolist())
+            e, h = canon.point(v), (None if here is None else here.tolist())
             rotary = h is not None and e[3:] != h[3:]
             if name == "STRAIGHT_FEED" and h is not None and not rotary:
                 if tilting:
                     close()
                 if e[:3] != h[:3]:
-                    path.append((line_element(here[:3], end[:3], call.line), _modes(canon, here)))
+                    modes = (canon.feed, tuple(h[3:]), canon.control)  # _modes, from the same numbers
+                    last = path[-1] if path else None
+                    if last is not None and last[1] == modes and isinstance(last[0], _OpenChain):
+                        last[0].add(e, call.line)
+                    else:
+                        path.append((_OpenChain(h, e, call.line), modes))
+                    held += 1
             elif (name == "STRAIGHT_FEED" and h is not None and canon.control[0] == "CANON_CONTINUOUS"
                   and canon.control[1] > 0.0 and e[5] == h[5] and e[:3] != h[:3]):
                 # a G1 turning A / B as the tip moves, under G64 P: gathered for a 5-axis fit
                 if path:
                     close()
-                tilting.append((here.copy(), end.copy(), call.line, (canon.feed, canon.control)))
+                tilting.append((here.copy(), np.array(e), call.line, (canon.feed, canon.control)))
             else:
                 close()
                 rotary_only = h is not None and e[:3] == h[:3]
                 feed = None
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
-                ops.append(Traverse(tuple(float(x) for x in end), feed, call.line, rotary_only))
-            here = end
+                ops.append(Traverse(tuple(e), feed, call.line, rotary_only))
+            here = np.array(e)
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
                 raise ToolpathError(call.line, "an arc or a curve as the program's first motion: the tool's place "
@@ -262,6 +280,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 # the line of the block that started the curve (the call comes at its last block)
                 element = curve_element(call.payload, here[:3], offset, canon.scale, call.payload.line)
             path.append((element, _modes(canon, here)))
+            held += 1
             here = np.concatenate([element.end, here[3:]])
         elif name == "STRAIGHT_PROBE":
             if here is None:
@@ -306,111 +325,17 @@ def _modes(canon: _Canon, here: np.ndarray) -> tuple:
     return (canon.feed, tuple(here[3:].tolist()), canon.control)
 
 
-def _feed_paths(path: list[tuple[Element, tuple]], default_blend: float) -> list[FeedPath]:
-    """Consecutive feed elements -> feed paths: a new path where the feed, the held axes or the
-    control mode change, and at corners that are not blended."""
-    out: list[FeedPath] = []
-    run: list[Element] = []
-    modes = None
-    for element, m in path:
-        if run and (m != modes or not _joins(run[-1], element, m[2])):
-            out.append(_finish(run, modes, default_blend))
-            run = []
-        run.append(element)
-        modes = m
-    if run:
-        out.append(_finish(run, modes, default_blend))
-    return out
+class _OpenChain:
+    """The G1 lines of the open feed path since its last other element, in Python floats as they
+    come (:class:`~cnc_twin.gcode.path_ops.LineChain` once the path closes)."""
 
+    def __init__(self, start: list[float], end: list[float], line: int):
+        self.points, self.lines = [start[:3], end[:3]], [line]
 
-def _turn(a: Element, b: Element) -> float:
-    """Angle [rad] the path turns from ``a``'s end to ``b``'s start (kept on ``b`` with ``a``: the
-    joins, the fit runs and the blends each ask for it)."""
-    kept = b.__dict__.get("_turn_from")
-    if kept is not None and kept[0] is a:
-        return kept[1]
-    c = float(np.dot(a.direction(True), b.direction(False)))
-    c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)  # np.clip's result (NaN kept), without its cost on a scalar
-    turn = math.acos(c)
-    b.__dict__["_turn_from"] = (a, turn)
-    return turn
+    def add(self, end: list[float], line: int) -> None:
+        self.points.append(end[:3])
+        self.lines.append(line)
 
-
-def _joins(a: Element, b: Element, control: tuple) -> bool:
-    """``b`` continues ``a``'s path: tangent, or (in G64) a line-line corner that can be blended."""
-    turn = _turn(a, b)
-    if turn <= TANGENT_ANGLE:
-        return True
-    return control[0] == "CANON_CONTINUOUS" and a.kind == b.kind == "line" and turn <= BLEND_MAX_ANGLE
-
-
-def _finish(run: list[Element], modes: tuple, default_blend: float) -> FeedPath:
-    feed, hold, control = modes
-    tolerance = control[1] or default_blend
-    p = control[1] if control[0] == "CANON_CONTINUOUS" and control[1] > 0.0 else None
-    programmed = list(run)
-    if p is not None:  # G64 P: runs of gently turning lines (CAM's) as fitted curves
-        run = _fit_runs(run, p)
-    return FeedPath(_blend_corners(run, tolerance), feed, hold, run[0].line, p, programmed)
-
-
-def _fit_runs(run: list[Element], tolerance: float) -> list[Element]:
-    """Each run of :data:`~cnc_twin.gcode.line_fit.MIN_SEGMENTS` or more lines turning less than
-    :data:`~cnc_twin.gcode.line_fit.FIT_CORNER` at each point, as its first half line, one fitted
-    curve and its last half line (:func:`~cnc_twin.gcode.line_fit.fit_lines`); the rest as it is."""
-    out: list[Element] = []
-    k = 0
-    while k < len(run):
-        j = k
-        while (run[k].kind == "line" and j + 1 < len(run) and run[j + 1].kind == "line"
-               and _turn(run[j], run[j + 1]) < FIT_CORNER):
-            j += 1
-        fitted = None
-        if j - k + 1 >= MIN_SEGMENTS:
-            lines = run[k:j + 1]
-            points = np.array([e.start for e in lines] + [lines[-1].end])
-            fitted = fit_lines(points, [e.line for e in lines], tolerance)
-        if fitted is None:
-            out += run[k:j + 1]
-        else:
-            out.append(line_element(*fitted.head, run[k].line))
-            out.append(Element(fitted.pieces, run[k].line, "fit", spans=fitted.spans, piece_lines=fitted.piece_lines,
-                               deviation=fitted.fit.deviation))
-            out.append(line_element(*fitted.tail, run[j].line))
-        k = j + 1
-    return out
-
-
-def _blend_corners(run: list[Element], tolerance: float) -> list[Element]:
-    """Each corner between two lines replaced by a cubic Bezier ``(P0, C, C, P3)`` that leaves the
-    incoming line at ``P0`` and joins the outgoing one at ``P3``, both ``d`` from the corner ``C``.
-
-    The blend is tangent to both lines with zero curvature where it meets them (its second
-    derivative at each end lies along the line), so feed and acceleration stay continuous. Its
-    farthest point from the corner is ``d sin(theta / 2) / 4`` (``theta``: the turn), which the
-    tolerance bounds; ``d`` is also at most half of either line, so blends never overlap.
-    """
-    lines = [e.start.copy() for e in run] + [run[-1].end.copy()]
-    cuts = [0.0] * (len(run) + 1)  # how far each corner's blend reaches along its lines
-    for k in range(1, len(run)):
-        a, b = run[k - 1], run[k]
-        turn = _turn(a, b)
-        if turn > TANGENT_ANGLE:
-            la, lb = a.length, b.length
-            cuts[k] = min(4.0 * tolerance / math.sin(0.5 * turn), 0.5 * la, 0.5 * lb)
-    out: list[Element] = []
-    for k, e in enumerate(run):
-        if e.kind != "line" or (cuts[k] == 0.0 and cuts[k + 1] == 0.0):
-            out.append(e)
-        else:
-            s, t = lines[k], lines[k + 1]
-            u = (t - s) / np.linalg.norm(t - s)
-            p0, p1 = s + cuts[k] * u, t - cuts[k + 1] * u
-            if np.linalg.norm(p1 - p0) > 1e-9:
-                out.append(line_element(p0, p1, e.line))
-        if k + 1 < len(run) and cuts[k + 1] > 0.0:
-            corner = lines[k + 1]
-            d_in, d_out = run[k].direction(True), run[k + 1].direction(False)
-            p0, p3 = corner - cuts[k + 1] * d_in, corner + cuts[k + 1] * d_out
-            out.append(Element([homogeneous([p0, corner, corner, p3], [1.0] * 4)], run[k + 1].line, "blend"))
-    return out
+    def closed(self) -> LineChain:
+        points = np.array(self.points)
+        return LineChain(points, self.lines, chain_turns(points))

@@ -404,8 +404,9 @@ def _reference(op, head) -> GcodeReference:
     polyline, vertices = programmed_geometry(op.program or op.elements)
     origin = np.asarray(head.workpiece_origin)
     fits = [e for e in op.elements if e.kind == "fit"]
+    world = polyline * units.MM + origin  # a path of lines: its vertices are its polyline, held once
     return GcodeReference(
-        polyline=polyline * units.MM + origin, vertices=vertices * units.MM + origin,
+        polyline=world, vertices=world if vertices is polyline else vertices * units.MM + origin,
         tolerance=None if op.tolerance is None else op.tolerance * units.MM, fits=len(fits),
         fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
 
