@@ -100,13 +100,15 @@ class Lines:
         return len(self._starts) - 1
 
     def __getitem__(self, k):
+        starts = self._starts
+        if k.__class__ is int and k >= 0:  # the reader's every line: past the last, starts[k + 1] raises
+            return self.text[starts[k]:starts[k + 1] - 1]
         if isinstance(k, slice):
             return [self[j] for j in range(*k.indices(len(self)))]
         if k < 0:
             k += len(self)
         if not 0 <= k < len(self):
             raise IndexError("line index out of range")
-        starts = self._starts
         return self.text[starts[k]:starts[k + 1] - 1]
 
     def __iter__(self):

@@ -205,6 +205,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
     here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset
+    here_list = None if here is None else here.tolist()  # the same point in Python floats (every line compares it)
     path: list[tuple[Element | _OpenChain, tuple]] = []  # the open feed path's elements, with their modes
     held = 0  # programmed elements in it (a chain's lines each)
     tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
@@ -241,7 +242,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             # which axes move, compared as Python floats (np.any on a 3-vector costs more than a line's rest)
-            e, h = canon.point(v), (None if here is None else here.tolist())
+            e, h = canon.point(v), (None if here is None else here_list)
             rotary = h is not None and e[3:] != h[3:]
             if name == "STRAIGHT_FEED" and h is not None and not rotary:
                 if tilting:
@@ -266,8 +267,8 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 feed = None
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
-                ops.append(Traverse(tuple(e), feed, call.line, rotary_only))
-            here = np.array(e)
+                ops.append(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
+            here, here_list = np.array(e), e
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
                 raise ToolpathError(call.line, "an arc or a curve as the program's first motion: the tool's place "
@@ -282,6 +283,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             path.append((element, _modes(canon, here)))
             held += 1
             here = np.concatenate([element.end, here[3:]])
+            here_list = here.tolist()
         elif name == "STRAIGHT_PROBE":
             if here is None:
                 raise ToolpathError(call.line, "a probing move as the program's first motion: the tool's place "
@@ -293,6 +295,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                              tuple(float(x) for x in stop), canon.feed, move.kind, call.line,
                              tuple(float(x) for x in canon.offset), canon.scale))
             here = stop
+            here_list = here.tolist()
         elif name == "DWELL":
             close()
             ops.append(Pause(float(v[0]), call.line))
