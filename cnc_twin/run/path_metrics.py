@@ -49,8 +49,8 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
     nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
     speed = np.linalg.norm(curve.derivatives(nodes.ravel(), 1)[1], axis=1).reshape(nodes.shape)
     out = half * (speed @ _GL_W)
-    knots = np.unique(curve.knots)
-    straddle = np.flatnonzero([np.any((knots > a) & (knots < b)) for a, b in zip(u0, u1)])
+    knots = np.unique(curve.knots)  # sorted: the knots strictly inside (a, b) are those between two searches
+    straddle = np.flatnonzero(np.searchsorted(knots, u1, side="left") > np.searchsorted(knots, u0, side="right"))
     for i in straddle:  # a kink in |C'| at a knot: split there
         out[i] = curve.arc_length(u0[i], u1[i])
     return out
