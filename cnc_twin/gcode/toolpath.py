@@ -169,12 +169,15 @@ class _Canon:
 
     @property
     def offset_list(self) -> list[float]:
-        """:attr:`offset` as Python floats, kept until an offset is set again."""
-        parts = (self.g92, self.g5x, self.tool, self.air)
+        """:attr:`offset` as Python floats, kept until an offset is set again (:meth:`offsets_set`)."""
         kept = self.__dict__.get("_offset_list")
-        if kept is None or kept[0][0] is not parts[0] or kept[0][1] is not parts[1] or kept[0][2] is not parts[2]:
-            kept = self.__dict__["_offset_list"] = (parts, self.offset.tolist())
-        return kept[1]
+        if kept is None:
+            kept = self.__dict__["_offset_list"] = self.offset.tolist()
+        return kept
+
+    def offsets_set(self) -> None:
+        """An offset was set: :attr:`offset_list` is made anew when next asked for."""
+        self.__dict__.pop("_offset_list", None)
 
 
 def operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
@@ -204,8 +207,8 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
     ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
-    here: np.ndarray | None = None if start is None else np.asarray(start, dtype=float) + canon.offset
-    here_list = None if here is None else here.tolist()  # the same point in Python floats (every line compares it)
+    # (in Python floats: every line compares it, numpy's arrays only where they are worked with)
+    here: list[float] | None = None if start is None else (np.asarray(start, dtype=float) + canon.offset).tolist()
     path: list[tuple[Element | _OpenChain, tuple]] = []  # the open feed path's elements, with their modes
     held = 0  # programmed elements in it (a chain's lines each)
     tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
@@ -232,23 +235,26 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             canon.scale = INCH if v[0] == G.G20 else 1.0
         elif name == "SET_G5X_OFFSET":
             canon.g5x = canon.to_mm(v[1:7])
+            canon.offsets_set()
         elif name == "SET_G92_OFFSET":
             canon.g92 = canon.to_mm(v[:6])
+            canon.offsets_set()
         elif name == "USE_TOOL_LENGTH_OFFSET":
             canon.tool = canon.to_mm(v[:6])
+            canon.offsets_set()
         elif name == "SET_FEED_RATE":
             canon.feed = v[0] * canon.scale
         elif name == "SET_MOTION_CONTROL_MODE":
             canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             # which axes move, compared as Python floats (np.any on a 3-vector costs more than a line's rest)
-            e, h = canon.point(v), (None if here is None else here_list)
+            e, h = canon.point(v), here
             rotary = h is not None and e[3:] != h[3:]
             if name == "STRAIGHT_FEED" and h is not None and not rotary:
                 if tilting:
                     close()
                 if e[:3] != h[:3]:
-                    modes = (canon.feed, tuple(h[3:]), canon.control)  # _modes, from the same numbers
+                    modes = _modes(canon, h)
                     last = path[-1] if path else None
                     if last is not None and last[1] == modes and isinstance(last[0], _OpenChain):
                         last[0].add(e, call.line)
@@ -260,7 +266,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 # a G1 turning A / B as the tip moves, under G64 P: gathered for a 5-axis fit
                 if path:
                     close()
-                tilting.append((here.copy(), np.array(e), call.line, (canon.feed, canon.control)))
+                tilting.append((np.array(here), np.array(e), call.line, (canon.feed, canon.control)))
             else:
                 close()
                 rotary_only = h is not None and e[:3] == h[:3]
@@ -268,7 +274,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
                 ops.append(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
-            here, here_list = np.array(e), e
+            here = e
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
                 raise ToolpathError(call.line, "an arc or a curve as the program's first motion: the tool's place "
@@ -276,14 +282,13 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             offset = canon.offset[:3]
             if name == "ARC_FEED":
                 tol = canon.control[1] or default_blend
-                element = arc_element(here[:3], call.payload, offset, canon.scale, tol, call.line)
+                element = arc_element(np.array(here[:3]), call.payload, offset, canon.scale, tol, call.line)
             else:
                 # the line of the block that started the curve (the call comes at its last block)
-                element = curve_element(call.payload, here[:3], offset, canon.scale, call.payload.line)
+                element = curve_element(call.payload, np.array(here[:3]), offset, canon.scale, call.payload.line)
             path.append((element, _modes(canon, here)))
             held += 1
-            here = np.concatenate([element.end, here[3:]])
-            here_list = here.tolist()
+            here = element.end.tolist() + here[3:]
         elif name == "STRAIGHT_PROBE":
             if here is None:
                 raise ToolpathError(call.line, "a probing move as the program's first motion: the tool's place "
@@ -294,8 +299,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             ops.append(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
                              tuple(float(x) for x in stop), canon.feed, move.kind, call.line,
                              tuple(float(x) for x in canon.offset), canon.scale))
-            here = stop
-            here_list = here.tolist()
+            here = stop.tolist()
         elif name == "DWELL":
             close()
             ops.append(Pause(float(v[0]), call.line))
@@ -323,9 +327,9 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     yield from ops
 
 
-def _modes(canon: _Canon, here: np.ndarray) -> tuple:
+def _modes(canon: _Canon, here: list[float]) -> tuple:
     """What a feed element carries that may end a path: feed, held A B C, control mode."""
-    return (canon.feed, tuple(here[3:].tolist()), canon.control)
+    return (canon.feed, tuple(here[3:]), canon.control)
 
 
 class _OpenChain:
