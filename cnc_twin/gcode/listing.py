@@ -82,8 +82,12 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
     kept: list[str] = []
     emit = out or kept.append
     counts: Counter = Counter()
-    interpreter = Interpreter(source, tools, subroutine_path=subroutine_path,
-                              **({} if max_calls is None else {"max_calls": max_calls}))
+
+    def reader() -> Interpreter:
+        return Interpreter(source, tools, subroutine_path=subroutine_path,
+                           **({} if max_calls is None else {"max_calls": max_calls}))
+
+    interpreter = reader()
 
     def listed(calls):
         for call in calls:
@@ -92,22 +96,18 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
                 emit(call.text(counts.total()))
             yield call
 
-    def calls():
-        for batch in interpreter.stream(CALL_BATCH):
-            yield from listed(batch)
-        yield from listed(interpreter.calls)
-
     error, reach = None, []
     try:
-        if canon:
-            for _ in calls():
+        for batch in _batches(interpreter):
+            for _ in listed(batch):
                 pass
-        else:
-            reach = _reach(calls())
     except ProgramError as exc:  # the calls made since the last batch, then the refusal
         error = f"{exc.file or path}:{exc.line}: {exc.message}"
         for _ in listed(exc.calls):
             pass
+    if not canon and error is None:  # how far it reaches: read again, into its operations (a refused
+        # program, a loop without end among them, never costs them)
+        reach = _reach(call for batch in _batches(reader()) for call in batch)
     tail = []
     if not canon:
         tail = [f"{path}: {len(source.lines)} lines, {counts.total()} canonical calls"]
@@ -115,6 +115,12 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
         if error is None:
             tail += reach
     return kept + tail + interpreter.printed, error
+
+
+def _batches(interpreter: Interpreter):
+    """The interpreter's calls in batches, the last one too."""
+    yield from interpreter.stream(CALL_BATCH)
+    yield interpreter.calls
 
 
 def _reach(calls) -> list[str]:

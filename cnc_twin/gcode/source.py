@@ -66,10 +66,16 @@ def _byte_length(line: str) -> int:
     return len(line.encode("utf-8", "surrogateescape")) if not line.isascii() else len(line)
 
 
+NEWLINE_CHUNK = 1 << 22
+"""characters searched for newlines at a time (a long program's temporaries stay this small)"""
+
+
 def _newlines(text: str) -> np.ndarray:
     """Offsets of ``text``'s newline characters, increasing (int64)."""
-    if text.isascii():  # a byte a character: numpy finds them at memory speed
-        return np.flatnonzero(np.frombuffer(text.encode("ascii"), np.uint8) == 10)
+    if text.isascii():  # a byte a character: numpy finds them at memory speed, a chunk at a time
+        found = [np.flatnonzero(np.frombuffer(text[k:k + NEWLINE_CHUNK].encode("ascii"), np.uint8) == 10) + k
+                 for k in range(0, len(text), NEWLINE_CHUNK)]
+        return np.concatenate(found) if found else np.zeros(0, np.int64)
     return np.fromiter((m.start() for m in re.finditer("\n", text)), np.int64)
 
 
@@ -93,7 +99,11 @@ class Lines:
 
     def __init__(self, text: str, ends: np.ndarray):
         self.text = text
-        self._starts = array("q", np.concatenate([[0], ends + 1]).astype(np.int64).tobytes())
+        starts = np.empty(len(ends) + 1, np.int64)
+        starts[0] = 0
+        np.add(ends, 1, out=starts[1:])
+        self._starts = array("q")
+        self._starts.frombytes(memoryview(starts).cast("B"))
         """each line's first character, then the text's length (one past the last newline)"""
 
     def __len__(self) -> int:
@@ -154,18 +164,15 @@ class Source:
         # LinuxCNC's lines end at a newline only (a CR, a form feed... are characters of the
         # line), without the white space that ends them. A CAM program of millions of lines is
         # kept as one text and its lines' offsets, not a list of strings (a tenth of the memory)
-        raw_ends = _newlines(text)
-        if len(raw_ends) and raw_ends[-1] == len(text) - 1:
-            raw_starts = np.concatenate([[0], raw_ends[:-1] + 1])
-        else:
-            raw_starts = np.concatenate([[0], raw_ends + 1]) if text else np.zeros(0, np.int64)
-            raw_ends = np.append(raw_ends, len(text)) if text else raw_ends
-        raw_lengths = raw_ends - raw_starts
+        newlines = _newlines(text)
+        raw_ends = newlines if not text or text.endswith("\n") else np.append(newlines, len(text))
+        raw_lengths = np.diff(raw_ends, prepend=-1) - 1  # each line's characters, its newline not counted
         self.escaped: dict[int, str] = {}
         """0-based index -> the line with its bytes that are not UTF-8 as surrogate escapes (the
         text :meth:`read` gives), for the lines that have some: ``lines`` holds them as U+FFFD,
         one for one"""
         body = _TRAILING_SPACE.sub("", text if not text or text.endswith("\n") else text + "\n")
+        ends = newlines if body is text else None  # nothing stripped (a CAM program): the same newlines
         if not text.isascii():
             line_of = _LineOffsets(_newlines(body))
             for match in _ESCAPED.finditer(body):
@@ -173,11 +180,11 @@ class Source:
                 if k not in self.escaped:
                     self.escaped[k] = line_of.line(body, k)
             body = _ESCAPED.sub("\ufffd", body)  # one character for one: the offsets hold
-        self.lines = Lines(body, _newlines(body))
+        self.lines = Lines(body, _newlines(body) if ends is None else ends)
         # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
         # (a CR counts) is "Command too long" wherever it is read, a line passed over too
         self.too_long = [int(k) for k in np.flatnonzero(raw_lengths >= MAX_LINE)
-                         if _byte_length(text[raw_starts[k]:raw_ends[k]]) >= MAX_LINE]
+                         if _byte_length(text[raw_ends[k] - raw_lengths[k]:raw_ends[k]]) >= MAX_LINE]
         self.first, self.end, self.percent_end = 0, len(self.lines), False
         self.percent_start = False
         for k, line in enumerate(self.lines):
@@ -233,7 +240,9 @@ class Source:
         data = Path(path).read_bytes()
         if b"\0" in data:
             raise SourceError(0, "not a text file (it contains NUL bytes)")
-        source = cls(data.decode("utf-8", errors="surrogateescape"), Path(path).name)
+        text = data.decode("utf-8", errors="surrogateescape")
+        del data  # a long program held once, as its text
+        source = cls(text, Path(path).name)
         source.path = Path(path)
         return source
 

@@ -81,6 +81,12 @@ class ProgramStream:
         from cnc_twin.gcode.extents import operation_points
 
         in_air = bool(self.shaping.get("air"))
+        if self.source.o_lines:
+            # a program with O-words may loop without end: read it through first, its calls only
+            # counted (the reader's bound catches a runaway in seconds, in a batch's memory),
+            # before its operations are shaped and made into steps, which cost far more a call
+            for _ in self.calls():
+                pass
         calls = self.calls()
         try:
             for op in tp.iter_operations(calls, **self.shaping):
