@@ -11,10 +11,10 @@ work system, path control, distance modes, retract mode, G10 / G28 / G30 / G92, 
 O-word lines go to :mod:`~cnc_twin.gcode.flow`.
 
 What the twin's machine does not have is refused in one line naming it (cutter radius
-compensation, threading, lathe modes...), never read differently: the reader
-either makes the calls LinuxCNC makes or says why it will not. A refused or wrong program raises
-:class:`ProgramError` with the line and LinuxCNC's wording; nothing of it reaches the machine,
-because the whole program is read before any motion.
+compensation, threading, lathe modes...), never read differently: the reader either makes the
+calls LinuxCNC makes or says why it will not. A refused or wrong program raises :class:`ProgramError`
+with the line and LinuxCNC's wording; nothing of it reaches the machine, because the whole program
+is read before any motion (its calls handed out in batches as made: :meth:`Interpreter.stream`).
 """
 
 from __future__ import annotations

@@ -10,7 +10,13 @@ The operations, in program order (:mod:`cnc_twin.gcode.path_ops`): traverses, fe
 held; corners between lines blended within the G64 ``P`` tolerance, others, and all in G61 /
 G61.1, stop; under G64 P runs of gently turning lines fitted as one curve,
 :mod:`cnc_twin.gcode.line_fit`), tool-axis paths (G1 runs turning the head, fitted under G64 P),
-pauses, spindle and force changes, probing moves. Corner blending in :func:`_blend_corners`.
+pauses, spindle and force changes, probing moves. The feed paths are shaped in
+:mod:`cnc_twin.gcode.feed_paths` (joins, fits, corner blends).
+
+:func:`iter_operations` makes them as the calls come, so a program of any length is held a feed
+path at a time: a run of G1 lines is gathered as one array (a
+:class:`~cnc_twin.gcode.path_ops.LineChain`), and a chain of more than :data:`PATH_ELEMENTS`
+elements is cut there, with an exact stop.
 """
 
 from __future__ import annotations

@@ -4,7 +4,9 @@
 - :mod:`~cnc_twin.scenario.load`        :func:`load_scenario`: read, merge the machine parameters, validate, convert; one table of program kinds
 - :mod:`~cnc_twin.scenario.machine`     axes, encoders, servo gains, the three rates, planner and whiteboard settings
 - :mod:`~cnc_twin.scenario.points`, :mod:`~cnc_twin.scenario.curve`, :mod:`~cnc_twin.scenario.surface`,
-  :mod:`~cnc_twin.scenario.contour`, :mod:`~cnc_twin.scenario.chip`  one module per program kind: its schema and conversion
+  :mod:`~cnc_twin.scenario.contour`, :mod:`~cnc_twin.scenario.chip`, :mod:`~cnc_twin.scenario.gcode`  one module
+  per program kind: its schema and conversion (an NC program's set-up in ``gcode_setup``, its probes in
+  ``gcode_probe``, its reading as a stream into steps in ``gcode_read``)
 - :mod:`~cnc_twin.scenario.faults`      the ``faults:`` and ``supervisor:`` keys
 - :mod:`~cnc_twin.scenario.schema_base`, :mod:`~cnc_twin.scenario.validation`  shared schema pieces; the first error as one line
 - :mod:`~cnc_twin.scenario.overrides`   dotted-path overrides (``servo.X.kp``) for scripts and sweeps
