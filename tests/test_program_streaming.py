@@ -127,3 +127,25 @@ def _peak_reading(text: str) -> float:
 def test_reading_a_program_four_times_as_long_takes_no_more_memory():
     short, long = _raster(6, 300), _raster(24, 300)  # 1800 and 7200 lines
     assert _peak_reading(long) < 1.3 * _peak_reading(short)
+
+
+def test_the_planner_is_given_the_steps_alone_and_plans_the_same():
+    import pickle
+
+    from cnc_twin.planner.gcode_program import GcodePlan
+    from cnc_twin.run.program_kinds import kind_of
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    sc = load_scenario(scenarios_dir() / "gcode_cam_raster.yaml")
+    prog = sc.program
+    given = kind_of(prog).for_planner(prog)
+    assert given.text == "" and all(p.reference is None for p in given.paths)
+    assert all(p.reference is not None for p in prog.paths)  # the twin's own copy keeps them
+    assert len(pickle.dumps(given)) < 0.5 * len(pickle.dumps(prog))
+
+    def records(program):
+        plan = GcodePlan(program, sc.axes, sc.home, sc.timing.interpolation_period, window=0.05)
+        return [(repr(r), n) for chunk, periods in plan.chunks() for r, n in zip(chunk, periods)]
+
+    assert records(given) == records(prog)

@@ -77,6 +77,11 @@ class ProgramKind:
     def warm_up(self, twin: Twin) -> None:
         """Compile (or load) what the run will call; runs while the planner starts."""
 
+    def for_planner(self, program):
+        """What the planner's process is given of ``program``: all of it, unless the kind holds
+        what only the run's own side measures with."""
+        return program
+
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         """The kind's own entries for ``metrics.json``."""
         return {}
@@ -320,6 +325,14 @@ class GcodeKind(ProgramKind):
         answers = [ProbeAnswer.from_counts(tripped, latch, stop, scenario.axes, scenario.home)
                    for tripped, latch, stop in log]
         return dataclasses.replace(scenario, program=scenario.program.as_run(answers))
+
+    def for_planner(self, program: GcodeProgram) -> GcodeProgram:
+        """Without its text and its paths' programmed points (the run directory's and the
+        metrics', in the twin's process): a long program's planner holds its steps alone."""
+        from cnc_twin.core.gcode_config import GcodePath
+
+        steps = tuple(dataclasses.replace(s, reference=None) if isinstance(s, GcodePath) else s for s in program.steps)
+        return dataclasses.replace(program, text="", steps=steps)
 
     def stop_time(self, program: GcodeProgram) -> float | None:
         times = [_path_stop_time(path.curve.limits) for path in program.paths]

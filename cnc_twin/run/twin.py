@@ -100,7 +100,7 @@ class Twin:
             ticks_per_period=timing.ticks_per_period, compiled=compiled,
         )
         self.job = PlannerJob(
-            program=scenario.program,
+            program=self.kind.for_planner(scenario.program),
             axes=scenario.axes,
             home=scenario.home,
             period=timing.interpolation_period,
