@@ -217,6 +217,12 @@ class GcodeProgram:
                 out.append((step.control.setpoint, speed))
         return tuple(out)
 
+    def steps_only(self) -> "GcodeProgram":
+        """The program without its text and its paths' programmed points (what the planner's
+        process is given: a long program's text and references stay in the twin's)."""
+        steps = tuple(dataclasses.replace(s, reference=None) if isinstance(s, GcodePath) else s for s in self.steps)
+        return dataclasses.replace(self, text="", steps=steps)
+
     def feed_rates(self) -> dict[int, float]:
         """``{line: F [m/s]}`` of the program's feed moves (G1) of the linear axes: those with a
         feed that move more than the rotary axes."""

@@ -329,10 +329,7 @@ class GcodeKind(ProgramKind):
     def for_planner(self, program: GcodeProgram) -> GcodeProgram:
         """Without its text and its paths' programmed points (the run directory's and the
         metrics', in the twin's process): a long program's planner holds its steps alone."""
-        from cnc_twin.core.gcode_config import GcodePath
-
-        steps = tuple(dataclasses.replace(s, reference=None) if isinstance(s, GcodePath) else s for s in program.steps)
-        return dataclasses.replace(program, text="", steps=steps)
+        return program.steps_only()
 
     def stop_time(self, program: GcodeProgram) -> float | None:
         times = [_path_stop_time(path.curve.limits) for path in program.paths]
