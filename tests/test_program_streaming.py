@@ -67,7 +67,7 @@ def test_the_calls_in_batches_are_the_calls_read_whole():
     whole = read_program(Source(text), ToolTable()).calls
     interpreter = Interpreter(Source(text), ToolTable())
     batches = list(interpreter.stream(100))
-    streamed = [call for batch in batches for call in batch] + interpreter.calls
+    streamed = [call for batch in batches for call in batch]
     assert len(batches) > 10 and max(map(len, batches)) < 2 * 100  # handed out as they were made
     assert [(c.name, c.values, c.line) for c in streamed] == [(c.name, c.values, c.line) for c in whole]
 
@@ -112,12 +112,8 @@ def _peak_reading(text: str) -> float:
     tracemalloc.start()
     interpreter = Interpreter(source, ToolTable())
 
-    def calls():
-        for batch in interpreter.stream(1000):
-            yield from batch
-        yield from interpreter.calls
-
-    for _ in tp.iter_operations(calls(), path_elements=1000):
+    calls = (call for batch in interpreter.stream(1000) for call in batch)
+    for _ in tp.iter_operations(calls, path_elements=1000):
         pass
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

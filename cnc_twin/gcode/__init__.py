@@ -8,7 +8,8 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
 - :mod:`~cnc_twin.gcode.modal`         G and M codes into modal groups, refused as LinuxCNC refuses them; the
   groups and codes by name (``GGroup``, ``MGroup``, ``G``, ``M``)
 - :mod:`~cnc_twin.gcode.checks`        a block's words checked before it runs; what the machine lacks refused
-- :mod:`~cnc_twin.gcode.source`        a file's lines (one text and their offsets), ``%`` markers, O-word lines for jumps
+- :mod:`~cnc_twin.gcode.source`        a file's lines (one text, their offsets), ``%`` markers, O-word lines
+  for jumps
 - :mod:`~cnc_twin.gcode.reading`       a line read with the refusals LinuxCNC makes while reading (codes in
   order, a bad byte named, M98 / M99 lines)
 - :mod:`~cnc_twin.gcode.subfiles`      subroutine files found as LinuxCNC finds them (``name.ngc``)

@@ -97,9 +97,9 @@ class Interpreter:
 
     def stream(self, batch: int | None):
         """Run the program, handing out its calls as it goes: each time ``batch`` calls or more
-        are made, at a line's end, they are yielded (a list) and no longer kept; the rest stay in
-        :attr:`calls` when the program ends (``batch`` None: all of them). A refused program
-        raises :class:`ProgramError` with the calls made since the last batch."""
+        are made, at a line's end, they are yielded (a list) and no longer kept; the rest, at its
+        end, as the last list (``batch`` None: all of them, also left in :attr:`calls`). A refused
+        program raises :class:`ProgramError` with the calls made since the last batch."""
         if self.source.too_long[:1] == [0]:  # LinuxCNC reads the first line on opening, before its reset
             self._preamble(opening=True)
             raise ProgramError(1, "Command too long", self.calls, self.printed)
@@ -113,8 +113,8 @@ class Interpreter:
                     if looped > self.max_calls:
                         self._runaway()
                 if batch is not None and len(self.calls) >= batch:
-                    handed, self.calls = self.calls, []
-                    yield handed
+                    yield self.calls
+                    self.calls = []
                 seen = len(self.calls)
                 if COMMON_LINES:
                     most = self.max_calls + 1 - looped if self.flow.loops else None
@@ -152,6 +152,7 @@ class Interpreter:
             file = None if self.source is self.flow.main else (self.source.path or Path(self.source.name))
             raise ProgramError(line, str(exc), self.calls, self.printed, file) from None
         self._reset()
+        yield self.calls
 
     def _runaway(self) -> None:
         """Refuse a program past ``max_calls`` calls made in loops, at the line of the loop that
@@ -502,11 +503,10 @@ def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | N
     interpreter starts from the machine's position; rs274 alone, and None here, from 0);
     ``probe``: the machine's answer to a G38.n probing move (:data:`~cnc_twin.gcode.probing.Probe`);
     None: rs274's standalone answer (:func:`~cnc_twin.gcode.probing.standalone_probe`). A G10 L1 /
-    L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``:
-    folders a called subroutine's file is looked for in after the program's own
-    (:mod:`~cnc_twin.gcode.subfiles`). ``max_calls``: the calls a program may make in its loops
-    before it is refused as one that does not end (at the line of its innermost open loop); its
-    own lines, however many, end with its file."""
+    L10 / L11 edits this reading's copy of ``tools``, never ``tools``. ``subroutine_path``: folders
+    a called subroutine's file is looked for in after the program's own (:mod:`~cnc_twin.gcode.subfiles`).
+    ``max_calls``: the calls a program may make in its loops before it is refused as one that does
+    not end (at the line of its innermost open loop); its own lines, however many, end with its file."""
     interpreter = Interpreter(source, tools, start=start, parameters=parameters, probe=probe,
                               subroutine_path=subroutine_path, max_calls=max_calls)
     # The calls hold no reference cycles; the cyclic collector's passes over their growing list

@@ -98,7 +98,7 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
 
     error, reach = None, []
     try:
-        for batch in _batches(interpreter):
+        for batch in interpreter.stream(CALL_BATCH):
             for _ in listed(batch):
                 pass
     except ProgramError as exc:  # the calls made since the last batch, then the refusal
@@ -107,7 +107,7 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
             pass
     if not canon and error is None:  # how far it reaches: read again, into its operations (a refused
         # program, a loop without end among them, never costs them)
-        reach = _reach(call for batch in _batches(reader()) for call in batch)
+        reach = _reach(call for batch in reader().stream(CALL_BATCH) for call in batch)
     tail = []
     if not canon:
         tail = [f"{path}: {len(source.lines)} lines, {counts.total()} canonical calls"]
@@ -115,12 +115,6 @@ def list_program(path: Path, tool_table: Path | None, tool_units: str, canon: bo
         if error is None:
             tail += reach
     return kept + tail + interpreter.printed, error
-
-
-def _batches(interpreter: Interpreter):
-    """The interpreter's calls in batches, the last one too."""
-    yield from interpreter.stream(CALL_BATCH)
-    yield interpreter.calls
 
 
 def _reach(calls) -> list[str]:

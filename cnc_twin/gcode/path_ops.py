@@ -100,7 +100,6 @@ class LineChain:
     points: np.ndarray
     lines: list[int]
     turns: list[float]
-    kind = "lines"
 
     @property
     def start(self) -> np.ndarray:

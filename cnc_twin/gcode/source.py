@@ -79,20 +79,6 @@ def _newlines(text: str) -> np.ndarray:
     return np.fromiter((m.start() for m in re.finditer("\n", text)), np.int64)
 
 
-class _LineOffsets:
-    """Which line a character offset is on, in a text whose newlines are at ``ends``."""
-
-    def __init__(self, ends: np.ndarray):
-        self.ends = ends
-
-    def index(self, offset: int) -> int:
-        return int(np.searchsorted(self.ends, offset))
-
-    def line(self, text: str, k: int) -> str:
-        start = int(self.ends[k - 1]) + 1 if k else 0
-        return text[start:int(self.ends[k])]
-
-
 class Lines:
     """A program's lines as a sequence of strings (no newline characters), held as one ``text``
     (each line ended by a newline) and the offset of each line's start: indexing cuts the line out."""
@@ -126,17 +112,19 @@ class Lines:
         for k in range(len(starts) - 1):
             yield text[starts[k]:starts[k + 1] - 1]
 
+    def line_at(self, offset: int) -> int:
+        """The index of the line the text's character ``offset`` is on."""
+        return bisect.bisect_right(self._starts, offset) - 1
+
     def containing(self, pattern: re.Pattern, start: int = 0):
         """Indices (from ``start`` on, increasing) of the lines ``pattern`` matches in (searched
         in the whole text at once: compiled with ``re.MULTILINE``, ``^`` and ``$`` are a line's
         ends; a pattern must not match across a newline)."""
         if start >= len(self):
             return
-        found = pattern.finditer(self.text, self._starts[start])
-        starts = self._starts
         last = -1
-        for match in found:
-            k = bisect.bisect_right(starts, match.start()) - 1
+        for match in pattern.finditer(self.text, self._starts[start]):
+            k = self.line_at(match.start())
             if k != last:
                 last = k
                 yield k
@@ -172,15 +160,13 @@ class Source:
         text :meth:`read` gives), for the lines that have some: ``lines`` holds them as U+FFFD,
         one for one"""
         body = _TRAILING_SPACE.sub("", text if not text or text.endswith("\n") else text + "\n")
-        ends = newlines if body is text else None  # nothing stripped (a CAM program): the same newlines
+        # nothing stripped (a CAM program): the same newlines
+        self.lines = Lines(body, newlines if body is text else _newlines(body))
         if not text.isascii():
-            line_of = _LineOffsets(_newlines(body))
             for match in _ESCAPED.finditer(body):
-                k = line_of.index(match.start())
-                if k not in self.escaped:
-                    self.escaped[k] = line_of.line(body, k)
-            body = _ESCAPED.sub("\ufffd", body)  # one character for one: the offsets hold
-        self.lines = Lines(body, _newlines(body) if ends is None else ends)
+                k = self.lines.line_at(match.start())
+                self.escaped.setdefault(k, self.lines[k])
+            self.lines.text = _ESCAPED.sub("\ufffd", body)  # one character for one: the offsets hold
         # LinuxCNC reads a line into 255 bytes: one of MAX_LINE bytes or more before its newline
         # (a CR counts) is "Command too long" wherever it is read, a line passed over too
         self.too_long = [int(k) for k in np.flatnonzero(raw_lengths >= MAX_LINE)

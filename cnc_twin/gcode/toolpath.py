@@ -37,8 +37,8 @@ from cnc_twin.gcode.path_ops import (
 )
 from cnc_twin.geometry.bezier import bezier_pieces, homogeneous, knot_spans
 
-__all__ = ["operations", "iter_operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange", "Operation", "Pause",
-           "Probe", "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
+__all__ = ["operations", "iter_operations", "arc_element", "curve_element", "Element", "FeedPath", "ForceChange",
+           "Operation", "Pause", "Probe", "SpindleChange", "ToolAxisPath", "ToolpathError", "Traverse", "line_element", "programmed_geometry"]
 """the operations are re-exported: what the program becomes is looked for here"""
 
 INCH = 25.4

@@ -69,7 +69,6 @@ class ProgramStream:
         try:
             for batch in interpreter.stream(CALL_BATCH):
                 yield from batch
-            yield from interpreter.calls
         except ProgramError as exc:
             raise Where(exc.file or self.path)(exc.line, exc.message) from None
         self.files = interpreter.flow.files.texts()
