@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 from cnc_twin.gcode.blocks import BlockError
 from cnc_twin.gcode.expressions import ExpressionError, Parameters, evaluate
+from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.gcode.source import KEYWORDS, OLine, Source
 from cnc_twin.gcode.subfiles import SubroutineFiles
 
@@ -30,9 +31,6 @@ OPENERS = ("if", "while", "repeat", "do")
 """keywords whose label LinuxCNC records when it runs them"""
 RETURNED = ("_value", "_value_returned")
 """the named parameters a subroutine's return sets"""
-MAX_ITERATIONS = 2_000_000
-"""O-word lines run before the reader gives up on a program that never ends (a loop making no
-calls, which the calls' bound does not see: about 10 s of reading)"""
 
 
 class SeekError(BlockError):
@@ -81,6 +79,9 @@ class Flow:
     """name -> the file and 0-based index of its ``sub`` line"""
     files: SubroutineFiles | None = None
     passes: int = 0
+    max_passes: int = MAX_CALLS
+    """O-word lines run before the reader gives up on a program that never ends (a loop making no
+    calls, which the calls' bound does not see): the reader's ``max_calls``"""
     labels: list[dict[str, tuple[int, str]]] = field(default_factory=lambda: [{}])
     """per call level (the program, then each call in progress): the labels of the ``if``,
     ``while``, ``repeat`` and ``do`` lines run so far -> their line index and keyword"""
@@ -137,9 +138,9 @@ class Flow:
         """Run the O-word line at ``index``: the index of the next line to read, or ``"end"``
         when a subroutine returns past the top level."""
         self.passes += 1
-        if self.passes > MAX_ITERATIONS:
-            raise BlockError(f"more than {MAX_ITERATIONS} O-word lines run: the loop here runs on, the program "
-                             "does not end")
+        if self.passes > self.max_passes:
+            raise BlockError(f"more than {self.max_passes} O-word lines run: the loop here runs on, the program "
+                             "does not end (the bound: program.max_calls, gcode --max-calls)")
         o_line = self.source.o_lines[index]
         keyword, rest = self._keyword(o_line)
         if not keyword:  # a Fanuc-style program number line: nothing to run

@@ -66,7 +66,7 @@ class Interpreter:
         self.state = State(self.params, tools)
         self.state.begin(start)
         folder = source.path.parent if source.path is not None else None
-        self.flow = Flow(source, self.params, files=SubroutineFiles(folder, subroutine_path))
+        self.flow = Flow(source, self.params, files=SubroutineFiles(folder, subroutine_path), max_passes=max_calls)
         self.calls: list[Call] = []
         self.printed: list[str] = []
         self.motion = MotionRunner(self)
