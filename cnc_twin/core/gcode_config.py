@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cnc_twin.core.packed_text import PackedText
+
 if TYPE_CHECKING:  # config imports this module: its types only for annotations
     from cnc_twin.core.config import ForceControl, NurbsProgram, Preston, SurfaceDef
 
@@ -150,8 +152,8 @@ class GcodeProgram:
     """An NC program read whole (:mod:`cnc_twin.gcode`), as machine steps in SI."""
 
     file: Path
-    text: str
-    """the program as read (the run directory keeps it)"""
+    packed_text: PackedText
+    """the program as read, packed (the run directory keeps it; :attr:`text` unpacks it)"""
     steps: tuple[GcodeMove | GcodePath | GcodePause | GcodeSpindle | GcodeForce | GcodeProbe, ...]
     lines: int
     """lines in the file"""
@@ -221,7 +223,12 @@ class GcodeProgram:
         """The program without its text and its paths' programmed points (what the planner's
         process is given: a long program's text and references stay in the twin's)."""
         steps = tuple(dataclasses.replace(s, reference=None) if isinstance(s, GcodePath) else s for s in self.steps)
-        return dataclasses.replace(self, text="", steps=steps)
+        return dataclasses.replace(self, packed_text=PackedText.of(""), steps=steps)
+
+    @property
+    def text(self) -> str:
+        """The program as read."""
+        return self.packed_text.text()
 
     def feed_rates(self) -> dict[int, float]:
         """``{line: F [m/s]}`` of the program's feed moves (G1) of the linear axes: those with a

@@ -32,6 +32,7 @@ import numpy as np
 from cnc_twin.core.config import (
     AxisConfig, ContourProgram, GcodeProgram, MotionChipProgram, NurbsProgram, PointToPoint, Scenario, SurfaceProgram,
 )
+from cnc_twin.core.packed_text import PackedText
 from cnc_twin.machine.model_file import load_model_with_obstacles
 from cnc_twin.machine.plant import Plant
 
@@ -95,9 +96,9 @@ class ProgramKind:
         starting with the key path: said before the run and kept in ``metrics.json``."""
         return []
 
-    def run_files(self, program) -> dict[str, str]:
+    def run_files(self, program) -> dict[str, str | PackedText]:
         """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
-        (name -> text): the program a scenario names."""
+        (name -> text, or a long one packed): the program a scenario names."""
         return {}
 
 
@@ -348,8 +349,8 @@ class GcodeKind(ProgramKind):
             out["polish"] = gcode_polish_metrics(trace, twin.scenario.program, twin.removal, wall_time)
         return out
 
-    def run_files(self, program: GcodeProgram) -> dict[str, str]:
-        files = {program.file.name: program.text}
+    def run_files(self, program: GcodeProgram) -> dict[str, str | PackedText]:
+        files: dict[str, str | PackedText] = {program.file.name: program.packed_text}
         if program.tool_table is not None and Path(program.tool_table[0]).name == program.tool_table[0]:
             # named beside the scenario: kept beside it (a path elsewhere is named as it was)
             files[program.tool_table[0]] = program.tool_table[1]

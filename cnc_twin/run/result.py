@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import Scenario
+from cnc_twin.core.packed_text import PackedText
 from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
@@ -69,7 +70,10 @@ class RunResult:
 
             for name, text in kind_of(self.scenario.program).run_files(self.scenario.program).items():
                 (folder / name).parent.mkdir(parents=True, exist_ok=True)  # a subroutine file's folder
-                (folder / name).write_text(text, encoding="utf-8")
+                if isinstance(text, PackedText):
+                    text.write(folder / name)
+                else:
+                    (folder / name).write_text(text, encoding="utf-8")
             if self.removal is not None:
                 self.removal.save(folder)
             for name, png in self.figures().items():

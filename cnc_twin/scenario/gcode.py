@@ -44,6 +44,7 @@ from cnc_twin.core.gcode_config import (
     GcodeWorkpiece,
 )
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.core.packed_text import PackedText
 from cnc_twin.gcode.limits import MAX_CALLS
 from cnc_twin.scenario.curve import CardMemoryError, NurbsCurveProgram
 from cnc_twin.scenario.gcode_read import ProgramStream, Where
@@ -187,7 +188,7 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     source, sub_files = stream.source, stream.files
-    return GcodeProgram(file=path, text=source.text, steps=tuple(steps), lines=len(source.lines),
+    return GcodeProgram(file=path, packed_text=PackedText.of(source.text), steps=tuple(steps), lines=len(source.lines),
                         settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
                         air=spec.in_air * units.MM, air_clearance=clearance,
                         after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
