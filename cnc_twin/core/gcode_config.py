@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cnc_twin.core.packed_text import PackedText
+from cnc_twin.core.spill import StoredArray
 
 if TYPE_CHECKING:  # config imports this module: its types only for annotations
     from cnc_twin.core.config import ForceControl, NurbsProgram, Preston, SurfaceDef
@@ -29,15 +30,15 @@ class GcodeMove:
     """program line (1-based)"""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class GcodeReference:
     """A feed path as programmed (before blends and fits), what its run is measured against; one
-    object shared by the card curves a path is cut into."""
+    object shared by the card curves a path is cut into. Its arrays are needed only when the run
+    is measured: a long path's wait in the spill file (:class:`~cnc_twin.core.spill.StoredArray`),
+    read back by :attr:`polyline`, :attr:`vertices` and :attr:`axes`. Made with :meth:`of`."""
 
-    polyline: np.ndarray
-    """(k, 3) [m] world frame, tool tip: lines by their ends, arcs and curves finely sampled"""
-    vertices: np.ndarray
-    """(m, 3) [m] the programmed elements' ends"""
+    stored_polyline: StoredArray
+    stored_vertices: StoredArray
     tolerance: float | None
     """the path's G64 P [m]; None without one"""
     fits: int
@@ -46,10 +47,34 @@ class GcodeReference:
     fit_deviation: float
     """the fits' largest distance from their programmed points and segments, as the fitter
     measured it [m] (a claim: the run is checked against ``polyline`` from the trace)"""
-    axes: np.ndarray | None = None
-    """(m, 3) the programmed tool axis at each vertex (a path turning the head), unit"""
+    stored_axes: StoredArray | None = None
     axis_tolerance: float | None = None
     """[rad] how far the fitted tool axis may turn from the programmed one"""
+
+    @classmethod
+    def of(cls, polyline: np.ndarray, vertices: np.ndarray, *, axes: np.ndarray | None = None,
+           **figures) -> "GcodeReference":
+        """From its arrays (``vertices is polyline`` for a path of lines: stored once) and its
+        figures (``tolerance``, ``fits``, ``fit_spans``, ``fit_deviation``, ``axis_tolerance``)."""
+        stored = StoredArray(polyline)
+        return cls(stored_polyline=stored, stored_vertices=stored if vertices is polyline else StoredArray(vertices),
+                   stored_axes=None if axes is None else StoredArray(axes), **figures)
+
+    @property
+    def polyline(self) -> np.ndarray:
+        """(k, 3) [m] world frame, tool tip: lines by their ends, arcs and curves finely sampled"""
+        return self.stored_polyline.array()
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """(m, 3) [m] the programmed elements' ends"""
+        return self.stored_vertices.array()
+
+    @property
+    def axes(self) -> np.ndarray | None:
+        """(m, 3) the programmed tool axis at each vertex (a path turning the head), unit; None
+        for a path that holds the head"""
+        return None if self.stored_axes is None else self.stored_axes.array()
 
 
 @dataclass(frozen=True)

@@ -59,31 +59,33 @@ class _Group:
 
     def __init__(self, ref):
         self.ref = ref
+        # read once from where a long program keeps them, held while the group's paths run
+        self.vertices = ref.vertices
+        self.polyline = self.vertices if ref.stored_polyline is ref.stored_vertices else ref.polyline
         self.worst = 0.0
         self.points = 0
-        self.best = np.full(len(ref.vertices), np.inf)  # each vertex's distance to the commanded polyline
-        self.nearest = np.full(len(ref.vertices), np.inf)  # ... and to the nearest commanded point
-        self.axis = np.zeros((len(ref.vertices), 3)) if ref.axes is not None else None
+        self.best = np.full(len(self.vertices), np.inf)  # each vertex's distance to the commanded polyline
+        self.nearest = np.full(len(self.vertices), np.inf)  # ... and to the nearest commanded point
+        self.axis = np.zeros((len(self.vertices), 3)) if ref.stored_axes is not None else None
         self.last: tuple[np.ndarray, np.ndarray] | None = None
         self.coarse: list[tuple[np.ndarray, np.ndarray]] = []
 
     def add(self, tips: np.ndarray, tool: np.ndarray) -> None:
         """A feed path's commanded tips and tool axes (each (n, 3)), in run order."""
-        ref = self.ref
-        self.worst = max(self.worst, float(point_to_polyline(tips, ref.polyline).max()))
+        self.worst = max(self.worst, float(point_to_polyline(tips, self.polyline).max()))
         if self.last is not None:  # the commanded polyline runs on from the last path's last point
             tips, tool = np.vstack([self.last[0], tips]), np.vstack([self.last[1], tool])
         self.points += len(tips) - (self.last is not None)
         self.last = (tips[-1:], tool[-1:])
         self.coarse.append((np.vstack([tips[:-1:COARSE_EVERY], tips[-1:]]), np.vstack([tool[:-1:COARSE_EVERY], tool[-1:]])))
         lo, hi = tips.min(axis=0) - VERTEX_REACH, tips.max(axis=0) + VERTEX_REACH
-        near = np.flatnonzero(np.all((ref.vertices >= lo) & (ref.vertices <= hi), axis=1))
+        near = np.flatnonzero(np.all((self.vertices >= lo) & (self.vertices <= hi), axis=1))
         if len(near):
             self._measure(near, tips, tool)
 
     def _measure(self, which: np.ndarray, tips: np.ndarray, tool: np.ndarray) -> None:
         """Vertices ``which`` against the commanded polyline ``tips`` (and its points, ``tool``)."""
-        vertices = self.ref.vertices[which]
+        vertices = self.vertices[which]
         if len(tips) > 1:
             self.best[which] = np.minimum(self.best[which], point_to_polyline(vertices, tips))
         if self.axis is not None:
@@ -170,8 +172,8 @@ class ProgramCheck:
             return
         if self.open is None or self.open.ref is not ref:
             self._close()
-            self.ideal += float(np.sum(np.linalg.norm(np.diff(ref.polyline, axis=0), axis=1))) / c.limits.feed
             self.open = _Group(ref)
+            self.ideal += float(np.sum(np.linalg.norm(np.diff(self.open.polyline, axis=0), axis=1))) / c.limits.feed
         self.open.add(tips, tool)
 
     def _close(self) -> None:

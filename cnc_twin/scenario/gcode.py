@@ -406,8 +406,8 @@ def _reference(op, head) -> GcodeReference:
     origin = np.asarray(head.workpiece_origin)
     fits = [e for e in op.elements if e.kind == "fit"]
     world = polyline * units.MM + origin  # a path of lines: its vertices are its polyline, held once
-    return GcodeReference(
-        polyline=world, vertices=world if vertices is polyline else vertices * units.MM + origin,
+    return GcodeReference.of(
+        world, world if vertices is polyline else vertices * units.MM + origin,
         tolerance=None if op.tolerance is None else op.tolerance * units.MM, fits=len(fits),
         fit_spans=sum(len(e.pieces) for e in fits), fit_deviation=max((e.deviation for e in fits), default=0.0) * units.MM)
 
@@ -444,7 +444,7 @@ def _tool_axis_path(op, spec: GcodeProgramSpec, axes, model, label: Path, where:
         raise where(op.line, exc.message) from None
     origin = np.asarray(head.workpiece_origin)
     points = op.program_points * units.MM + origin
-    reference = GcodeReference(polyline=points, vertices=points, tolerance=op.tolerance * units.MM, fits=1,
+    reference = GcodeReference.of(points, points, tolerance=op.tolerance * units.MM, fits=1,
                                fit_spans=len(np.unique(op.knots)) - 1, fit_deviation=op.deviation * units.MM,
                                axes=op.program_axes, axis_tolerance=op.axis_tolerance)
     return GcodePath(curve=curve, lines=tuple(op.span_lines), line=op.line, reference=reference)
