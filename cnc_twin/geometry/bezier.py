@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 
 def homogeneous(points, weights) -> np.ndarray:
@@ -22,17 +23,36 @@ def homogeneous(points, weights) -> np.ndarray:
     return np.hstack([P * W[:, None], W[:, None]])
 
 
-def _insert_knot(Pw: np.ndarray, knots: np.ndarray, degree: int, u: float) -> tuple[np.ndarray, np.ndarray]:
-    """Boehm's insertion of ``u`` once: the same curve with one more control point."""
-    k = int(np.searchsorted(knots, u, side="right")) - 1  # knots[k] <= u < knots[k + 1]
-    n = len(Pw)
-    out = np.empty((n + 1, Pw.shape[1]))
-    out[:k - degree + 1] = Pw[:k - degree + 1]
-    out[k + 1:] = Pw[k:]
-    for i in range(k - degree + 1, k + 1):
-        alpha = (u - knots[i]) / (knots[i + degree] - knots[i])
-        out[i] = alpha * Pw[i] + (1.0 - alpha) * Pw[i - 1]
-    return out, np.insert(knots, k + 1, u)
+@njit(cache=True, nogil=True)
+def _insert_knots(Pw, knots, inner, times, degree):  # pragma: no cover - compiled
+    """``Pw`` ((n, 4) homogeneous) on ``knots`` with each of ``inner`` inserted ``times`` times
+    more, by Boehm's insertion one knot at a time (The NURBS Book A5.1 with r = 1), in place on
+    arrays made room for: each new point ``alpha * P[i] + (1 - alpha) * P[i - 1]`` computed as
+    numpy computes it on the rows (no fused multiply-add), so the pieces are its bits."""
+    n, m, p = Pw.shape[0], knots.shape[0], degree
+    total = 0
+    for j in range(inner.shape[0]):
+        total += times[j]
+    out = np.empty((n + total, Pw.shape[1]))
+    out[:n] = Pw
+    U = np.empty(m + total)
+    U[:m] = knots
+    for j in range(inner.shape[0]):
+        u = inner[j]
+        for _ in range(times[j]):
+            k = np.searchsorted(U[:m], u, side="right") - 1  # U[k] <= u < U[k + 1]
+            for i in range(n - 1, k - 1, -1):  # the points from k on move up one
+                out[i + 1] = out[i]
+            for i in range(k, k - p, -1):  # from the top down: out[i - 1] is still the old point
+                alpha = (u - U[i]) / (U[i + p] - U[i])
+                for c in range(out.shape[1]):
+                    out[i, c] = alpha * out[i, c] + (1.0 - alpha) * out[i - 1, c]
+            for i in range(m - 1, k, -1):
+                U[i + 1] = U[i]
+            U[k + 1] = u
+            n += 1
+            m += 1
+    return out
 
 
 def bezier_pieces(points, weights, knots, degree: int) -> list[np.ndarray]:
@@ -41,9 +61,9 @@ def bezier_pieces(points, weights, knots, degree: int) -> list[np.ndarray]:
     Pw = homogeneous(points, weights)
     U = np.asarray(knots, dtype=np.float64)
     p = int(degree)
-    for u in np.unique(U[p + 1:len(U) - p - 1]):
-        for _ in range(p - int(np.count_nonzero(U == u))):
-            Pw, U = _insert_knot(Pw, U, p, float(u))
+    inner = np.unique(U[p + 1:len(U) - p - 1])
+    times = np.array([p - int(np.count_nonzero(U == u)) for u in inner], dtype=np.int64)
+    Pw = _insert_knots(Pw, U, inner, np.maximum(times, 0), p)
     return [Pw[i * p:i * p + p + 1].copy() for i in range(len(Pw) // p) if i * p + p < len(Pw)]
 
 
