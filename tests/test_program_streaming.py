@@ -113,7 +113,7 @@ def _peak_reading(text: str) -> float:
     interpreter = Interpreter(source, ToolTable())
 
     calls = (call for batch in interpreter.stream(1000) for call in batch)
-    for _ in tp.iter_operations(calls, path_elements=500):
+    for _ in tp.iter_operations(calls, path_elements=1000):
         pass
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
@@ -121,13 +121,8 @@ def _peak_reading(text: str) -> float:
 
 
 def test_reading_a_program_four_times_as_long_takes_no_more_memory():
-    """Once the paths prepared ahead are as many as they may be (:data:`~cnc_twin.gcode.paths_ahead.
-    LOOKAHEAD`, each cut at 500 elements here), the memory does not grow with the program."""
-    short, long = _raster(16, 300), _raster(64, 300)  # 4800 and 19 200 lines: 10 and 39 paths
-    _peak_reading(_raster(2, 300))  # what a first reading loads once (the worker, compiled kernels)
-    # held in full, four times the lines would take four times the memory; how many paths wait at
-    # the peak depends on the two threads' timing (up to LOOKAHEAD + 1 either way)
-    assert _peak_reading(long) < 1.6 * _peak_reading(short)
+    short, long = _raster(6, 300), _raster(24, 300)  # 1800 and 7200 lines
+    assert _peak_reading(long) < 1.3 * _peak_reading(short)
 
 
 def test_the_planner_is_given_the_steps_alone_and_plans_the_same():
@@ -150,49 +145,3 @@ def test_the_planner_is_given_the_steps_alone_and_plans_the_same():
         return [(repr(r), n) for chunk, periods in plan.chunks() for r, n in zip(chunk, periods)]
 
     assert records(given) == records(prog)
-
-
-def test_paths_prepared_ahead_are_handed_out_in_order_and_before_a_later_error():
-    """The worker fits ahead of the reader (:mod:`cnc_twin.gcode.paths_ahead`): the operations are
-    those made one by one, in order; an error on a later line comes after every operation made
-    before it, as when each was made at once."""
-    from cnc_twin.gcode import paths_ahead
-
-    calls = read_program(Source(_raster(12)), ToolTable()).calls
-
-    class Bad(Exception):
-        pass
-
-    def failing():
-        yield from calls[:len(calls) // 2]
-        raise Bad
-
-    def collect(stream, at_once: bool) -> tuple[list, bool]:
-        original = paths_ahead.PathsAhead.prepare
-        if at_once:  # each path made at once, in the reading thread
-            paths_ahead.PathsAhead.prepare = lambda self, make, *args: [self.add(op) for op in make(*args)] and None
-        got = []
-        try:
-            for op in tp.iter_operations(stream, path_elements=500):
-                got.append(op)
-        except Bad:
-            return got, True
-        finally:
-            paths_ahead.PathsAhead.prepare = original
-        return got, False
-
-    ahead, raised = collect(iter(calls), False)
-    assert not raised and len(ahead) > paths_ahead.LOOKAHEAD + 3
-    assert _digest(ahead) == _digest(collect(iter(calls), True)[0])
-    before_error, raised = collect(failing(), False)
-    assert raised and len(before_error) > paths_ahead.LOOKAHEAD
-    assert _digest(before_error) == _digest(collect(failing(), True)[0])
-
-
-def _digest(ops) -> list:
-    out = []
-    for op in ops:
-        out.append((type(op).__name__, getattr(op, "line", None)))
-        for element in getattr(op, "elements", []):
-            out.append((element.kind, element.line, b"".join(np.ascontiguousarray(q).tobytes() for q in element.pieces)))
-    return out

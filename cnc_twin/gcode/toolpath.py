@@ -31,7 +31,6 @@ from cnc_twin.gcode.canon import Call
 from cnc_twin.gcode.feed_paths import chain_turns, feed_paths
 from cnc_twin.gcode.line_fit import tool_axis_paths
 from cnc_twin.gcode.modal import G
-from cnc_twin.gcode.paths_ahead import PathsAhead
 from cnc_twin.gcode.path_ops import (
     Element, FeedPath, ForceChange, LineChain, Operation, Pause, Probe, SpindleChange, ToolAxisPath, ToolpathError,
     Traverse, line_element, programmed_geometry,
@@ -211,19 +210,8 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     Raises :class:`ToolpathError` for what reads but cannot run: an arc, a curve or a probing move
     as the first motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
     """
-    ahead = PathsAhead()
-    try:
-        yield from _operations(calls, ahead, default_blend, axis_tolerance, start, air, path_elements)
-    except Exception:
-        if not ahead.failed:  # the reader's (or a move's) error: what was made before it first
-            yield from ahead.drain()
-        raise
-
-
-def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, axis_tolerance: float, start,
-                air: float, path_elements: int) -> Iterator[Operation]:
-    """:func:`iter_operations`' reading: the feed paths it closes prepared in ``ahead``."""
     canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
+    ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
     # (in Python floats: every line compares it, numpy's arrays only where they are worked with)
     here: list[float] | None = None if start is None else (np.asarray(start, dtype=float) + canon.offset).tolist()
@@ -234,16 +222,18 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
     def close() -> None:
         nonlocal held
         if path:
-            ahead.prepare(feed_paths, [(item.closed() if isinstance(item, _OpenChain) else item, m) for item, m in path],
-                          default_blend)
+            ops.extend(feed_paths([(item.closed() if isinstance(item, _OpenChain) else item, m) for item, m in path],
+                                  default_blend))
             path.clear()
             held = 0
         if tilting:
-            ahead.prepare(tool_axis_paths, list(tilting), math.radians(axis_tolerance))
+            ops.extend(tool_axis_paths(tilting, math.radians(axis_tolerance)))
             tilting.clear()
 
     for call in calls:
-        yield from ahead.ready()
+        if ops:
+            yield from ops
+            ops.clear()
         if held >= path_elements or len(tilting) >= path_elements:
             close()
         name, v = call.name, call.values
@@ -289,7 +279,7 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
                 feed = None
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
-                ahead.add(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
+                ops.append(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
             here = e
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
@@ -312,35 +302,35 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
             close()
             move, result = call.payload
             end, stop = canon.machine(v), canon.machine(result.stop)
-            ahead.add(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
+            ops.append(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
                              tuple(float(x) for x in stop), canon.feed, move.kind, call.line,
                              tuple(float(x) for x in canon.offset), canon.scale))
             here = stop.tolist()
         elif name == "DWELL":
             close()
-            ahead.add(Pause(float(v[0]), call.line))
+            ops.append(Pause(float(v[0]), call.line))
         elif name in ("PROGRAM_STOP", "OPTIONAL_PROGRAM_STOP"):
             close()
-            ahead.add(Pause(0.0, call.line))
+            ops.append(Pause(0.0, call.line))
         elif name == "SET_SPINDLE_SPEED":
             canon.spindle_speed = float(v[0])
             if canon.spindle_direction:
                 close()
-                ahead.add(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+                ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
         elif name in ("START_SPINDLE_CLOCKWISE", "START_SPINDLE_COUNTERCLOCKWISE", "STOP_SPINDLE_TURNING"):
             close()
             canon.spindle_direction = {"START_SPINDLE_CLOCKWISE": 1, "START_SPINDLE_COUNTERCLOCKWISE": -1}.get(name, 0)
-            ahead.add(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+            ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
         elif name == "FORCE_CONTROL_ON":
             close()
-            ahead.add(ForceChange(float(v[0]), call.line))
+            ops.append(ForceChange(float(v[0]), call.line))
         elif name == "FORCE_CONTROL_OFF":
             close()
-            ahead.add(ForceChange(None, call.line))
+            ops.append(ForceChange(None, call.line))
         elif name == "PROGRAM_END":
             break
     close()
-    yield from ahead.drain()
+    yield from ops
 
 
 def _modes(canon: _Canon, here: list[float]) -> tuple:

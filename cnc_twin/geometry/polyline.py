@@ -37,7 +37,7 @@ def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy", nogil=True)  # a fit in the path worker runs beside the reader
+@njit(cache=True, error_model="numpy")
 def segment_distances(points, poly, nearest, out):  # pragma: no cover - compiled
     """``out[i]``: the distance of ``points[i]`` ((n, 3)) to the nearest of the segments of
     ``poly`` ((m, 3), m >= 2) that end or start at the vertices ``nearest[i]`` ((n, k) indices):
