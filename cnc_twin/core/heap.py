@@ -10,14 +10,22 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import gc
 import os
 
 _TRIM = None
 
 
 def return_freed_memory() -> None:
-    """Hand the C heap's free pages back to the system (a no-op where glibc is not the C library)."""
+    """Collect the garbage in reference cycles, then hand the C heap's free pages back to the
+    system (the trim a no-op where glibc is not the C library).
+
+    The collection first: a long program's load leaves cycles (its reading generators and what
+    their frames hold: the program's text and line offsets, 190 MB for 5 000 000 lines) that
+    Python's collector would reach only when it next looks at its oldest objects, late in a run
+    of hours (0.1 s for a 500 000-line program's load)."""
     global _TRIM
+    gc.collect()
     if _TRIM is None:
         try:
             _TRIM = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
