@@ -131,7 +131,7 @@ def test_the_scenario_key_and_the_run_directory_keep_the_files(tmp_path):
     folder named by its key; the files a run called are kept where the scenario's folder had
     them, so the run directory reads the same program again."""
     from cnc_twin import load_scenario
-    from cnc_twin.run.program_kinds import kind_of
+    from cnc_twin.run.program_kinds import kind_of, write_run_files
 
     folder = _folder(tmp_path)
     scenario = {"name": "subs", "program": {"type": "gcode", "file": "part.ngc", "subroutine_path": ["subs"]}}
@@ -145,9 +145,8 @@ def test_the_scenario_key_and_the_run_directory_keep_the_files(tmp_path):
     assert kept["inner.ngc"] == (folder / "inner.ngc").read_text()
     # the run directory as written: the scenario, the program and the kept files, read again
     rerun = tmp_path / "rerun"
-    for name, text in kept.items():
-        (rerun / name).parent.mkdir(parents=True, exist_ok=True)
-        (rerun / name).write_text(text)
+    write_run_files(loaded.program, rerun)
+    assert sorted(p.relative_to(rerun).as_posix() for p in rerun.rglob("*.ngc")) == sorted(kept)
     (rerun / "s.yaml").write_text(yaml.safe_dump(scenario))
     again = load_scenario(rerun / "s.yaml")
     assert again.program.steps == loaded.program.steps

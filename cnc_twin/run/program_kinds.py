@@ -409,6 +409,17 @@ KINDS: dict[type, ProgramKind] = {
 """the run side of every program kind, by the type of its validated program"""
 
 
+def write_run_files(program, folder: Path) -> None:
+    """The files :meth:`ProgramKind.run_files` names for ``program``, written into ``folder`` (a
+    run directory) as UTF-8, each in its folder there; a packed text a piece at a time."""
+    for name, text in kind_of(program).run_files(program).items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)  # a subroutine file's folder
+        if isinstance(text, PackedText):
+            text.write(folder / name)
+        else:
+            (folder / name).write_text(text, encoding="utf-8")
+
+
 def kind_of(program) -> ProgramKind:
     """The :class:`ProgramKind` of a validated program (:mod:`cnc_twin.core.config`)."""
     try:

@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import Scenario
-from cnc_twin.core.packed_text import PackedText
 from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
@@ -66,14 +65,9 @@ class RunResult:
         :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
         system), or None to export it now after all."""
         def extra(folder: Path) -> None:
-            from cnc_twin.run.program_kinds import kind_of
+            from cnc_twin.run.program_kinds import write_run_files
 
-            for name, text in kind_of(self.scenario.program).run_files(self.scenario.program).items():
-                (folder / name).parent.mkdir(parents=True, exist_ok=True)  # a subroutine file's folder
-                if isinstance(text, PackedText):
-                    text.write(folder / name)
-                else:
-                    (folder / name).write_text(text, encoding="utf-8")
+            write_run_files(self.scenario.program, folder)
             if self.removal is not None:
                 self.removal.save(folder)
             for name, png in self.figures().items():
