@@ -141,8 +141,8 @@ def test_the_scenario_key_and_the_run_directory_keep_the_files(tmp_path):
     assert "1 feed path" in out
     loaded = load_scenario(folder / "s.yaml")
     kept = kind_of(loaded.program).run_files(loaded.program)
-    assert kept["subs/side.ngc"] == (folder / "subs" / "side.ngc").read_text()
-    assert kept["inner.ngc"] == (folder / "inner.ngc").read_text()
+    assert kept["subs/side.ngc"].text() == (folder / "subs" / "side.ngc").read_text()
+    assert kept["inner.ngc"].text() == (folder / "inner.ngc").read_text()
     # the run directory as written: the scenario, the program and the kept files, read again
     rerun = tmp_path / "rerun"
     write_run_files(loaded.program, rerun)

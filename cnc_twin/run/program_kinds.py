@@ -96,9 +96,9 @@ class ProgramKind:
         starting with the key path: said before the run and kept in ``metrics.json``."""
         return []
 
-    def run_files(self, program) -> dict[str, str | PackedText]:
+    def run_files(self, program) -> dict[str, PackedText]:
         """Files the run directory keeps beside ``scenario.yaml`` so it runs again as it is
-        (name -> text, or a long one packed): the program a scenario names."""
+        (name -> its text, packed): the program a scenario names."""
         return {}
 
 
@@ -349,12 +349,13 @@ class GcodeKind(ProgramKind):
             out["polish"] = gcode_polish_metrics(trace, twin.scenario.program, twin.removal, wall_time)
         return out
 
-    def run_files(self, program: GcodeProgram) -> dict[str, str | PackedText]:
-        files: dict[str, str | PackedText] = {program.file.name: program.packed_text}
+    def run_files(self, program: GcodeProgram) -> dict[str, PackedText]:
+        files: dict[str, PackedText] = {program.file.name: program.packed_text}
         if program.tool_table is not None and Path(program.tool_table[0]).name == program.tool_table[0]:
             # named beside the scenario: kept beside it (a path elsewhere is named as it was)
-            files[program.tool_table[0]] = program.tool_table[1]
-        files.update(program.subroutine_files)  # where the scenario's folder had them
+            files[program.tool_table[0]] = PackedText.of(program.tool_table[1])
+        # where the scenario's folder had them
+        files.update((name, PackedText.of(text)) for name, text in program.subroutine_files)
         return files
 
     def notices(self, scenario: Scenario) -> list[str]:
@@ -411,13 +412,10 @@ KINDS: dict[type, ProgramKind] = {
 
 def write_run_files(program, folder: Path) -> None:
     """The files :meth:`ProgramKind.run_files` names for ``program``, written into ``folder`` (a
-    run directory) as UTF-8, each in its folder there; a packed text a piece at a time."""
+    run directory) as UTF-8, each in its folder there, a piece at a time."""
     for name, text in kind_of(program).run_files(program).items():
         (folder / name).parent.mkdir(parents=True, exist_ok=True)  # a subroutine file's folder
-        if isinstance(text, PackedText):
-            text.write(folder / name)
-        else:
-            (folder / name).write_text(text, encoding="utf-8")
+        text.write(folder / name)
 
 
 def kind_of(program) -> ProgramKind:
