@@ -70,6 +70,11 @@ class GcodeReference:
         """(m, 3) [m] the programmed elements' ends"""
         return self.stored_vertices.array()
 
+    def read(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(polyline, vertices)`` read once each (a path of lines: the one array twice)."""
+        vertices = self.vertices
+        return (vertices if self.stored_polyline is self.stored_vertices else self.polyline), vertices
+
     @property
     def axes(self) -> np.ndarray | None:
         """(m, 3) the programmed tool axis at each vertex (a path turning the head), unit; None

@@ -92,9 +92,6 @@ class StoredArray:
         assert self._file is not None
         return self._file.get(self._offset, self.shape, self.dtype)
 
-    def __len__(self) -> int:
-        return self.shape[0]
-
     def __reduce__(self):
         return (_held, (self.array(),))
 

@@ -60,8 +60,7 @@ class _Group:
     def __init__(self, ref):
         self.ref = ref
         # read once from where a long program keeps them, held while the group's paths run
-        self.vertices = ref.vertices
-        self.polyline = self.vertices if ref.stored_polyline is ref.stored_vertices else ref.polyline
+        self.polyline, self.vertices = ref.read()
         self.worst = 0.0
         self.points = 0
         self.best = np.full(len(self.vertices), np.inf)  # each vertex's distance to the commanded polyline
