@@ -84,7 +84,7 @@ def run_common_lines(interpreter: Interpreter, index: int, most: int | None = No
     if s.feed_mode != G94 or interpreter.motion.nurbs is not None:
         return index
     source = interpreter.source
-    lines = source.lines
+    text, starts = source.lines.text, source.lines.starts  # a line cut out here: no call a line
     long = source.too_long
     k = bisect.bisect_left(long, index)
     stop = min(source.end, long[k] if k < len(long) else source.end)
@@ -95,16 +95,16 @@ def run_common_lines(interpreter: Interpreter, index: int, most: int | None = No
     match_commented = _COMMENTED.fullmatch
     incremental = s.distance == G91
     while index < stop:
-        raw = text = lines[index]
+        raw = words_text = text[starts[index]:starts[index + 1] - 1]
         comment = None
         if "(" in raw:
             commented = match_commented(raw)
             if commented is None:
                 break
-            text, comment = commented.groups()
-        if not text.isascii():  # lower() would make letters of some other characters (K, the kelvin sign)
+            words_text, comment = commented.groups()
+        if not words_text.isascii():  # lower() would make letters of some other characters (K, the kelvin sign)
             break
-        match = match_line(text.replace(" ", "").lower())
+        match = match_line(words_text.replace(" ", "").lower())
         if match is None:
             break
         words = match.groups()
@@ -169,9 +169,9 @@ def run_common_lines(interpreter: Interpreter, index: int, most: int | None = No
                     s.tool_shift = [0.0] * 6
                 else:
                     values = {}  # the block's words, as the reader has them
-                    for letter, text in zip(WORDS, words[2:]):
-                        if text is not None:
-                            values[letter] = float(text)
+                    for letter, value in zip(WORDS, words[2:]):
+                        if value is not None:
+                            values[letter] = float(value)
                     interpreter.motion.arc(motion, values, end)
             else:
                 append(Call("STRAIGHT_TRAVERSE" if motion == G0 else "STRAIGHT_FEED", tuple(end), line, number))

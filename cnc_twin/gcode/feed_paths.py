@@ -40,12 +40,35 @@ def chain_turns(points: np.ndarray) -> list[float]:
     return [math.acos(-1.0 if x < -1.0 else (1.0 if x > 1.0 else x)) for x in c.tolist()]
 
 
+class OpenChain:
+    """The G1 lines of an open feed path since its last other element, in Python floats as the
+    reader gathers them (:class:`~cnc_twin.gcode.path_ops.LineChain` once the path closes:
+    :func:`gathered_feed_paths`)."""
+
+    def __init__(self, start: list[float], end: list[float], line: int):
+        self.points, self.lines = [start[:3], end[:3]], [line]
+
+    def add(self, end: list[float], line: int) -> None:
+        self.points.append(end[:3])
+        self.lines.append(line)
+
+    def closed(self) -> LineChain:
+        points = np.array(self.points)
+        return LineChain(points, self.lines, chain_turns(points))
+
+
 def _first_line(chain: LineChain) -> Element:
     return line_element(chain.points[0], chain.points[1], chain.lines[0])
 
 
 def _last_line(chain: LineChain) -> Element:
     return line_element(chain.points[-2], chain.points[-1], chain.lines[-1])
+
+
+def gathered_feed_paths(path: list[tuple[Element | OpenChain, tuple]], default_blend: float) -> list[FeedPath]:
+    """:func:`feed_paths` of a path as the reader gathered it: its chains of lines still open
+    (closed here: where the path is prepared, in a helper process for a long program)."""
+    return feed_paths([(item.closed() if isinstance(item, OpenChain) else item, m) for item, m in path], default_blend)
 
 
 def feed_paths(path: list[tuple[Element | LineChain, tuple]], default_blend: float) -> list[FeedPath]:

@@ -32,6 +32,9 @@ class ToolpathError(ValueError):
         super().__init__(message)
         self.line, self.message = line, message
 
+    def __reduce__(self):  # pickled whole (from the paths' helper process), not as its message alone
+        return type(self), (self.line, self.message)
+
 
 @dataclass
 class Element:
@@ -51,6 +54,12 @@ class Element:
     """the program line of each piece when they differ (a run of lines fitted as one curve)"""
     deviation: float | None = None
     """a fit's largest distance from its programmed points and segments, as measured [mm]"""
+
+    def __getstate__(self) -> dict:
+        # what the joins keep on an element (its turn from the one before it, a reference to that
+        # element) stays out of a pickle: it links a whole path (pickle's recursion) and is
+        # made again, the same, when asked for
+        return {name: value for name, value in self.__dict__.items() if name != "_turn_from"}
 
     @property
     def start(self) -> np.ndarray:

@@ -88,15 +88,16 @@ class Lines:
         starts = np.empty(len(ends) + 1, np.int64)
         starts[0] = 0
         np.add(ends, 1, out=starts[1:])
-        self._starts = array("q")
-        self._starts.frombytes(memoryview(starts).cast("B"))
-        """each line's first character, then the text's length (one past the last newline)"""
+        self.starts = array("q")
+        self.starts.frombytes(memoryview(starts).cast("B"))
+        """each line's first character, then the text's length (one past the last newline): line
+        ``k`` is ``text[starts[k]:starts[k + 1] - 1]`` (the reader's fast path cuts it so)"""
 
     def __len__(self) -> int:
-        return len(self._starts) - 1
+        return len(self.starts) - 1
 
     def __getitem__(self, k):
-        starts = self._starts
+        starts = self.starts
         if k.__class__ is int and k >= 0:  # the reader's every line: past the last, starts[k + 1] raises
             return self.text[starts[k]:starts[k + 1] - 1]
         if isinstance(k, slice):
@@ -108,13 +109,13 @@ class Lines:
         return self.text[starts[k]:starts[k + 1] - 1]
 
     def __iter__(self):
-        starts, text = self._starts, self.text
+        starts, text = self.starts, self.text
         for k in range(len(starts) - 1):
             yield text[starts[k]:starts[k + 1] - 1]
 
     def line_at(self, offset: int) -> int:
         """The index of the line the text's character ``offset`` is on."""
-        return bisect.bisect_right(self._starts, offset) - 1
+        return bisect.bisect_right(self.starts, offset) - 1
 
     def containing(self, pattern: re.Pattern, start: int = 0):
         """Indices (from ``start`` on, increasing) of the lines ``pattern`` matches in (searched
@@ -123,7 +124,7 @@ class Lines:
         if start >= len(self):
             return
         last = -1
-        for match in pattern.finditer(self.text, self._starts[start]):
+        for match in pattern.finditer(self.text, self.starts[start]):
             k = self.line_at(match.start())
             if k != last:
                 last = k

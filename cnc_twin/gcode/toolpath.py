@@ -28,9 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cnc_twin.gcode.canon import Call
-from cnc_twin.gcode.feed_paths import chain_turns, feed_paths
-from cnc_twin.gcode.line_fit import tool_axis_paths
+from cnc_twin.gcode.feed_paths import OpenChain
 from cnc_twin.gcode.modal import G
+from cnc_twin.gcode.paths_ahead import PathsAhead
 from cnc_twin.gcode.path_ops import (
     Element, FeedPath, ForceChange, LineChain, Operation, Pause, Probe, SpindleChange, ToolAxisPath, ToolpathError,
     Traverse, line_element, programmed_geometry,
@@ -195,7 +195,7 @@ def operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
 
 def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLEND,
                     axis_tolerance: float = DEFAULT_AXIS_TOLERANCE, start=None, air: float = 0.0,
-                    path_elements: int = PATH_ELEMENTS) -> Iterator[Operation]:
+                    path_elements: int = PATH_ELEMENTS, helper: bool = False) -> Iterator[Operation]:
     """The operations of a program's canonical calls in order
     (:func:`~cnc_twin.gcode.interpreter.read_program`, or
     :meth:`~cnc_twin.gcode.interpreter.Interpreter.stream` as they are made), each yielded as
@@ -205,35 +205,48 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
     ``air`` [mm]: every point raised this far along Z (the program proved in the air);
     ``path_elements``: a feed path (or a run of G1 lines turning the head) of more programmed
-    elements is cut there, an exact stop on the programmed vertex (:data:`PATH_ELEMENTS`).
+    elements is cut there, an exact stop on the programmed vertex (:data:`PATH_ELEMENTS`);
+    ``helper``: the feed paths fitted and blended in a helper process while the calls are read on
+    (:mod:`~cnc_twin.gcode.paths_ahead`: the same operations, bit for bit; a long program's load).
 
     Raises :class:`ToolpathError` for what reads but cannot run: an arc, a curve or a probing move
     as the first motion when ``start`` is not known (the tool's place is not known before a G0 / G1).
     """
+    ahead = PathsAhead(helper)
+    try:
+        yield from _operations(calls, ahead, default_blend, axis_tolerance, start, air, path_elements)
+    except Exception:
+        if not ahead.failed:  # the reader's (or a move's) error: what was made before it first
+            yield from ahead.drain()
+        raise
+    finally:
+        ahead.close()
+
+
+def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, axis_tolerance: float, start,
+                air: float, path_elements: int) -> Iterator[Operation]:
+    """:func:`iter_operations`' reading: the feed paths it closes prepared in ``ahead``."""
     canon = _Canon(air=np.array([0.0, 0.0, air, 0.0, 0.0, 0.0]))
-    ops: list[Operation] = []  # made by the last call, handed out before the next is read
     # machine point, mm / deg (raised with the program); None until the first move when not known
     # (in Python floats: every line compares it, numpy's arrays only where they are worked with)
     here: list[float] | None = None if start is None else (np.asarray(start, dtype=float) + canon.offset).tolist()
-    path: list[tuple[Element | _OpenChain, tuple]] = []  # the open feed path's elements, with their modes
+    path: list[tuple[Element | OpenChain, tuple]] = []  # the open feed path's elements, with their modes
     held = 0  # programmed elements in it (a chain's lines each)
     tilting: list[tuple[np.ndarray, np.ndarray, int, tuple]] = []  # G1s turning the head: start, end, line, modes
 
     def close() -> None:
         nonlocal held
         if path:
-            ops.extend(feed_paths([(item.closed() if isinstance(item, _OpenChain) else item, m) for item, m in path],
-                                  default_blend))
+            ahead.prepare("feed_paths", list(path), default_blend)
             path.clear()
             held = 0
         if tilting:
-            ops.extend(tool_axis_paths(tilting, math.radians(axis_tolerance)))
+            ahead.prepare("tool_axis_paths", list(tilting), math.radians(axis_tolerance))
             tilting.clear()
 
     for call in calls:
-        if ops:
-            yield from ops
-            ops.clear()
+        if ahead.fresh:
+            yield from ahead.ready()
         if held >= path_elements or len(tilting) >= path_elements:
             close()
         name, v = call.name, call.values
@@ -262,10 +275,10 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 if e[:3] != h[:3]:
                     modes = _modes(canon, h)
                     last = path[-1] if path else None
-                    if last is not None and last[1] == modes and isinstance(last[0], _OpenChain):
+                    if last is not None and last[1] == modes and isinstance(last[0], OpenChain):
                         last[0].add(e, call.line)
                     else:
-                        path.append((_OpenChain(h, e, call.line), modes))
+                        path.append((OpenChain(h, e, call.line), modes))
                     held += 1
             elif (name == "STRAIGHT_FEED" and h is not None and canon.control[0] == "CANON_CONTINUOUS"
                   and canon.control[1] > 0.0 and e[5] == h[5] and e[:3] != h[:3]):
@@ -279,7 +292,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
                 feed = None
                 if name == "STRAIGHT_FEED":
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
-                ops.append(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
+                ahead.add(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
             here = e
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
@@ -302,53 +315,37 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
             close()
             move, result = call.payload
             end, stop = canon.machine(v), canon.machine(result.stop)
-            ops.append(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
+            ahead.add(Probe(tuple(float(x) for x in here), tuple(float(x) for x in end),
                              tuple(float(x) for x in stop), canon.feed, move.kind, call.line,
                              tuple(float(x) for x in canon.offset), canon.scale))
             here = stop.tolist()
         elif name == "DWELL":
             close()
-            ops.append(Pause(float(v[0]), call.line))
+            ahead.add(Pause(float(v[0]), call.line))
         elif name in ("PROGRAM_STOP", "OPTIONAL_PROGRAM_STOP"):
             close()
-            ops.append(Pause(0.0, call.line))
+            ahead.add(Pause(0.0, call.line))
         elif name == "SET_SPINDLE_SPEED":
             canon.spindle_speed = float(v[0])
             if canon.spindle_direction:
                 close()
-                ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+                ahead.add(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
         elif name in ("START_SPINDLE_CLOCKWISE", "START_SPINDLE_COUNTERCLOCKWISE", "STOP_SPINDLE_TURNING"):
             close()
             canon.spindle_direction = {"START_SPINDLE_CLOCKWISE": 1, "START_SPINDLE_COUNTERCLOCKWISE": -1}.get(name, 0)
-            ops.append(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
+            ahead.add(SpindleChange(canon.spindle_direction * canon.spindle_speed, call.line))
         elif name == "FORCE_CONTROL_ON":
             close()
-            ops.append(ForceChange(float(v[0]), call.line))
+            ahead.add(ForceChange(float(v[0]), call.line))
         elif name == "FORCE_CONTROL_OFF":
             close()
-            ops.append(ForceChange(None, call.line))
+            ahead.add(ForceChange(None, call.line))
         elif name == "PROGRAM_END":
             break
     close()
-    yield from ops
+    yield from ahead.drain()
 
 
 def _modes(canon: _Canon, here: list[float]) -> tuple:
     """What a feed element carries that may end a path: feed, held A B C, control mode."""
     return (canon.feed, tuple(here[3:]), canon.control)
-
-
-class _OpenChain:
-    """The G1 lines of the open feed path since its last other element, in Python floats as they
-    come (:class:`~cnc_twin.gcode.path_ops.LineChain` once the path closes)."""
-
-    def __init__(self, start: list[float], end: list[float], line: int):
-        self.points, self.lines = [start[:3], end[:3]], [line]
-
-    def add(self, end: list[float], line: int) -> None:
-        self.points.append(end[:3])
-        self.lines.append(line)
-
-    def closed(self) -> LineChain:
-        points = np.array(self.points)
-        return LineChain(points, self.lines, chain_turns(points))

@@ -77,6 +77,7 @@ class ProgramStream:
         """The program's operations (:mod:`cnc_twin.gcode.toolpath`), in order, read as they are
         asked for."""
         from cnc_twin.gcode import toolpath as tp
+        from cnc_twin.gcode.paths_ahead import HELPER_LINES
         from cnc_twin.gcode.extents import operation_points
 
         in_air = bool(self.shaping.get("air"))
@@ -88,7 +89,9 @@ class ProgramStream:
                 pass
         calls = self.calls()
         try:
-            for op in tp.iter_operations(calls, **self.shaping):
+            # a long program's feed paths fitted in a helper process while its lines are read on
+            helper = len(self.source.lines) >= HELPER_LINES
+            for op in tp.iter_operations(calls, helper=helper, **self.shaping):
                 if isinstance(op, (tp.Traverse, tp.FeedPath)):
                     self.moved = True
                 if in_air and (points := operation_points(op)) is not None:
