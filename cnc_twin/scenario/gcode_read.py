@@ -69,9 +69,11 @@ class ProgramStream:
         try:
             for batch in interpreter.stream(CALL_BATCH):
                 yield from batch
+            self.files = interpreter.flow.files.texts()
         except ProgramError as exc:
             raise Where(exc.file or self.path)(exc.line, exc.message) from None
-        self.files = interpreter.flow.files.texts()
+        finally:  # however the reading ends: the interpreter's cycle then holds no program text
+            interpreter.flow.release()
 
     def operations(self) -> Iterator:
         """The program's operations (:mod:`cnc_twin.gcode.toolpath`), in order, read as they are
