@@ -250,22 +250,7 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
         if held >= path_elements or len(tilting) >= path_elements:
             close()
         name, v = call.name, call.values
-        if name == "USE_LENGTH_UNITS":
-            canon.scale = INCH if v[0] == G.G20 else 1.0
-        elif name == "SET_G5X_OFFSET":
-            canon.g5x = canon.to_mm(v[1:7])
-            canon.offsets_set()
-        elif name == "SET_G92_OFFSET":
-            canon.g92 = canon.to_mm(v[:6])
-            canon.offsets_set()
-        elif name == "USE_TOOL_LENGTH_OFFSET":
-            canon.tool = canon.to_mm(v[:6])
-            canon.offsets_set()
-        elif name == "SET_FEED_RATE":
-            canon.feed = v[0] * canon.scale
-        elif name == "SET_MOTION_CONTROL_MODE":
-            canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
-        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+        if name == "STRAIGHT_FEED" or name == "STRAIGHT_TRAVERSE":  # first: most calls are
             # which axes move, compared as Python floats (np.any on a 3-vector costs more than a line's rest)
             e, h = canon.point(v), here
             rotary = h is not None and e[3:] != h[3:]
@@ -273,9 +258,9 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
                 if tilting:
                     close()
                 if e[:3] != h[:3]:
-                    modes = _modes(canon, h)
+                    modes = (canon.feed, tuple(h[3:]), canon.control)  # _modes(canon, h), a line's every time
                     last = path[-1] if path else None
-                    if last is not None and last[1] == modes and isinstance(last[0], OpenChain):
+                    if last is not None and last[1] == modes and last[0].__class__ is OpenChain:
                         last[0].add(e, call.line)
                     else:
                         path.append((OpenChain(h, e, call.line), modes))
@@ -294,6 +279,21 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
                     feed = canon.feed / canon.scale if rotary_only else canon.feed
                 ahead.add(Traverse(tuple(float(x) for x in e), feed, call.line, rotary_only))
             here = e
+        elif name == "USE_LENGTH_UNITS":
+            canon.scale = INCH if v[0] == G.G20 else 1.0
+        elif name == "SET_G5X_OFFSET":
+            canon.g5x = canon.to_mm(v[1:7])
+            canon.offsets_set()
+        elif name == "SET_G92_OFFSET":
+            canon.g92 = canon.to_mm(v[:6])
+            canon.offsets_set()
+        elif name == "USE_TOOL_LENGTH_OFFSET":
+            canon.tool = canon.to_mm(v[:6])
+            canon.offsets_set()
+        elif name == "SET_FEED_RATE":
+            canon.feed = v[0] * canon.scale
+        elif name == "SET_MOTION_CONTROL_MODE":
+            canon.control = (v[0], v[1] * canon.scale if len(v) > 1 else 0.0)
         elif name in ("ARC_FEED", "NURBS_FEED"):
             if here is None:
                 raise ToolpathError(call.line, "an arc or a curve as the program's first motion: the tool's place "
