@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
+from cnc_twin.core.phases import mark
 from cnc_twin.run.signals import Interrupted, SignalGuard, Terminated, exit_code, interruption_in, terminate
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, bundled_tool_table, default_scenario, folder_list, input_path
 
@@ -114,12 +115,34 @@ def build_parser() -> argparse.ArgumentParser:
                        help="skip the whiteboard figures (exchange round trip, streaming throughput)")
     bench.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
                        help="measure on this bundled machine instead of the one the scenario names")
+    bench.add_argument("--startup", action="store_true",
+                       help="time whole `cnc-twin run` and `validate` processes beside the floor (python importing "
+                            "numpy, mujoco, numba), with where the time outside the run went; the scenarios: the one "
+                            "given, or jog_axes, nurbs_circle, gcode_cam_raster and freeform_polish")
     return parser
+
+
+QUICK_EXIT = ("run", "validate", "gcode", "list")
+"""commands that, run as the program, end without the interpreter's teardown once they are done
+(their files closed, their helper processes ended): freeing every module's objects costs a run
+0.3 - 0.7 s after its last file is written"""
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
+    code = _main(args)
+    if args.whole_process and args.command in QUICK_EXIT:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (BrokenPipeError, OSError):  # the reader is gone: nothing more to tell it
+                pass
+        os._exit(code)
+    return code
+
+
+def _main(args: argparse.Namespace) -> int:
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
                 "gcode": _gcode, "list": _list}
     if args.whole_process and args.command not in ("run", "sweep"):
@@ -224,6 +247,8 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     from cnc_twin.run.run_dir import new_run_dir  # the scenario's config (numpy...): not for gcode / list
     from cnc_twin.run.twin import Twin
 
+    mark("imported")
+
     source = args.scenario or default_scenario()
     overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else {}
     if args.tool_table is not None:  # as the scenario key would say it (a G-code program's)
@@ -233,10 +258,12 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     if args.subroutine_path:  # as the scenario key would say it (a G-code program's)
         overrides["program.subroutine_path"] = [_beside(folder, source) for folder in args.subroutine_path]
     scenario = load_scenario(source, overrides=overrides or None)
+    mark("loaded")
     run_dir = args.out or new_run_dir(args.runs_dir, scenario.name)
     if run_dir.exists():
         raise ScenarioError(run_dir, "", "run directory already exists; choose another --out")
     twin = Twin(scenario)
+    mark("twin")
     twin.trace_file = run_dir.parent / f".{run_dir.name}.trace-{os.getpid()}.parquet"  # a long run's, moved in
     for notice in twin.notices:  # before any motion, once (metrics.json keeps them too)
         print(f"note: {source}: {notice}", file=sys.stderr)
@@ -277,6 +304,7 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         result = twin.run(progress=bar, planners=planners, observer=None if recorder is None else recorder.observe)
     with guard.deferred():  # a signal now is noted: the run directory is written whole first
         _write(args, result, run_dir, recorder, staged)
+    mark("written")
     # read once: a signal after this only ends the command's printing, the run being whole and marked
     signalled = twin.stop_reason or guard.received
     if signalled is not None and twin.stop_reason is None:  # it came while writing
@@ -437,11 +465,13 @@ def _validate(args: argparse.Namespace) -> int:
     from cnc_twin.run.program_kinds import kind_of
     from cnc_twin.scenario.load import load_scenario
 
+    mark("imported")
     # every file is checked and each bad one reported, so one pass finds all of them
     bad = 0
     for path in args.scenarios:
         try:
             scenario = load_scenario(path)
+            mark("loaded")
         except ScenarioError as exc:
             print(f"error: {exc}", file=sys.stderr)
             bad += 1
@@ -463,18 +493,16 @@ def _gcode(args: argparse.Namespace) -> int:
     code = EXIT_OK if not error else EXIT_BAD_INPUT
     if error:
         print(f"error: {error}", file=sys.stderr)
-    if args.whole_process:  # listed: end without the interpreter's teardown freeing every call (25 ms of 140)
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    return code
+    return code  # run as the program, it ends without the teardown freeing every call (QUICK_EXIT)
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from cnc_twin.studies.bench import bench_scenario, format_bench
-
     if args.repeat < 1:
         raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
+    if args.startup:
+        return _bench_startup(args)
+    from cnc_twin.studies.bench import bench_scenario, format_bench
+
     scenario_file = args.scenario or default_scenario()
     print(f"bench: {scenario_file.name}, the twin and bare MuJoCo stepping, best of {args.repeat} each "
           "(compiling the kernels first if this is the first run) ...", file=sys.stderr, flush=True)
@@ -485,6 +513,26 @@ def _bench(args: argparse.Namespace) -> int:
 
         figures.update(whiteboard_figures())
     print(format_bench(figures))
+    if args.json is not None:
+        import json
+
+        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    return EXIT_OK
+
+
+def _bench_startup(args: argparse.Namespace) -> int:
+    from cnc_twin.studies.bench_startup import SCENARIOS, bench_startup, format_startup
+
+    scenarios = SCENARIOS if args.scenario is None else (args.scenario.stem,)
+    if args.scenario is not None and args.scenario.parent.resolve() != default_scenario().parent.resolve():
+        raise ScenarioError(args.scenario, "", "--startup measures bundled scenarios: give one by name")
+
+    def said(text: str) -> None:
+        print(f"\rbench --startup: {text:<60}", end="", file=sys.stderr, flush=True)
+
+    figures = bench_startup(scenarios, repeat=args.repeat, progress=said)
+    print(file=sys.stderr)
+    print(format_startup(figures))
     if args.json is not None:
         import json
 

@@ -28,6 +28,9 @@ def install_start_handlers() -> None:
 
 def main() -> int:
     install_start_handlers()
+    from cnc_twin.core.phases import mark
+
+    mark("entry")
     from cnc_twin.cli import main as cli_main
 
     return cli_main()

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 import yaml
 
 REPO = Path(__file__).resolve().parent.parent
+
+# no prepared programs kept between loads in the tests (each load prepares its program, as a
+# patched function or a changed file expects); tests/test_program_cache.py turns the cache on
+os.environ["CNC_TWIN_CACHE"] = "off"
 
 
 @pytest.fixture

@@ -142,4 +142,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    code = main()
+    # every run served: end without the interpreter's teardown (the twin's command waits for it)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

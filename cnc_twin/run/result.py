@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.config import Scenario
+from cnc_twin.core.phases import mark
 from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
@@ -72,11 +73,13 @@ class RunResult:
                 self.removal.save(folder)
             for name, png in self.figures().items():
                 (folder / f"{name}.png").write_bytes(png)
+            mark("files")
             finished = recording() if callable(recording) else None
             if finished is not None:
                 os.replace(finished, folder / RECORDING_FILE)
             elif recording:
                 self.export_rerun(rrd=folder / RECORDING_FILE)
+            mark("recording")
         if run_dir is None:
             run_dir = new_run_dir(runs_dir, self.scenario.name)
         self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,

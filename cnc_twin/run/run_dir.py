@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from cnc_twin.core.config import Scenario
+from cnc_twin.core.phases import mark
 from cnc_twin.trace.parquet import write_trace
 from cnc_twin.trace.trace import Trace
 
@@ -61,9 +62,11 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
             trace.move_to(tmp / TRACE_FILE)
         else:
             write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+        mark("trace")
         if extra is not None:
             extra(tmp)
         _write_metrics(tmp / METRICS_FILE, metrics)
+        mark("metrics")
         if run_dir.exists():
             raise FileExistsError(f"run directory {run_dir} already exists")
         os.replace(tmp, run_dir)

@@ -30,6 +30,7 @@ from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import PLANNER_FAULTS, Scenario
 from cnc_twin.core.deferred_signals import signals_deferred
 from cnc_twin.core.heap import return_freed_memory
+from cnc_twin.core.phases import mark
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import ServoTask
 from cnc_twin.dsp.supervisor import Supervisor
@@ -196,6 +197,7 @@ class Twin:
             self.kind.warm_up(self)
             if self.removal is not None:
                 self.removal.warm_up()
+            mark("kernels")
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
@@ -209,11 +211,13 @@ class Twin:
             except PlannerLost as exc:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
+            mark("planner")
             clock = Clock(self, dsp, planned, progress)
             # observers read the recorder during the run
             self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
             self.begun = True
             wall_time, periods, self.late_periods, self.missed_ticks = clock.run()
+            mark("clock")
             self.memory = clock.memory
             if dsp.planner_lost or dsp.fault == FaultCode.PLANNER_START:
                 reason = planner.failure()
@@ -239,7 +243,9 @@ class Twin:
                     port = None
                     if wb is not None:
                         wb.close()
-        return self._result(dsp, wall_time, periods, retransmits)
+        result = self._result(dsp, wall_time, periods, retransmits)
+        mark("result")
+        return result
 
     def drives_off(self) -> None:
         """The amplifiers disabled (brakes on) and the card's outputs and loops cleared; once."""

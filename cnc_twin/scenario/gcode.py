@@ -140,15 +140,35 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     are answered as rs274 alone answers them, or the first ones by the card's ``answers``
     (:mod:`cnc_twin.scenario.gcode_probe`); a program that probes can be read again at run time
     from ``model_file`` (with the block shifted by ``block_shift`` [m]), else it is refused."""
-    from cnc_twin.gcode import toolpath as tp
-    from cnc_twin.gcode.state import MM_PER_INCH
-    from cnc_twin.geometry.kinematics import HeadGeometry
+    from cnc_twin.scenario import program_cache
 
     path = _find(spec.file, folder, label, "program.file")
     if spec.tool_table:
         table, tool_units = _find(spec.tool_table, folder, label, "program.tool_table"), spec.tool_units
     else:
         table, tool_units = machine_tools, "mm"
+    # prepared once: a second load of the same program, with the same machine and code, is read
+    # from the cache (an error is not kept: it is found again, in its own words)
+    try:
+        name = program_cache.key((spec.model_dump(mode="json"), tuple(axes), program_cache.model_digest(model),
+                                  None if folder is None else str(folder), home, None if model_file is None else
+                                  str(model_file), tuple(block_shift), tuple(answers), tool_units, str(label)),
+                                 (path, table))
+    except OSError as exc:
+        raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
+    return program_cache.cached(name, lambda: _prepare(spec, axes, model, label, folder, path, table, tool_units,
+                                                       home, model_file, block_shift, answers))
+
+
+def _prepare(spec: GcodeProgramSpec, axes, model, label: Path, folder: Path | None, path: Path, table: Path | None,
+             tool_units: str, home, model_file: Path | None, block_shift, answers) -> tuple[GcodeProgram, bool]:
+    """:func:`convert`'s work: the program read, shaped and made into steps; and whether it may be
+    kept in the cache (not when it opened subroutine files, read by name from folders that may
+    change, or probes, read again at run time)."""
+    from cnc_twin.gcode import toolpath as tp
+    from cnc_twin.gcode.state import MM_PER_INCH
+    from cnc_twin.geometry.kinematics import HeadGeometry
+
     head = HeadGeometry.from_model(model)
     start = start_point(head, home, spec.in_air)  # mm / deg, as the program sees the machine
     # lengths in the machine's units, as LinuxCNC's parameter file and position are: the tool table's
@@ -188,10 +208,11 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     # the scenario's own table goes into the run directory (the machine's is found again by a re-run)
     kept_table = (spec.tool_table, table.read_text(encoding="utf-8", errors="replace")) if spec.tool_table else None
     source, sub_files = stream.source, stream.files
-    return GcodeProgram(file=path, packed_text=PackedText.of(source.text), steps=tuple(steps), lines=len(source.lines),
-                        settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label), tool_table=kept_table,
-                        air=spec.in_air * units.MM, air_clearance=clearance,
-                        after_probe=replay, subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
+    program = GcodeProgram(file=path, packed_text=PackedText.of(source.text), steps=tuple(steps),
+                           lines=len(source.lines), settle=spec.settle, workpiece=_workpiece(workpiece, model, head, label),
+                           tool_table=kept_table, air=spec.in_air * units.MM, air_clearance=clearance, after_probe=replay,
+                           subroutine_files=_kept_subroutines(sub_files, path.parent, spec.subroutine_path, sub_folders))
+    return program, replay is None and not sub_files
 
 
 def _grounded(ops, spec: GcodeProgramSpec, path: Path, label: Path):
