@@ -12,7 +12,6 @@ import argparse
 import os
 import signal
 import sys
-import time
 from pathlib import Path
 
 from cnc_twin.core.errors import ScenarioError
@@ -363,62 +362,9 @@ def _write(args, result, run_dir: Path, recorder, staged: Path | None) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from contextlib import closing
+    from cnc_twin.studies.sweep_command import sweep_command
 
-    from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.studies.sweep import (CONFIRM_CASES, DEFAULT_WORKERS, INTERRUPTED, MAX_CASES, best_row, case_count,
-                                        cases, parse_param, run_dask, run_local, write_table)
-    from cnc_twin.studies.sweep_stop import SweepStop
-
-    params = []
-    for text in args.param:
-        try:
-            params.append(parse_param(text))
-        except ValueError as exc:
-            raise ScenarioError("--param", text, str(exc)) from None
-    count = case_count(params, random=args.random)
-    workers = args.workers or DEFAULT_WORKERS
-    sized_by = "--random" if args.random else "--param"
-    if count < 1 or count > MAX_CASES:
-        raise ScenarioError(sized_by, "", f"the sweep has {count} cases; expected 1 to {MAX_CASES}")
-    if count > CONFIRM_CASES and not args.yes:
-        raise ScenarioError(sized_by, "",
-                            f"the sweep has {count} cases (about {count * 2.0 / 3600 / workers:.3g} h at 2 s a run on "
-                            f"{workers} workers); pass --yes to run it, or narrow the ranges")
-    print(f"sweep: {count} cases on {f'the Dask cluster {args.scheduler}' if args.scheduler else f'{workers} workers'}",
-          file=sys.stderr, flush=True)
-    todo = cases(params, random=args.random, seed=args.seed)
-    # From here SIGINT and SIGTERM stop the sweep: the cases finished by then still make a table.
-    with closing(SweepStop()) as stop, SignalGuard() as guard, guard.stopping(stop):
-        for overrides in {tuple(sorted((k, type(v).__name__) for k, v in c.items())): c for c in todo}.values():
-            load_scenario(args.scenario, overrides=overrides)  # bad paths or types fail here, before any run
-        from cnc_twin.run.progress import ProgressBar
-
-        bar = ProgressBar(f"sweep {args.scenario.stem}", period=1.0)
-        started = time.perf_counter()
-        if args.scheduler:
-            rows = run_dask(str(args.scenario), todo, scheduler=args.scheduler, progress=bar, stop=stop)
-        else:
-            rows = run_local(str(args.scenario), todo, workers=args.workers, progress=bar, stop=stop)
-        seconds = time.perf_counter() - started
-        stamp = time.strftime('%Y%m%d-%H%M%S', time.gmtime())
-        parquet, csv = write_table(rows, args.out or Path("runs") / f"sweep-{args.scenario.stem}-{stamp}")
-    if stop.reason is not None:
-        finished = sum(r.get("status") != INTERRUPTED for r in rows)
-        newline = "\n" if bar.enabled else ""  # the progress bar's line is not finished
-        print(f"{newline}interrupted ({stop.reason}) after {finished} of {len(rows)} runs; "
-              f"partial table, the other runs marked {INTERRUPTED}: {parquet}, {csv}", file=sys.stderr)
-        return EXIT_TERMINATED if stop.reason == "SIGTERM" else EXIT_INTERRUPTED
-    minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_xyz_mm")
-    best = best_row(rows, minimize)
-    lost = [r for r in rows if r.get("status") == "lost"]
-    print(f"{len(rows)} runs in {seconds:.1f} s ({len(rows) / seconds * 60:.1f} runs/min); table: {parquet}, {csv}")
-    if lost:
-        print(f"lost runs: {len(lost)} ({', '.join(str({k: r[k] for k in params_of(params)}) for r in lost)})")
-    if best is not None:
-        shown = {p.path: best[p.path] for p in params}
-        print(f"best by {minimize}: {best[minimize]:.6g} with {shown}")
-    return EXIT_OK
+    return sweep_command(args)
 
 
 def _tune(args: argparse.Namespace) -> int:
@@ -435,10 +381,6 @@ def _tune(args: argparse.Namespace) -> int:
               phase_margin=args.phase_margin, gain_margin=args.gain_margin, step=args.step, out=args.out,
               overrides=overrides)
     return EXIT_OK
-
-
-def params_of(params) -> list[str]:
-    return [p.path for p in params]
 
 
 def _view(args: argparse.Namespace) -> int:
@@ -497,47 +439,9 @@ def _gcode(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    if args.repeat < 1:
-        raise ScenarioError("--repeat", "", f"expected a whole number >= 1, got {args.repeat}")
-    if args.startup:
-        return _bench_startup(args)
-    from cnc_twin.studies.bench import bench_scenario, format_bench
+    from cnc_twin.studies.bench_command import bench_command
 
-    scenario_file = args.scenario or default_scenario()
-    print(f"bench: {scenario_file.name}, the twin and bare MuJoCo stepping, best of {args.repeat} each "
-          "(compiling the kernels first if this is the first run) ...", file=sys.stderr, flush=True)
-    overrides = dict(BUNDLED_MACHINES[args.machine]) if args.machine is not None else None
-    figures = bench_scenario(scenario_file, repeat=args.repeat, overrides=overrides)
-    if not args.no_whiteboard:
-        from cnc_twin.studies.bench_whiteboard import whiteboard_figures
-
-        figures.update(whiteboard_figures())
-    print(format_bench(figures))
-    if args.json is not None:
-        import json
-
-        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
-    return EXIT_OK
-
-
-def _bench_startup(args: argparse.Namespace) -> int:
-    from cnc_twin.studies.bench_startup import SCENARIOS, bench_startup, format_startup
-
-    scenarios = SCENARIOS if args.scenario is None else (args.scenario.stem,)
-    if args.scenario is not None and args.scenario.parent.resolve() != default_scenario().parent.resolve():
-        raise ScenarioError(args.scenario, "", "--startup measures bundled scenarios: give one by name")
-
-    def said(text: str) -> None:
-        print(f"\rbench --startup: {text:<60}", end="", file=sys.stderr, flush=True)
-
-    figures = bench_startup(scenarios, repeat=args.repeat, progress=said)
-    print(file=sys.stderr)
-    print(format_startup(figures))
-    if args.json is not None:
-        import json
-
-        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
-    return EXIT_OK
+    return bench_command(args)
 
 
 def check_writable_parent(path: Path, option: str) -> None:

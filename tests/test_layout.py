@@ -39,7 +39,7 @@ MAY_IMPORT: dict[str, set[str]] = {
                 "polishing", "view", "scenario", "run", "gcode"},
     "cli": {"core", "motion", "geometry", "legacy", "whiteboard", "dsp", "planner", "machine", "trace",
             "polishing", "view", "scenario", "run", "studies", "gcode"},
-    "entry": {"cli"},
+    "entry": {"cli", "core"},
     "__main__": {"entry"},
     "__init__": set(),
 }

@@ -157,11 +157,12 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
     except OSError as exc:
         raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
     return program_cache.cached(name, lambda: _prepare(spec, axes, model, label, folder, path, table, tool_units,
-                                                       home, model_file, block_shift, answers))
+                                                       machine_tools, home, model_file, block_shift, answers))
 
 
 def _prepare(spec: GcodeProgramSpec, axes, model, label: Path, folder: Path | None, path: Path, table: Path | None,
-             tool_units: str, home, model_file: Path | None, block_shift, answers) -> tuple[GcodeProgram, bool]:
+             tool_units: str, machine_tools: Path | None, home, model_file: Path | None, block_shift,
+             answers) -> tuple[GcodeProgram, bool]:
     """:func:`convert`'s work: the program read, shaped and made into steps; and whether it may be
     kept in the cache (not when it opened subroutine files, read by name from folders that may
     change, or probes, read again at run time)."""
