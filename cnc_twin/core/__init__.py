@@ -8,7 +8,8 @@
 - :mod:`~cnc_twin.core.kernel_cache`   numba's on-disk cache purged when a compiled kernel's other sources change
 - :mod:`~cnc_twin.core.packed_text`    a long program's text held compressed, written out a piece at a time
 - :mod:`~cnc_twin.core.spill`          arrays a run needs only at its end, kept in an unlinked temporary file
-- :mod:`~cnc_twin.core.heap`           the load's garbage collected and the heap's free pages given back before a run
+- :mod:`~cnc_twin.core.heap`           the heap's free pages given back before a run
+- :mod:`~cnc_twin.core.phases`         where a command's time goes: marks for the start-up benchmark
 
 May import: nothing of cnc_twin. Imported by: every other part.
 """

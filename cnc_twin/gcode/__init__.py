@@ -30,6 +30,8 @@ interpreter (``scripts/fetch_linuxcnc_oracle.py``).
   :mod:`~cnc_twin.gcode.line_fit`, :mod:`~cnc_twin.gcode.extents`  the calls into the operations a
   machine runs, as they come: what they are, the canon's offsets, feed paths (joins, fits, blends),
   CAM's G1 runs fitted, how far the tip goes
+- :mod:`~cnc_twin.gcode.paths_ahead`   a long program's feed paths fitted in a helper process while the
+  reader reads on, handed out in program order
 
 May import: ``core``, ``geometry``. Imported by: ``cli`` (and the program kind that runs G-code).
 """

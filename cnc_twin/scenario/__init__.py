@@ -11,6 +11,7 @@
 - :mod:`~cnc_twin.scenario.schema_base`, :mod:`~cnc_twin.scenario.validation`  shared schema pieces; the first error as one line
 - :mod:`~cnc_twin.scenario.overrides`   dotted-path overrides (``servo.X.kp``) for scripts and sweeps
 - :mod:`~cnc_twin.scenario.resources`   the bundled models and scenarios
+- :mod:`~cnc_twin.scenario.program_cache`  a G-code program's preparation kept on disk, keyed by what it is made from
 
 May import: core, motion, geometry, legacy, whiteboard, machine, planner, polishing (a program is
 checked against the machine's travel and reach, and a surface path planned, before any motion).
