@@ -5,6 +5,7 @@
 - :mod:`~cnc_twin.core.units`          the unit conversion factors (scenario units -> SI)
 - :mod:`~cnc_twin.core.errors`         :class:`ScenarioError`, one line naming file, key path and problem
 - :mod:`~cnc_twin.core.child_process`  ending a helper process (planner, recorder): EOF, SIGTERM, SIGKILL
+- :mod:`~cnc_twin.core.messages`       pickled messages over a pipe to a helper process (recorder, paths helper)
 - :mod:`~cnc_twin.core.kernel_cache`   numba's on-disk cache purged when a compiled kernel's other sources change
 - :mod:`~cnc_twin.core.packed_text`    a long program's text held compressed, written out a piece at a time
 - :mod:`~cnc_twin.core.spill`          arrays a run needs only at its end, kept in an unlinked temporary file

@@ -25,21 +25,19 @@ from __future__ import annotations
 import os
 import pickle
 import select
-import struct
 import subprocess
 import sys
 from collections import deque
 from collections.abc import Callable, Iterator
 
 from cnc_twin.core.child_process import end_process
+from cnc_twin.core.messages import framed, read_message, read_payload
 
 LOOKAHEAD = 8
 """requests (each up to a feed path's :data:`~cnc_twin.gcode.toolpath.PATH_ELEMENTS` lines) sent
 to the helper that may wait to be handed out: enough to keep reading while the helper starts"""
 HELPER_LINES = 150_000
 """program lines from which a load prepares its paths in the helper"""
-_HEADER = struct.Struct("<Q")
-"""a message: its pickle's length, then the pickle"""
 
 
 def _jobs() -> dict[str, Callable[..., list]]:
@@ -184,9 +182,9 @@ class _Helper:
 
     def send(self, job: str, args: tuple) -> bool:
         """Send a request; False when the helper is gone."""
-        payload = pickle.dumps((job, args), protocol=pickle.HIGHEST_PROTOCOL)
+        data = framed((job, args))
         try:
-            self.popen.stdin.write(_HEADER.pack(len(payload)) + payload)
+            self.popen.stdin.write(data)
             self.popen.stdin.flush()
         except OSError:
             return False
@@ -198,30 +196,14 @@ class _Helper:
 
     def receive(self) -> tuple | None:
         """The next answer ``(ok, value)``, waiting for it; None when the helper ended first."""
-        header = _read(self.out, _HEADER.size)
-        if header is None:
+        try:
+            return read_message(self.out)
+        except OSError:
             return None
-        payload = _read(self.out, _HEADER.unpack(header)[0])
-        return None if payload is None else pickle.loads(payload)
 
     def close(self) -> None:
         end_process(self.popen, grace=0.5, term_grace=1.0)
         self.popen.stdout.close()
-
-
-def _read(fd: int, size: int) -> bytes | None:
-    """Exactly ``size`` bytes from ``fd``; None at its end first."""
-    parts, left = [], size
-    while left:
-        try:
-            chunk = os.read(fd, min(left, 1 << 20))
-        except OSError:
-            return None
-        if not chunk:
-            return None
-        parts.append(chunk)
-        left -= len(chunk)
-    return b"".join(parts)
 
 
 def _serve() -> None:
@@ -233,10 +215,7 @@ def _serve() -> None:
     stdin, stdout = sys.stdin.buffer.fileno(), sys.stdout.buffer.fileno()
 
     def read_requests() -> None:
-        while (header := _read(stdin, _HEADER.size)) is not None:
-            payload = _read(stdin, _HEADER.unpack(header)[0])
-            if payload is None:
-                break
+        while (payload := read_payload(stdin)) is not None:
             requests.put(payload)
         requests.put(None)
 
@@ -260,10 +239,10 @@ def _serve() -> None:
         except Exception as exc:  # the reader raises it where the path's turn comes
             answer = (False, exc)
         try:
-            data = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
+            data = framed(answer)
         except Exception as exc:  # an exception that does not pickle: its type and words
-            data = pickle.dumps((False, RuntimeError(f"{type(answer[1]).__name__}: {exc}")))
-        answers.put(_HEADER.pack(len(data)) + data)
+            data = framed((False, RuntimeError(f"{type(answer[1]).__name__}: {exc}")))
+        answers.put(data)
     answers.put(None)
     writer.join()
 

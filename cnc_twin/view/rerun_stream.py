@@ -29,10 +29,8 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
-import pickle
 import select
 import signal
-import struct
 import subprocess
 import sys
 import tempfile
@@ -40,10 +38,9 @@ from pathlib import Path
 
 from cnc_twin.core.child_process import end_process
 from cnc_twin.core.errors import one_line
+from cnc_twin.core.messages import framed, read_message
 from cnc_twin.trace.trace import PeriodSamples
 
-_HEADER = struct.Struct("<Q")
-"""a message: its pickle's length, then the pickle"""
 PIPE_BYTES = 1 << 20
 """the pipe to the recording process is enlarged to this (Linux; 6 simulated seconds of
 samples at 1 ms periods), so the twin does not wait on a recorder busy encoding"""
@@ -173,9 +170,9 @@ class RecordingProcess:
     def _send(self, message) -> None:
         if self.failure is not None:
             return
-        payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        data = framed(message)
         try:
-            self.popen.stdin.write(_HEADER.pack(len(payload)) + payload)
+            self.popen.stdin.write(data)
             self.popen.stdin.flush()
         except (BrokenPipeError, OSError, ValueError) as exc:
             self.failure = f"lost during the run ({type(exc).__name__})"
@@ -196,26 +193,6 @@ class RecordingProcess:
         return f"; its last words: {lines[-1]}" if lines else ""
 
 
-def _read_exact(fd: int, n: int) -> bytes | None:
-    """``n`` bytes from ``fd``, or None at EOF."""
-    parts, left = [], n
-    while left:
-        chunk = os.read(fd, min(left, 1 << 20))
-        if not chunk:
-            return None
-        parts.append(chunk)
-        left -= len(chunk)
-    return b"".join(parts)
-
-
-def _read_message(fd: int):
-    header = _read_exact(fd, _HEADER.size)
-    if header is None:
-        return None
-    payload = _read_exact(fd, _HEADER.unpack(header)[0])
-    return None if payload is None else pickle.loads(payload)
-
-
 def _readable(fd: int) -> bool:
     return bool(select.select([fd], [], [], 0)[0])
 
@@ -229,7 +206,7 @@ def serve(fd: int, out) -> int:
         return _failed(exc, out)
     out.write(b"ready\n")
     out.flush()
-    message = _read_message(fd)
+    message = read_message(fd)
     if message is None:  # started but never used (a run that failed before it began)
         return 0
     try:
@@ -238,7 +215,7 @@ def serve(fd: int, out) -> int:
         exporter.start(rrd=None if rrd is None else Path(rrd), spawn=spawn, planned=planned)
         pending: list = []
         while True:
-            message = _read_message(fd)
+            message = read_message(fd)
             if message is None or message[0] == "finish":
                 if pending:
                     exporter.send(PeriodSamples.join(pending))
