@@ -76,7 +76,6 @@ class PathsAhead:
         """requests the helper answered (the others were prepared here)"""
         # started now: its imports (a second and more) pass while the first paths are read
         self._helper = _Helper.start() if helper else None
-        self._use_helper = self._helper is not None
         self._sent = False  # a request sent since the helper was last asked for answers
         self.fresh = False
         """something was added or sent since :meth:`ready` last handed out all it could (until
@@ -88,9 +87,6 @@ class PathsAhead:
 
     def prepare(self, job: str, *args) -> None:
         self.fresh = True
-        if self._use_helper and self._helper is None:
-            self._helper = _Helper.start()
-            self._use_helper = self._helper is not None
         if self._helper is not None and self._helper.send(job, args):
             self.queue.append(_Waiting(job, args))
             self.waiting += 1
@@ -159,7 +155,6 @@ class PathsAhead:
         if self._helper is not None:
             self._helper.close()
             self._helper = None
-        self._use_helper = False
 
 
 class _Helper:
