@@ -258,7 +258,7 @@ def _operations(calls: Iterable[Call], ahead: PathsAhead, default_blend: float, 
                 if tilting:
                     close()
                 if e[:3] != h[:3]:
-                    modes = (canon.feed, tuple(h[3:]), canon.control)  # _modes(canon, h), a line's every time
+                    modes = _modes(canon, h)
                     last = path[-1] if path else None
                     if last is not None and last[1] == modes and last[0].__class__ is OpenChain:
                         last[0].add(e, call.line)

@@ -149,13 +149,15 @@ def convert(spec: GcodeProgramSpec, axes: tuple[AxisConfig, ...], model, label: 
         table, tool_units = machine_tools, "mm"
     # prepared once: a second load of the same program, with the same machine and code, is read
     # from the cache (an error is not kept: it is found again, in its own words)
-    try:
-        name = program_cache.key((spec.model_dump(mode="json"), tuple(axes), program_cache.model_digest(model),
-                                  None if folder is None else str(folder), home, None if model_file is None else
-                                  str(model_file), tuple(block_shift), tuple(answers), tool_units, str(label)),
-                                 (path, table))
-    except OSError as exc:
-        raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
+    def name() -> str:
+        try:
+            return program_cache.key((spec.model_dump(mode="json"), tuple(axes), program_cache.model_digest(model),
+                                      None if folder is None else str(folder), home, None if model_file is None else
+                                      str(model_file), tuple(block_shift), tuple(answers), tool_units, str(label)),
+                                     (path, table))
+        except OSError as exc:
+            raise ScenarioError(label, "program.file", f"cannot read {path} ({exc.strerror})") from None
+
     return program_cache.cached(name, lambda: _prepare(spec, axes, model, label, folder, path, table, tool_units,
                                                        machine_tools, home, model_file, block_shift, answers))
 

@@ -92,13 +92,13 @@ def key(parts: tuple, files: tuple[Path | None, ...]) -> str:
     return digest.hexdigest()
 
 
-def cached(name: str, make: Callable[[], tuple[object, bool]]):
-    """The object stored under ``name`` if there is one, else the one ``make()`` returns with
-    whether it may be kept, stored if so."""
+def cached(name: Callable[[], str], make: Callable[[], tuple[object, bool]]):
+    """The object stored under ``name()`` (its :func:`key`, worked out only when the cache is on)
+    if there is one, else the one ``make()`` returns with whether it may be kept, stored if so."""
     place = folder()
     if place is None:
         return make()[0]
-    entry = place / f"{name}.pickle"
+    entry = place / f"{name()}.pickle"
     try:
         with open(entry, "rb") as stored:
             found = pickle.load(stored)
