@@ -1,4 +1,4 @@
-"""``cnc-twin`` command line: run | view | validate | tune | sweep | bench | gcode.
+"""``cnc-twin`` command line: run | view | validate | tune | sweep | bench | gcode | list | server.
 
 Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 3 the run ended by a
 fault (the run directory is complete and says which); 130 interrupted by SIGINT (Ctrl-C), 143 by
@@ -118,6 +118,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="time whole `cnc-twin run` and `validate` processes beside the floor (python importing "
                             "numpy, mujoco, numba), with where the time outside the run went; the scenarios: the one "
                             "given, or jog_axes, nurbs_circle, gcode_cam_raster and freeform_polish")
+
+    server = sub.add_parser("server", help="the warm server that runs run, validate, gcode and list without a new "
+                                           "interpreter's start-up: its state, or start or stop it")
+    what = server.add_mutually_exclusive_group()
+    what.add_argument("--start", action="store_true", help="start one for this environment now; wait until ready")
+    what.add_argument("--stop", action="store_true", help="end this installation's servers (their commands finish)")
     return parser
 
 
@@ -143,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
-                "gcode": _gcode, "list": _list}
+                "gcode": _gcode, "list": _list, "server": _server}
     if args.whole_process and args.command not in ("run", "sweep"):
         # The start handlers (cnc_twin/entry.py) end the program at once; from here Ctrl-C is a KeyboardInterrupt
         # and SIGTERM ends these commands as Ctrl-C does: through the runs' cleanup (planners, shared memory).
@@ -436,6 +442,12 @@ def _gcode(args: argparse.Namespace) -> int:
     if error:
         print(f"error: {error}", file=sys.stderr)
     return code  # run as the program, it ends without the teardown freeing every call (QUICK_EXIT)
+
+
+def _server(args: argparse.Namespace) -> int:
+    from cnc_twin.core.server_control import server_command
+
+    return server_command(start=args.start, stop=args.stop)
 
 
 def _bench(args: argparse.Namespace) -> int:

@@ -31,6 +31,13 @@ def main() -> int:
     from cnc_twin.core.phases import mark
 
     mark("entry")
+    import sys
+
+    from cnc_twin.core.server_link import delegate
+
+    code = delegate(sys.argv[1:])  # a warm server runs it, if one is there (and starts one otherwise)
+    if code is not None:
+        return code
     from cnc_twin.cli import main as cli_main
 
     return cli_main()

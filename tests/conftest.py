@@ -13,6 +13,9 @@ REPO = Path(__file__).resolve().parent.parent
 # no prepared programs kept between loads in the tests (each load prepares its program, as a
 # patched function or a changed file expects); tests/test_program_cache.py turns the cache on
 os.environ["CNC_TWIN_CACHE"] = "off"
+# every command in its own process, and no warm server left behind by the suite's many commands;
+# tests/test_warm_server.py starts its own, in a private folder, and ends it
+os.environ["CNC_TWIN_SERVER"] = "off"
 
 
 @pytest.fixture

@@ -39,6 +39,9 @@ MAY_IMPORT: dict[str, set[str]] = {
                 "polishing", "view", "scenario", "run", "gcode"},
     "cli": {"core", "motion", "geometry", "legacy", "whiteboard", "dsp", "planner", "machine", "trace",
             "polishing", "view", "scenario", "run", "studies", "gcode"},
+    # the warm server: loads everything a command uses, and becomes the command in a fork
+    "server": {"core", "motion", "geometry", "legacy", "whiteboard", "dsp", "planner", "machine", "trace",
+               "polishing", "view", "scenario", "run", "studies", "gcode", "cli"},
     "entry": {"cli", "core"},
     "__main__": {"entry"},
     "__init__": set(),

@@ -14,13 +14,13 @@ import os
 import time
 
 VARIABLE = "CNC_TWIN_PHASES"
-_path = os.environ.get(VARIABLE) or None
 
 
 def mark(name: str) -> None:
     """Note that the phase ``name`` ended now (a line ``<monotonic seconds> <name>``), if asked to."""
-    if _path is not None:
-        with open(_path, "a", encoding="utf-8") as out:
+    path = os.environ.get(VARIABLE)  # read each time: a warm server's command takes its client's environment
+    if path:
+        with open(path, "a", encoding="utf-8") as out:
             out.write(f"{time.monotonic():.6f} {name}\n")
 
 

@@ -24,11 +24,10 @@ import os
 import pickle
 import select
 import struct
-import subprocess
-import sys
 import weakref
 
 from cnc_twin.core.child_process import end_process
+from cnc_twin.core.helpers import start_helper
 from cnc_twin.whiteboard.doorbell import PipeDoorbells
 
 DONE_TIMEOUT = 2.0
@@ -45,7 +44,8 @@ import takes 0.24 s of CPU with OpenBLAS's threads on two cores, 0.09 s with one
 class PlannerProcess:
     """One planner subprocess in serve mode, with its doorbell pipes.
 
-    ``popen`` is the :class:`subprocess.Popen` (its ``pid`` and ``poll()`` tell liveness).
+    ``popen`` is the :class:`subprocess.Popen` or :class:`~cnc_twin.core.helpers.ForkedHelper` (its ``pid``
+    and ``poll()`` tell liveness).
     """
 
     def __init__(self):
@@ -54,10 +54,8 @@ class PlannerProcess:
         for name in SINGLE_THREAD_MATH:
             env.setdefault(name, "1")
         wait_fd, ring_fd = self.bells.pc_fds()
-        self.popen = subprocess.Popen(
-            [sys.executable, "-m", "cnc_twin.planner.process", "--serve", str(wait_fd), str(ring_fd)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(wait_fd, ring_fd), close_fds=True, env=env,
-        )
+        self.popen = start_helper("cnc_twin.planner.process", ["--serve", str(wait_fd), str(ring_fd)],
+                                  pass_fds=(wait_fd, ring_fd), env=env)
         self.bells.release_pc_ends()
         self.owner = os.getpid()
         self.runs = 0

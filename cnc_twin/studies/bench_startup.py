@@ -25,7 +25,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from cnc_twin.core import server_link
 from cnc_twin.core.phases import VARIABLE, read_marks
+from cnc_twin.core.server_control import start_and_wait
 
 SCENARIOS = ("jog_axes", "nurbs_circle", "gcode_cam_raster", "freeform_polish")
 """the scenarios measured by default: a jog, a NURBS curve, a CAM program of 4408 lines, a
@@ -36,7 +38,7 @@ PHASE_NAMES = {
     "entry": "python start", "imported": "imports", "loaded": "load", "twin": "twin built",
     "kernels": "kernels", "planner": "planner ready", "clock": "run's clock", "result": "metrics",
     "trace": "trace.parquet", "files": "other files", "recording": "recording.rrd", "metrics": "metrics.json",
-    "written": "run directory", "end": "exit",
+    "written": "run directory", "end": "exit", "forked": "to the server",
 }
 """each mark's phase: the time from the mark before it (or the process's start) to it"""
 
@@ -46,10 +48,12 @@ def _cnc_twin() -> list[str]:
     return [sys.executable, "-m", "cnc_twin"]
 
 
-def time_process(command: list[str], *, marks: Path | None = None, timeout: float = 600.0) -> dict[str, Any]:
+def time_process(command: list[str], *, marks: Path | None = None, timeout: float = 600.0,
+                 env: dict[str, str] | None = None) -> dict[str, Any]:
     """Run ``command`` once: its wall time [s] from before the start to after the end, its exit
-    code, and (``marks``: a file for :mod:`cnc_twin.core.phases`) each phase's seconds."""
-    env = dict(os.environ)
+    code, and (``marks``: a file for :mod:`cnc_twin.core.phases`) each phase's seconds;
+    ``env``: variables set for it."""
+    env = {**os.environ, **(env or {})}
     if marks is not None:
         marks.unlink(missing_ok=True)
         env[VARIABLE] = str(marks)
@@ -77,12 +81,19 @@ def phases(started: float, marks: list[tuple[float, str]], ended: float) -> dict
     return out
 
 
+MODES = {"": {server_link.VARIABLE: "off"}, " (server)": {server_link.VARIABLE: "on"}}
+"""each command measured twice: in a new interpreter of its own (the warm server off), and handed
+to the warm server (started and ready before the measurements)"""
+
+
 def bench_startup(scenarios: tuple[str, ...] = SCENARIOS, *, repeat: int = 3,
                   progress=None) -> dict[str, Any]:
     """Time the floor, then ``cnc-twin run`` and ``cnc-twin validate`` of each of ``scenarios``
-    (bundled names), ``repeat`` times each, alternating; ``progress(text)`` is told each step.
+    (bundled names), ``repeat`` times each, alternating, in each of :data:`MODES`;
+    ``progress(text)`` is told each step.
 
-    Returns the figures: ``floor_s`` and, per command (``run jog_axes``, ``validate jog_axes``...),
+    Returns the figures: ``floor_s`` and, per command (``run jog_axes``, ``validate jog_axes``,
+    ``run jog_axes (server)``...),
     ``wall_s`` (the fastest), ``first_s``, ``run_clock_s`` (the run's own clock, from its
     metrics), ``outside_s`` (wall less the clock), ``above_floor_s`` (outside less the floor) and
     ``phases`` (the fastest repeat's), with the machine and the versions measured on."""
@@ -90,25 +101,30 @@ def bench_startup(scenarios: tuple[str, ...] = SCENARIOS, *, repeat: int = 3,
 
     folder = Path(tempfile.mkdtemp(prefix="cnc-twin-startup-"))
     try:
-        commands: dict[str, list[str]] = {"floor": [sys.executable, *FLOOR]}
-        for name in scenarios:
-            path = str(scenarios_dir() / f"{name}.yaml")
-            commands[f"run {name}"] = [*_cnc_twin(), "run", path, "--quiet", "--out"]
-            commands[f"validate {name}"] = [*_cnc_twin(), "validate", path]
+        commands: dict[str, tuple[list[str], dict[str, str]]] = {"floor": ([sys.executable, *FLOOR], {})}
+        for mode, env in MODES.items():
+            for name in scenarios:
+                path = str(scenarios_dir() / f"{name}.yaml")
+                commands[f"run {name}{mode}"] = ([*_cnc_twin(), "run", path, "--quiet", "--out"], env)
+                commands[f"validate {name}{mode}"] = ([*_cnc_twin(), "validate", path], env)
+        if progress is not None:
+            progress("starting the warm server")
+        if start_and_wait() is None:
+            raise RuntimeError("the warm server did not come up")
         times: dict[str, list[dict[str, Any]]] = {key: [] for key in commands}
         for k in range(repeat):
-            for key, command in commands.items():
+            for key, (command, env) in commands.items():
                 if progress is not None:
                     progress(f"{key} ({k + 1} of {repeat})")
                 if key.startswith("run "):
                     out = folder / f"{key.replace(' ', '_')}_{k}"
-                    measured = time_process([*command, str(out)], marks=folder / "marks")
+                    measured = time_process([*command, str(out)], marks=folder / "marks", env=env)
                     metrics = out / "metrics.json"
                     if metrics.exists():
                         measured["run_clock_s"] = json.loads(metrics.read_text())["wall_time_s"]
                     shutil.rmtree(out, ignore_errors=True)
                 else:
-                    measured = time_process(command, marks=None if key == "floor" else folder / "marks")
+                    measured = time_process(command, marks=None if key == "floor" else folder / "marks", env=env)
                 times[key].append(measured)
         return _figures(times)
     finally:

@@ -31,12 +31,12 @@ import fcntl
 import os
 import select
 import signal
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 from cnc_twin.core.child_process import end_process
+from cnc_twin.core.helpers import start_helper
 from cnc_twin.core.errors import one_line
 from cnc_twin.core.messages import framed, read_message
 from cnc_twin.trace.trace import PeriodSamples
@@ -73,8 +73,10 @@ class RecordingProcess:
         self.min_stretch = min_stretch
         """periods gathered before :meth:`observe` sends a stretch"""
         self._stderr = tempfile.TemporaryFile()
-        self.popen = subprocess.Popen([sys.executable, "-m", "cnc_twin.view.rerun_stream"], stdin=subprocess.PIPE,
-                                      stdout=subprocess.PIPE, stderr=self._stderr, close_fds=True)
+        self.popen = start_helper("cnc_twin.view.rerun_stream", stderr=self._stderr)
+        if getattr(self.popen, "stderr_file", None) is not None:  # the warm server's spare: its own file
+            self._stderr.close()
+            self._stderr = self.popen.stderr_file
         try:
             fcntl.fcntl(self.popen.stdin.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
         except (AttributeError, OSError):  # not Linux, or above /proc/sys/fs/pipe-max-size: the default pipe
@@ -197,6 +199,12 @@ def _readable(fd: int) -> bool:
     return bool(select.select([fd], [], [], 0)[0])
 
 
+def prepare() -> None:
+    """What the process imports before its first message (rerun): a warm server's spare does it
+    ahead (:class:`cnc_twin.core.helpers.ForkedHelper`, ``spare=True``)."""
+    from cnc_twin.view.rerun_export import RunExporter  # noqa: F401
+
+
 def serve(fd: int, out) -> int:
     """The recording process: messages from ``fd`` until ``finish`` or EOF; the answer to ``out``."""
     try:
@@ -245,7 +253,8 @@ def _failed(exc: Exception, out) -> int:
     return 1
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    """``python -m cnc_twin.view.rerun_stream`` (no arguments): record what comes on stdin."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the group; the twin decides
     os.nice(NICENESS)
     return serve(sys.stdin.fileno(), sys.stdout.buffer)
