@@ -21,7 +21,7 @@ def test_a_run_command_marks_each_phase_and_they_add_up_to_its_wall_time(tmp_pat
     assert measured["code"] == 0
     names = list(measured["phases"])
     assert names == ["python start", "imports", "load", "twin built", "kernels", "planner ready", "run's clock",
-                     "metrics", "trace.parquet", "other files", "recording.rrd", "metrics.json", "run directory",
+                     "metrics", "other files", "recording.rrd", "trace.parquet", "metrics.json", "run directory",
                      "exit"]
     assert sum(measured["phases"].values()) == pytest.approx(measured["wall_s"], abs=1e-6)
     assert all(seconds >= 0.0 for seconds in measured["phases"].values())

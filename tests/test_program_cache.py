@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from cnc_twin.run.twin import run_scenario
+from cnc_twin.core import disk_cache
 from cnc_twin.scenario import gcode, program_cache
 from cnc_twin.scenario.load import load_scenario
 from cnc_twin.scenario.resources import programs_dir, scenarios_dir
@@ -20,7 +21,7 @@ from cnc_twin.scenario.resources import programs_dir, scenarios_dir
 def cache(tmp_path, monkeypatch):
     folder = tmp_path / "cache"
     monkeypatch.setenv(program_cache.VARIABLE, str(folder))
-    return folder
+    return folder / program_cache.KIND
 
 
 def _trace_digest(result) -> str:
@@ -63,7 +64,7 @@ def test_a_changed_program_is_prepared_again(cache, tmp_path, write_scenario):
 def test_other_code_prepares_again(cache, tmp_path, write_scenario, monkeypatch):
     scenario = _program_scenario(tmp_path, write_scenario)
     load_scenario(scenario)
-    monkeypatch.setattr(program_cache, "_code_digest", "another version of the twin")
+    monkeypatch.setattr(disk_cache, "_code_digest", "another version of the twin")
     load_scenario(scenario)
     assert len(list(cache.glob("*.pickle"))) == 2
 

@@ -186,3 +186,20 @@ def test_a_forked_helper_is_a_process_like_a_new_one(tmp_path, monkeypatch):
         os.close(keep_read)
         if keep_write >= 0:
             os.close(keep_write)
+
+
+def test_a_sweep_handed_to_the_server_forks_its_workers_and_gives_the_same_rows(server, tmp_path):
+    scenario = tmp_path / "p2p.yaml"
+    scenario.write_text("name: p2p\nprogram: {type: point_to_point, settle: 0.5, moves: [{X: 20}, {X: 0}]}\n")
+    sweep = ("sweep", str(scenario), "--param", "servo.X.kp=20:50:10", "--workers", "2")
+    served = _status(server)["served"]
+    warm = subprocess.run(_cli(*sweep, "--out", str(tmp_path / "warm")), env=server, capture_output=True, text=True,
+                          timeout=300)
+    cold = subprocess.run(_cli(*sweep, "--out", str(tmp_path / "cold")), env={**server, server_link.VARIABLE: "off"},
+                          capture_output=True, text=True, timeout=300)
+    assert (warm.returncode, cold.returncode) == (0, 0), warm.stderr + cold.stderr
+    assert _status(server)["served"] == served + 1
+    rows = [pq.read_table(tmp_path / side / "sweep.parquet").to_pylist() for side in ("warm", "cold")]
+    assert len(rows[0]) == 4 and all(row["status"] == "complete" for row in rows[0])
+    figures = ("servo.X.kp", "ferr_rms_X_mm", "ferr_max_X_mm", "sim_time_s")
+    assert [[row[k] for k in figures] for row in rows[0]] == [[row[k] for k in figures] for row in rows[1]]

@@ -36,6 +36,12 @@ SPARES: dict[str, tuple[int, int, int, int]] = {}
 ends, its stderr file's descriptor), handed to the command it forked; each taken once"""
 
 
+def can_fork() -> bool:
+    """Whether a new process had better be a fork of this one: it is warm (:data:`FORK`) and runs
+    no other Python thread."""
+    return FORK and threading.active_count() == 1
+
+
 def start_helper(module: str, args: Sequence[str] = (), *, pass_fds: Sequence[int] = (), stderr: IO | None = None,
                  env: dict[str, str] | None = None) -> "subprocess.Popen | ForkedHelper":
     """``python -m module *args`` with piped stdin and stdout (binary), the descriptors ``pass_fds``
@@ -43,7 +49,7 @@ def start_helper(module: str, args: Sequence[str] = (), *, pass_fds: Sequence[in
     (a fork keeps this process's modules, so variables read at import are already read)."""
     if not args and module in SPARES:
         return AdoptedHelper(*SPARES.pop(module), module=module)
-    if FORK and threading.active_count() == 1:
+    if can_fork():
         return ForkedHelper(module, list(args), pass_fds=pass_fds, stderr=stderr)
     return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=stderr, pass_fds=tuple(pass_fds), close_fds=True, env=env)

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cnc_twin.core import disk_cache
 from cnc_twin.core.config import AxisConfig, PathLimits
 from cnc_twin.motion.scurve import SCurve, ramp_distance, reachable
 from cnc_twin.geometry.nurbs import NurbsCurve
@@ -329,26 +330,39 @@ def _windows(sm: _Samples, limits: PathLimits, window: float):
         a, v_a = critical[k], speeds[k]
 
 
+PLANS_KIND, SAMPLES_KIND = "plans", "plan-samples"
+"""the disk cache's folders of plans and of sampled curves (:mod:`cnc_twin.core.disk_cache`)"""
 SAMPLES_KEPT = 8
 """sampled curves a process keeps for a later run (:func:`sample_limits`' ``key``; they are large)"""
 _SAMPLES: OrderedDict[bytes, _Samples] = OrderedDict()
 
 
-def _kept(kept: OrderedDict, key: bytes | None):
-    """What ``kept`` holds under ``key`` (now its most recently used), or None."""
-    if key is None or key not in kept:
+def _kept(kept: OrderedDict, key: bytes | None, kind: str):
+    """What ``kept`` holds under ``key`` (now its most recently used), else what an earlier process
+    kept on disk under it (:mod:`cnc_twin.core.disk_cache`, ``kind``), or None."""
+    if key is None:
         return None
-    kept.move_to_end(key)
-    return kept[key]
+    if key in kept:
+        kept.move_to_end(key)
+        return kept[key]
+    return disk_cache.load(kind, _disk_name(key))
 
 
-def _keep(kept: OrderedDict, key: bytes | None, value, most: int) -> None:
-    """Keep ``value`` under ``key`` (None: keep nothing), dropping the least recently used beyond ``most``."""
+def _keep(kept: OrderedDict, key: bytes | None, value, most: int, kind: str, *, on_disk: bool = True) -> None:
+    """Keep ``value`` under ``key`` (None: keep nothing), dropping the least recently used beyond
+    ``most``; and on disk for later processes (``on_disk``: not what was just read from there)."""
     if key is None:
         return
     kept[key] = value
     while len(kept) > most:
         kept.popitem(last=False)
+    if on_disk:
+        disk_cache.store(kind, _disk_name(key), value)
+
+
+def _disk_name(key: bytes) -> str:
+    """The entry's name on disk: the key of the inputs with the code's (other code may plan otherwise)."""
+    return hashlib.sha256(disk_cache.code_digest().encode() + key).hexdigest()
 
 
 def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_path=None,
@@ -356,11 +370,14 @@ def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_
     """The curve sampled for planning with its feed limit: the bulk of the work before the first
     window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`).
     ``key`` (:func:`plan_key`): the samples taken under the same key earlier in this process, if
-    kept (the last :data:`SAMPLES_KEPT`), as :func:`plan_feed_windows` keeps its plans."""
-    samples = _kept(_SAMPLES, key)
-    if samples is None:
+    kept (the last :data:`SAMPLES_KEPT`), or by an earlier process (the disk cache), as
+    :func:`plan_feed_windows` keeps its plans."""
+    samples = _kept(_SAMPLES, key, SAMPLES_KIND)
+    made = samples is None
+    if made:
         samples = _sample(curve, limits, period, axis_path, axis_limits)
-        _keep(_SAMPLES, key, samples, SAMPLES_KEPT)
+    if made or key not in _SAMPLES:
+        _keep(_SAMPLES, key, samples, SAMPLES_KEPT, SAMPLES_KIND, on_disk=made)
     return samples
 
 
@@ -405,12 +422,16 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     ``samples``: from :func:`sample_limits`, if already taken.
 
     ``key`` (:func:`plan_key` of the plan's inputs): a plan completed under the same key in this
-    process is handed out again instead of planned (the same blocks: a pooled planner serving a
-    sweep whose gains change the card, not the path); a completed plan is kept under it (the
-    last :data:`PLANS_KEPT`). None: plan, keep nothing.
+    process (the last :data:`PLANS_KEPT`), or by an earlier one (kept on disk with the code's
+    digest, :mod:`cnc_twin.core.disk_cache`, unless ``CNC_TWIN_CACHE=off``), is handed out again
+    instead of planned (the same blocks: a pooled planner serving a sweep whose gains change the
+    card, not the path; a second run of the same program); a completed plan is kept under it.
+    None: plan, keep nothing.
     """
-    planned = _kept(_PLANS, key)
+    planned = _kept(_PLANS, key, PLANS_KIND)
     if planned is not None:
+        if key not in _PLANS:  # read from disk: kept here too
+            _keep(_PLANS, key, planned, PLANS_KEPT, PLANS_KIND, on_disk=False)
         yield from planned
         return
     if samples is None:
@@ -419,7 +440,7 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     for blocks in _windows(samples, limits, window):
         planned.append(blocks)
         yield blocks
-    _keep(_PLANS, key, planned, PLANS_KEPT)  # complete: a run that stops early keeps nothing
+    _keep(_PLANS, key, planned, PLANS_KEPT, PLANS_KIND)  # complete: a run that stops early keeps nothing
 
 
 def plan_feed(curve: NurbsCurve, limits: PathLimits, *, period: float, window: float | None = None,

@@ -11,6 +11,7 @@ import json
 import os
 import shutil
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -58,13 +59,19 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
     was = (trace.path, trace.staged) if in_file else None
     try:
         (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8")
-        if in_file:
-            trace.move_to(tmp / TRACE_FILE)
-        else:
-            write_trace(trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+        # The trace is encoded beside the other files (Arrow works without the GIL while the
+        # pictures render and the recording closes); the block waits for it, whatever happens.
+        with ThreadPoolExecutor(max_workers=1) as background:
+            if in_file:
+                trace.move_to(tmp / TRACE_FILE)
+                writing = None
+            else:
+                writing = background.submit(write_trace, trace, tmp / TRACE_FILE, scenario_name=scenario.name)
+            if extra is not None:
+                extra(tmp)
+            if writing is not None:
+                writing.result()
         mark("trace")
-        if extra is not None:
-            extra(tmp)
         _write_metrics(tmp / METRICS_FILE, metrics)
         mark("metrics")
         if run_dir.exists():

@@ -55,12 +55,14 @@ def warm_up() -> None:
     import cnc_twin.trace.parquet  # noqa: F401
     import cnc_twin.view.rerun_stream  # noqa: F401 - the command's side (rerun itself: in its process)
     from cnc_twin.run.progress import ProgressBar  # noqa: F401
+    from cnc_twin.core import disk_cache
     from cnc_twin.run.twin import Twin
     from cnc_twin.scenario.load import load_scenario
     from cnc_twin.scenario.resources import scenarios_dir
     from cnc_twin.studies.kernel_warmup import WARMUP_SCENARIOS
 
     numba.core.registry.cpu_target.target_context.refresh()
+    disk_cache.code_digest()  # the caches' keys: worked out once here, not in every command
     for name in (*WARMUP_SCENARIOS, "gcode_cam_raster.yaml", "freeform_polish.yaml"):
         try:
             twin = Twin(load_scenario(scenarios_dir() / name))

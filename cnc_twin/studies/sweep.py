@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from cnc_twin.core.helpers import can_fork
 from cnc_twin.studies.sweep_stop import (SweepStop, exit_on_sigterm, init_worker, sigint_held, stop_requested,
                                          stoppable)
 
@@ -243,8 +244,12 @@ def _run_pool(scenario_file: str, todo: list[dict[str, Any]], queue: deque[int],
     """Run cases from the front of ``queue`` (indices into ``todo``) on a pool of ``workers``
     processes into ``rows`` until the queue is empty, the pool breaks or ``stop`` is requested;
     returns the cases that were in flight when a worker died."""
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=init_worker, initargs=stop.worker_args)
+    # A warm process (the warm server's command) forks its workers: they start with everything
+    # loaded, in milliseconds; any other starts new interpreters (a fork of a script's process
+    # could copy a thread's held lock, and would import nothing less).
+    context = multiprocessing.get_context("fork" if can_fork() else "spawn")
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=init_worker,
+                               initargs=stop.worker_args)
     # Cases are handed out as workers free up (two per worker in flight keeps them busy), so a
     # stop has few to call back and a broken pool leaves the rest of the queue untouched.
     in_flight: dict[Future, int] = {}

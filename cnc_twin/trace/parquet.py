@@ -62,7 +62,9 @@ class TraceWriter:
                 arrays.append(array)
             table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=self.meta))
             if self._writer is None:
-                self._writer = pq.ParquetWriter(self.path, table.schema)
+                # no dictionaries: the columns are measured values, nearly all distinct; trying
+                # one per column took 0.4 s of a 184 000-tick trace's 0.55 s and made it larger
+                self._writer = pq.ParquetWriter(self.path, table.schema, use_dictionary=False)
             self._writer.write_table(table)
         self.ticks += len(trace)
 
