@@ -52,3 +52,29 @@ def test_planes_and_strips():
     strips = program_strips(flat, flat, on_path)
     assert [len(c) for c, _ in strips] == [50, 80]
     assert [len(c) for c, _ in program_strips(flat, flat, np.zeros(200, bool))] == [200]  # no curve: all
+
+
+def _nearest_by_definition(command: np.ndarray, actual: np.ndarray, window: int) -> np.ndarray:
+    """The definition in numpy passes, one per offset (the first of equally near segments wins)."""
+    n = len(command)
+    best, nearest, index = np.full(n, np.inf), command.copy(), np.arange(n)
+    for offset in range(-window, window + 1):
+        seg = np.clip(index + offset, 0, n - 2)
+        a, ab = command[seg], command[seg + 1] - command[seg]
+        length2 = np.einsum("ij,ij->i", ab, ab)
+        t = np.einsum("ij,ij->i", actual - a, ab) / np.where(length2 > 0, length2, 1.0)
+        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
+        distance = np.linalg.norm(actual - foot, axis=1)
+        closer = distance < best
+        best[closer], nearest[closer] = distance[closer], foot[closer]
+    return nearest
+
+
+@pytest.mark.parametrize("n, d, window", [(2, 2, 64), (3, 2, 1), (10, 3, 64), (500, 2, 64), (2000, 3, 8)])
+def test_the_compiled_search_is_the_definition(n, d, window):
+    rng = np.random.default_rng(n + d)
+    command = np.cumsum(rng.normal(size=(n, d)), axis=0)
+    command[n // 3: n // 3 + 2] = command[n // 3]  # a zero-length segment
+    actual = command + rng.normal(scale=0.4, size=(n, d))
+    got = nearest_on_path(command, actual, window)
+    assert np.allclose(got, _nearest_by_definition(command, actual, window), rtol=0, atol=1e-12)

@@ -31,18 +31,36 @@ def gauss_length(d1, knots, t0: float, t1: float, pieces: int = 1) -> float:
     """``integral |d1(t)| dt`` from ``t0`` to ``t1`` (t0 <= t1): 16-point Gauss-Legendre on each
     knot span inside, each span cut into ``pieces`` equal parts. ``d1`` maps parameters (m,) to
     first derivatives (m, d)."""
-    breaks = np.array([t0] + [k for k in np.unique(knots) if t0 < k < t1] + [t1])
-    if pieces > 1:
-        breaks = np.unique(np.concatenate([np.linspace(lo, hi, pieces + 1)
-                                           for lo, hi in zip(breaks[:-1], breaks[1:])]))
-    lo, hi = breaks[:-1], breaks[1:]
-    keep = hi > lo
-    mid, half = 0.5 * (lo + hi)[keep], 0.5 * (hi - lo)[keep]
-    if mid.size == 0:
-        return 0.0
-    nodes = (mid[:, None] + half[:, None] * _GAUSS_NODES[None, :]).ravel()
-    speed = np.linalg.norm(d1(nodes), axis=1).reshape(len(mid), -1)
-    return float(np.sum(half * (speed @ _GAUSS_WEIGHTS)))
+    return float(gauss_lengths(d1, knots, np.array([t0]), np.array([t1]), pieces)[0])
+
+
+def gauss_lengths(d1, knots, t0: np.ndarray, t1: np.ndarray, pieces: int = 1) -> np.ndarray:
+    """:func:`gauss_length` of each ``(t0[i], t1[i])`` (shape (n,) each), the derivatives of all
+    taken in one call of ``d1`` (a curve's hundreds of stretches: one evaluation, not hundreds)."""
+    unique = np.unique(knots)
+    nodes, halves = [], []
+    for a, b in zip(t0.tolist(), t1.tolist()):
+        inside = unique[np.searchsorted(unique, a, side="right"):np.searchsorted(unique, b, side="left")]
+        breaks = np.concatenate([[a], inside, [b]])
+        if pieces > 1:
+            breaks = np.unique(np.concatenate([np.linspace(lo, hi, pieces + 1)
+                                               for lo, hi in zip(breaks[:-1], breaks[1:])]))
+        lo, hi = breaks[:-1], breaks[1:]
+        keep = hi > lo
+        mid, half = 0.5 * (lo + hi)[keep], 0.5 * (hi - lo)[keep]
+        nodes.append((mid[:, None] + half[:, None] * _GAUSS_NODES[None, :]).ravel())
+        halves.append(half)
+    out = np.zeros(len(halves))
+    every = np.concatenate(nodes) if nodes else np.empty(0)
+    if every.size == 0:
+        return out
+    speed = np.linalg.norm(d1(every), axis=1).reshape(-1, len(_GAUSS_NODES))
+    start = 0
+    for i, half in enumerate(halves):
+        if half.size:
+            out[i] = np.sum(half * (speed[start:start + half.size] @ _GAUSS_WEIGHTS))
+            start += half.size
+    return out
 
 
 class NurbsError(ValueError):
@@ -164,6 +182,11 @@ class NurbsCurve:
         if u1 < u0:
             return -self.arc_length(u1, u0)
         return gauss_length(lambda u: self.derivatives(u, 1)[1], self.knots, u0, u1)
+
+    def arc_lengths(self, u0: np.ndarray, u1: np.ndarray) -> np.ndarray:
+        """:meth:`arc_length` of each ``(u0[i], u1[i])`` (``u0 <= u1``), in one evaluation."""
+        return gauss_lengths(lambda u: self.derivatives(u, 1)[1], self.knots, np.asarray(u0, np.float64),
+                             np.asarray(u1, np.float64))
 
     def span_evaluator(self) -> "SpanEvaluator":
         return SpanEvaluator(self)

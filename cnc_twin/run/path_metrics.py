@@ -51,8 +51,8 @@ def _arc_lengths(curve: NurbsCurve, u0: np.ndarray, u1: np.ndarray) -> np.ndarra
     out = half * (speed @ _GL_W)
     knots = np.unique(curve.knots)  # sorted: the knots strictly inside (a, b) are those between two searches
     straddle = np.flatnonzero(np.searchsorted(knots, u1, side="left") > np.searchsorted(knots, u0, side="right"))
-    for i in straddle:  # a kink in |C'| at a knot: split there
-        out[i] = curve.arc_length(u0[i], u1[i])
+    if straddle.size:  # a kink in |C'| at a knot: split there
+        out[straddle] = curve.arc_lengths(u0[straddle], u1[straddle])
     return out
 
 

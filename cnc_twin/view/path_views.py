@@ -12,6 +12,7 @@ covers any lag the machine can have at the 4 ms sampling of the recorded paths.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 PLANES = {"XY": (0, 1), "XZ": (0, 2), "YZ": (1, 2)}
 """plane name -> the tip coordinates (world x, y, z) drawn across and up"""
@@ -28,27 +29,48 @@ MIN_EXTENT = 1e-4
 
 def nearest_on_path(command: np.ndarray, actual: np.ndarray, window: int = LAG_WINDOW) -> np.ndarray:
     """For each actual point, its nearest point on the commanded polyline, searched among the
-    segments within ``window`` samples of the same index. ``command``, ``actual``: shape (n, d),
-    sampled at the same instants; returns shape (n, d)."""
-    n = len(command)
-    if n < 2:
+    segments within ``window`` samples of the same index (the first of equally near ones).
+    ``command``, ``actual``: shape (n, d), sampled at the same instants; returns shape (n, d).
+    Compiled (a cam raster's 3 planes took 0.5 s in numpy passes, the last wait of a run's
+    recording); ``tests/test_path_views.py`` holds it to the numpy form of the definition."""
+    command = np.ascontiguousarray(command, dtype=np.float64)
+    actual = np.ascontiguousarray(actual, dtype=np.float64)
+    if len(command) < 2:
         return command.copy()
-    starts, ends = command[:-1], command[1:]
-    best = np.full(n, np.inf)
+    return _nearest_in_window(command, actual, window)
+
+
+@njit(cache=True, error_model="numpy")
+def _nearest_in_window(command, actual, window):  # pragma: no cover - compiled
+    n, d = command.shape
     nearest = command.copy()
-    index = np.arange(n)
-    for offset in range(-window, window + 1):
-        seg = np.clip(index + offset, 0, n - 2)
-        a, b = starts[seg], ends[seg]
-        ab = b - a
-        length2 = np.einsum("ij,ij->i", ab, ab)
-        t = np.einsum("ij,ij->i", actual - a, ab) / np.where(length2 > 0, length2, 1.0)
-        foot = a + np.clip(t, 0.0, 1.0)[:, None] * ab
-        distance = np.linalg.norm(actual - foot, axis=1)
-        closer = distance < best
-        best[closer] = distance[closer]
-        nearest[closer] = foot[closer]
+    foot = np.empty(d)
+    for i in range(n):
+        best = np.inf
+        for offset in range(-window, window + 1):
+            k = min(max(i + offset, 0), n - 2)
+            length2 = 0.0
+            along = 0.0
+            for j in range(d):
+                ab = command[k + 1, j] - command[k, j]
+                length2 += ab * ab
+                along += (actual[i, j] - command[k, j]) * ab
+            t = min(max(along / (length2 if length2 > 0 else 1.0), 0.0), 1.0)
+            distance2 = 0.0
+            for j in range(d):
+                foot[j] = command[k, j] + t * (command[k + 1, j] - command[k, j])
+                gap = actual[i, j] - foot[j]
+                distance2 += gap * gap
+            distance = np.sqrt(distance2)
+            if distance < best:
+                best = distance
+                nearest[i] = foot
     return nearest
+
+
+def warm_up() -> None:
+    """Load the compiled search (from numba's cache) now, not at the end of a run."""
+    nearest_on_path(np.zeros((2, 2)), np.zeros((2, 2)))
 
 
 def round_factor(largest_error: float, extent: float) -> int:

@@ -202,13 +202,18 @@ def _readable(fd: int) -> bool:
 def prepare() -> None:
     """What the process imports before its first message (rerun): a warm server's spare does it
     ahead (:class:`cnc_twin.core.helpers.ForkedHelper`, ``spare=True``)."""
+    from cnc_twin.view.path_views import warm_up
     from cnc_twin.view.rerun_export import RunExporter  # noqa: F401
+
+    warm_up()
 
 
 def serve(fd: int, out) -> int:
     """The recording process: messages from ``fd`` until ``finish`` or EOF; the answer to ``out``."""
     try:
-        # Imported before the first message: this overlaps the twin process's own start-up.
+        # Imported (and the path views' kernel loaded) before the first message: this overlaps
+        # the twin process's own start-up.
+        prepare()
         from cnc_twin.view.rerun_export import RunExporter
     except Exception as exc:  # pragma: no cover - a broken installation
         return _failed(exc, out)
