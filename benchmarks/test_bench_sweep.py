@@ -61,3 +61,46 @@ def test_force_gain_sweep_on_the_flat_plate(benchmark):
                                 speedup=one / two)
     print(f"\n{len(todo)} flat-plate runs: {per_min[1]:.1f} runs/min on 1 worker, {per_min[2]:.1f} on 2: "
           f"speedup {one / two:.2f}")
+
+
+def test_a_32_run_sweep_command_on_one_and_two_workers(benchmark, tmp_path):
+    """Issue #41's sweep: `cnc-twin sweep` of 32 runs of a short scenario, the whole command timed
+    (start-up, workers, runs, the table), on 1 and on 2 workers, each in a new interpreter (the
+    warm server off) and handed to the warm server (its workers forked, warm). Alternating, best
+    of two each. ``python -m pytest benchmarks/test_bench_sweep.py -k command --benchmark-only -s -n0``."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from cnc_twin.core import server_link
+    from cnc_twin.core.server_control import start_in_a_new_process
+
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"name": "scaling", "program": {"type": "point_to_point", "settle": 3.0,
+                                                                   "moves": [{"X": 100}, {"X": 0}]}}))
+    modes = {"new interpreters": "off", "warm server": "on"}
+    env = {mode: {**os.environ, server_link.VARIABLE: value} for mode, value in modes.items()}
+    assert start_in_a_new_process()
+
+    def sweep(mode: str, workers: int, k: int) -> float:
+        out = tmp_path / f"{modes[mode]}-{workers}-{k}"
+        started = time.monotonic()
+        done = subprocess.run([sys.executable, "-m", "cnc_twin", "sweep", str(path), "--param", "servo.X.kp=20:90:10",
+                               "--param", "servo.X.kvff=0.85:1.0:0.05", "--workers", str(workers), "--out", str(out)],
+                              env=env[mode], capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return time.monotonic() - started
+
+    def measure():
+        times = {(mode, workers): [] for mode in modes for workers in (1, 2)}
+        for k in range(2):
+            for mode, workers in times:
+                times[mode, workers].append(sweep(mode, workers, k))
+        return {key: min(values) for key, values in times.items()}
+
+    best = benchmark.pedantic(measure, rounds=1)
+    for mode in modes:
+        one, two = best[mode, 1], best[mode, 2]
+        benchmark.extra_info[f"{mode}: 1 worker s"], benchmark.extra_info[f"{mode}: 2 workers s"] = one, two
+        print(f"\n32-run sweep command, {mode}: {one:.2f} s on 1 worker, {two:.2f} s on 2: speed-up {one / two:.2f}")

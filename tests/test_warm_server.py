@@ -40,7 +40,7 @@ def _status(env: dict[str, str]) -> dict:
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     """A ready server in a private socket folder: the environment that reaches it."""
-    runtime = tmp_path_factory.mktemp("runtime")
+    runtime = tmp_path_factory.mktemp("rt")  # a short folder: a socket's path has room for 107 bytes
     env = {**os.environ, "XDG_RUNTIME_DIR": str(runtime), server_link.VARIABLE: "on"}
     started = subprocess.run(_cli("server", "--start"), env=env, capture_output=True, text=True, timeout=400)
     assert started.returncode == 0, started.stdout + started.stderr
@@ -53,9 +53,19 @@ def server(tmp_path_factory):
     assert not Path(f"/proc/{state['pid']}").exists(), "the server outlived --stop"
 
 
-def _children(pid: int) -> list[str]:
-    out = subprocess.run(["ps", "-o", "pid=,stat=,args=", "--ppid", str(pid)], capture_output=True, text=True).stdout
-    return [line for line in out.splitlines() if line.split()[1][0] != "Z"]
+def _server_processes(env: dict[str, str]) -> list[int]:
+    """Live processes of the server for ``env``: it and its forks (commands, their workers and
+    planners, the spare recording process) carry its command line."""
+    key = _status(env)["key"].encode()
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and key in (proc / "cmdline").read_bytes() \
+                    and (proc / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+                found.append(int(proc.name))
+        except OSError:
+            continue
+    return found
 
 
 def test_a_run_handed_to_the_server_is_the_run_in_its_own_process(server, tmp_path):
@@ -134,7 +144,7 @@ def test_a_killed_caller_takes_its_command_with_it(server, tmp_path):
     assert _status(server)["running"] == 0
     metrics = json.loads((tmp_path / "run" / METRICS_FILE).read_text())  # written whole, as on SIGTERM
     assert metrics["status"] == "interrupted" and metrics["stop_reason"].startswith("SIGTERM")
-    assert len(_children(_status(server)["pid"])) <= 1  # at most the spare recording process for the next
+    assert len(_server_processes(server)) <= 2  # the server, and the spare recording process for the next
 
 
 def test_another_environment_gets_a_server_of_its_own(server, tmp_path):
@@ -203,3 +213,51 @@ def test_a_sweep_handed_to_the_server_forks_its_workers_and_gives_the_same_rows(
     assert len(rows[0]) == 4 and all(row["status"] == "complete" for row in rows[0])
     figures = ("servo.X.kp", "ferr_rms_X_mm", "ferr_max_X_mm", "sim_time_s")
     assert [[row[k] for k in figures] for row in rows[0]] == [[row[k] for k in figures] for row in rows[1]]
+
+
+def test_a_server_killed_under_a_command_leaves_it_to_finish_and_its_caller_waits(tmp_path, tmp_path_factory):
+    runtime = tmp_path_factory.mktemp("rt")  # a short folder: a socket's path has room for 107 bytes
+    env = {**os.environ, "XDG_RUNTIME_DIR": str(runtime), server_link.VARIABLE: "on"}
+    assert subprocess.run(_cli("server", "--start"), env=env, capture_output=True, timeout=400).returncode == 0
+    server = _status(env)["pid"]
+    proc = _start(LONG, tmp_path / "run", env)
+    _wait_until_running(proc)
+    os.kill(server, signal.SIGKILL)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 1 and len(err.strip().splitlines()) == 1  # its status is lost with the server...
+    metrics = json.loads((tmp_path / "run" / METRICS_FILE).read_text())
+    assert metrics["status"] == "complete"  # ...but the run went on to its end, and the caller waited for it
+
+
+def test_ctrl_c_stops_a_sweep_handed_to_the_server(server, tmp_path):
+    """The terminal's Ctrl-C reaches the client's group only: the client passes it to the sweep,
+    which passes it to its forked workers (as a sweep does on SIGTERM to its main process)."""
+    import pty
+
+    from test_sweep_interrupt import KP, PARAMS, SCENARIO, _PtyReader
+
+    out = tmp_path / "sweep"
+    master, slave = pty.openpty()
+    with open(tmp_path / "stdout.txt", "wb") as stdout:
+        proc = subprocess.Popen(_cli("sweep", str(SCENARIO), "--param", PARAMS[0], "--param", PARAMS[1], "--workers",
+                                     "2", "--out", str(out)), stdout=stdout, stderr=slave, env=server,
+                                start_new_session=True)
+    os.close(slave)
+    try:
+        reader = _PtyReader(master)
+        done = reader.wait_for_cases(2, deadline=time.monotonic() + 120.0)
+        assert done >= 2, reader.text()
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(timeout=60) == 130, reader.text()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    rows = pq.read_table(out / "sweep.parquet").to_pylist()
+    assert [row["servo.X.kp"] for row in rows] == KP
+    assert {row["status"] for row in rows} == {"complete", "interrupted"}
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and _status(server)["running"]:
+        time.sleep(0.1)
+    assert _status(server)["running"] == 0
+    assert len(_server_processes(server)) <= 2  # workers and planners gone: the server and its spare

@@ -12,6 +12,17 @@ START_TIMEOUT = 180.0
 """how long ``--start`` waits for the server to be ready [s] (a fresh install compiles the kernels)"""
 
 
+def start_in_a_new_process(timeout: float = START_TIMEOUT) -> bool:
+    """``cnc-twin server --start`` as a command of its own (this environment's server, even where
+    this one says ``CNC_TWIN_SERVER=off``); True when one is ready."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "cnc_twin", "server", "--start"], capture_output=True,
+                          timeout=timeout + 30, env={**os.environ, server_link.VARIABLE: "on"})
+    return done.returncode == 0
+
+
 def start_and_wait(timeout: float = START_TIMEOUT) -> dict | None:
     """Start a server for this process's environment unless one runs; wait until it answers.
     Returns its state (:func:`~cnc_twin.core.server_link.server_status`), None if it did not come up."""
@@ -26,8 +37,8 @@ def start_and_wait(timeout: float = START_TIMEOUT) -> dict | None:
         state = server_link.server_status(path) if path.exists() else None
         if state is not None:
             return state
-        if process.poll() is not None and not path.exists():  # it ended without listening (another was starting)
-            process = server_link.start_server(key) if not _lock_held(key) else process
+        if process.poll() is not None and not path.exists() and not _lock_held(key):
+            return None  # it ended without listening, and no other is starting: it failed (see its log)
         time.sleep(0.05)
     return None
 
@@ -72,7 +83,7 @@ def server_command(*, start: bool, stop: bool) -> int:
         started = time.monotonic()
         state = start_and_wait()
         if state is None:
-            print(f"no server came up within {START_TIMEOUT:.0f} s")
+            print(f"no server came up (what it said: {server_link.log_path(server_link.server_key())})")
             return 1
         print(f"ready in {time.monotonic() - started:.1f} s")
     paths = server_link.running_servers()

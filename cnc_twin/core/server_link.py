@@ -55,6 +55,9 @@ _ENVIRONMENT_KEYS = ("PYTHON", "NUMBA_", "OPENBLAS_", "OMP_", "MKL_", "MUJOCO", 
 
 PACKAGE = Path(__file__).resolve().parent.parent
 
+MAX_FOLDER_CHARACTERS = 60
+"""a socket folder longer than this is not used (the socket's name, staged, takes up to 47 more)"""
+
 
 def enabled() -> bool:
     """Whether commands may use (and start) a warm server: not with ``CNC_TWIN_SERVER=off``."""
@@ -65,6 +68,8 @@ def socket_folder() -> Path:
     """The private folder of this user's server sockets (made if missing)."""
     runtime = os.environ.get("XDG_RUNTIME_DIR")
     base = Path(runtime) / "cnc-twin" if runtime and Path(runtime).is_dir() else Path(f"/tmp/cnc-twin-{os.getuid()}")
+    if len(str(base)) > MAX_FOLDER_CHARACTERS:  # a Unix socket's path has room for 107 bytes in all
+        base = Path(f"/tmp/cnc-twin-{os.getuid()}")
     base.mkdir(mode=0o700, parents=True, exist_ok=True)
     info = base.lstat()
     if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o077:
@@ -81,12 +86,14 @@ def family() -> str:
 def server_key() -> str:
     """What a server must share with the command to run it as the command's own process would,
     as ``FAMILY-CODE-ENVIRONMENT`` (short digests): the installation (:func:`family`); the
-    interpreter, its search path, the package's modules (each file's size and time) and the
-    installed libraries (each search-path folder's time changes when one is added or removed);
-    the environment variables read as modules load."""
+    interpreter, the package's modules (each file's size and time) and the installed libraries
+    (each site-packages folder's time changes when one is added or removed); the environment
+    variables read as modules load (``PYTHONPATH`` among them)."""
     code = hashlib.sha256()
     code.update(f"{sys.version}\0{os.getuid()}\0".encode())
-    for folder in sys.path[1:]:  # not the first: the script's folder, or the directory of ``python -m``
+    # the installed libraries' folders (not a script's folder, the directory of ``python -m`` or
+    # what a test runner prepends: modules there are not what the server loads)
+    for folder in (path for path in sys.path if path.endswith(("site-packages", "dist-packages"))):
         try:
             code.update(f"{folder}\0{os.stat(folder or '.').st_mtime_ns}\0".encode())
         except OSError:
@@ -170,8 +177,14 @@ def start_server(key: str, *, after: int | None = None) -> subprocess.Popen:
     of this process's descriptors); it warms up once process ``after`` has ended (the command
     that starts it keeps the CPUs), and exits at once if one is starting already."""
     wait = [] if after is None else ["--after", str(after)]
-    return subprocess.Popen([sys.executable, "-m", "cnc_twin.server.daemon", key, *wait], stdin=subprocess.DEVNULL,
-                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, close_fds=True, start_new_session=True)
+    with open(log_path(key), "ab") as log:  # what it says, should it fail, is kept here
+        return subprocess.Popen([sys.executable, "-m", "cnc_twin.server.daemon", key, *wait], stdin=subprocess.DEVNULL,
+                                stdout=log, stderr=log, close_fds=True, start_new_session=True)
+
+
+def log_path(key: str) -> Path:
+    """Where the server of ``key`` writes what goes wrong in it."""
+    return socket_folder() / f"{key}.log"
 
 
 def delegate(argv: list[str]) -> int | None:

@@ -20,6 +20,7 @@ starts from the same loaded state, and lockstep runs give the traces they give w
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import select
@@ -196,7 +197,9 @@ class Server:
         conn.close()
 
     def _start_command(self, conn: socket.socket, request: dict, fds: list[int]) -> None:
-        close = [*self.selector.get_map(), self.selector.fileno(), conn.fileno(), _LOCK[0]]
+        # the command keeps its connection (unused): should this server die, its client waits
+        # for the command's end all the same, instead of leaving it running behind the prompt
+        close = [*self.selector.get_map(), self.selector.fileno(), _LOCK[0]]
         spares = self._hand_spare()
         pid = os.fork()
         if pid == 0:  # pragma: no cover - the command's process
@@ -250,6 +253,26 @@ _LOCK = [-1]
 """the descriptor holding this server's lock (the commands close it)"""
 
 
+def _tidy(folder: Path) -> None:
+    """Remove the lock files (and empty logs) of this installation's servers that no longer run
+    (none holds the lock)."""
+    for lock in folder.glob(f"{server_link.family()}-*.lock"):
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CLOEXEC)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            lock.unlink(missing_ok=True)
+            log = lock.with_suffix(".log")
+            if log.exists() and log.stat().st_size == 0:
+                log.unlink()
+        except OSError:  # held: that server runs
+            pass
+        finally:
+            os.close(fd)
+
+
 def _take_lock(folder: Path, key: str) -> bool:
     fd = os.open(folder / f"{key}.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
     try:
@@ -297,7 +320,11 @@ def main(argv: list[str] | None = None) -> int:
     listener.listen(64)
     os.replace(staged, path)  # ready: clients find it from now on
     server_link.stop_servers(server_link.outdated(key, server_link.running_servers()))
+    _tidy(folder)
     Server(key, listener, path).serve()
+    with contextlib.suppress(OSError):  # a log with nothing in it says nothing
+        if server_link.log_path(key).stat().st_size == 0:
+            server_link.log_path(key).unlink()
     return 0
 
 

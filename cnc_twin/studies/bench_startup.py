@@ -27,7 +27,7 @@ from typing import Any
 
 from cnc_twin.core import server_link
 from cnc_twin.core.phases import VARIABLE, read_marks
-from cnc_twin.core.server_control import start_and_wait
+from cnc_twin.core.server_control import start_in_a_new_process
 
 SCENARIOS = ("jog_axes", "nurbs_circle", "gcode_cam_raster", "freeform_polish")
 """the scenarios measured by default: a jog, a NURBS curve, a CAM program of 4408 lines, a
@@ -109,7 +109,7 @@ def bench_startup(scenarios: tuple[str, ...] = SCENARIOS, *, repeat: int = 3,
                 commands[f"validate {name}{mode}"] = ([*_cnc_twin(), "validate", path], env)
         if progress is not None:
             progress("starting the warm server")
-        if start_and_wait() is None:
+        if not start_in_a_new_process():
             raise RuntimeError("the warm server did not come up")
         times: dict[str, list[dict[str, Any]]] = {key: [] for key in commands}
         for k in range(repeat):
