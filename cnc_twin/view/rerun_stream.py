@@ -206,6 +206,10 @@ def prepare() -> None:
     from cnc_twin.view.rerun_export import RunExporter  # noqa: F401
 
     warm_up()
+    try:  # rerun's 3D points go through pyarrow, which loads pandas at its first such array (0.6 s)
+        import pandas  # noqa: F401
+    except ImportError:  # pragma: no cover - pyarrow then does without it
+        pass
 
 
 def serve(fd: int, out) -> int:
