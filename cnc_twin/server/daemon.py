@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import io
 import os
 import select
 import selectors
@@ -76,6 +77,7 @@ def warm_up() -> None:
         twin.kind.warm_up(twin)
         if twin.removal is not None:
             twin.removal.warm_up()
+            twin.removal.model_removal.save_picture(io.BytesIO())  # matplotlib's first drawing loads its fonts
     import gc
 
     gc.collect()
