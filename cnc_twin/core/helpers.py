@@ -210,9 +210,15 @@ def _child(module: str, args: list[str], stdin_fd: int, stdout_fd: int, stderr_f
         traceback.print_exc()
         code = 1
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except Exception:
-                pass
-        os._exit(code if isinstance(code, int) else 0)
+        exit_fork(code if isinstance(code, int) else 0)
+
+
+def exit_fork(code: int) -> None:  # pragma: no cover - runs in forked children
+    """End a forked process: its standard streams flushed, then ``os._exit(code)`` (nothing of
+    the process it was forked from torn down or flushed twice)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:  # the reader is gone: nothing more to tell it
+            pass
+    os._exit(code)

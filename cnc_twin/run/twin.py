@@ -189,14 +189,8 @@ class Twin:
             # real-time planner may still be planning in its thread when the run ends)
             planner.reusable = sc.timing.mode == "lockstep" and not self.job.faults
             planner.submit(wb.name, self.job)
-            self.servo.warm_up()  # compiles (or loads) while the planner starts and plans
-            self.supervisor.warm_up()
             self.plant.switch_inputs()
-            if self.kernel is not None:
-                self.kernel.warm_up()
-            self.kind.warm_up(self)
-            if self.removal is not None:
-                self.removal.warm_up()
+            self.load_kernels()  # compiles (or loads) while the planner starts and plans
             mark("kernels")
             bells, process = planner.bells, planner.popen
             port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
@@ -246,6 +240,16 @@ class Twin:
         result = self._result(dsp, wall_time, periods, retransmits)
         mark("result")
         return result
+
+    def load_kernels(self) -> None:
+        """Compile (or load from numba's cache) every kernel this twin's run calls."""
+        self.servo.warm_up()
+        self.supervisor.warm_up()
+        if self.kernel is not None:
+            self.kernel.warm_up()
+        self.kind.warm_up(self)
+        if self.removal is not None:
+            self.removal.warm_up()
 
     def drives_off(self) -> None:
         """The amplifiers disabled (brakes on) and the card's outputs and loops cleared; once."""

@@ -54,6 +54,7 @@ def warm_up() -> None:
     import cnc_twin.run.result  # noqa: F401
     import cnc_twin.run.run_dir  # noqa: F401
     import cnc_twin.run.summary  # noqa: F401
+    import cnc_twin.server.runner  # noqa: F401 - what each fork becomes
     import cnc_twin.trace.parquet  # noqa: F401
     import cnc_twin.view.rerun_stream  # noqa: F401 - the command's side (rerun itself: in its process)
     from cnc_twin.run.progress import ProgressBar  # noqa: F401
@@ -70,13 +71,8 @@ def warm_up() -> None:
             twin = Twin(load_scenario(scenarios_dir() / name))
         except Exception:  # a bundled scenario that cannot load is the tests' to find, not the server's
             continue
-        twin.servo.warm_up()
-        twin.supervisor.warm_up()
-        if twin.kernel is not None:
-            twin.kernel.warm_up()
-        twin.kind.warm_up(twin)
+        twin.load_kernels()
         if twin.removal is not None:
-            twin.removal.warm_up()
             twin.removal.model_removal.save_picture(io.BytesIO())  # matplotlib's first drawing loads its fonts
     import gc
 

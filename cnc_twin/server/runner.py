@@ -52,12 +52,9 @@ def become_command(request: dict, fds: list[int], close: list[int],
         traceback.print_exc()
         code = 1
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except Exception:
-                pass
-        os._exit(code)
+        from cnc_twin.core.helpers import exit_fork
+
+        exit_fork(code)
 
 
 def _take_on(request: dict) -> None:
