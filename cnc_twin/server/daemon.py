@@ -30,6 +30,7 @@ import signal
 import socket
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from cnc_twin.core import server_link
@@ -300,6 +301,9 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m cnc_twin.server.daemon KEY [--after PID]", file=sys.stderr)
         return 2
     key = args[0]
+    # Python 3.12+ warns at every fork of a process with native threads: here OpenBLAS's and
+    # Arrow's pools, which take their own care of a fork (pthread_atfork); forking is the point.
+    warnings.filterwarnings("ignore", message=r"This process .* is multi-threaded", category=DeprecationWarning)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     folder = server_link.socket_folder()
