@@ -24,6 +24,7 @@ import sys
 import threading
 import time
 import traceback
+from pathlib import Path
 from typing import IO, Sequence
 
 from cnc_twin.core.messages import framed, read_message
@@ -51,8 +52,21 @@ def start_helper(module: str, args: Sequence[str] = (), *, pass_fds: Sequence[in
         return AdoptedHelper(*SPARES.pop(module), module=module)
     if can_fork():
         return ForkedHelper(module, list(args), pass_fds=pass_fds, stderr=stderr)
-    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+    return subprocess.Popen(module_command(module, args), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=stderr, pass_fds=tuple(pass_fds), close_fds=True, env=env)
+
+
+_RUN_MODULE = ("import runpy, sys; sys.path.insert(0, sys.argv.pop(1)); "
+               "runpy.run_module(sys.argv.pop(1), run_name='__main__', alter_sys=True)")
+"""``python -P -c`` this ``ROOT MODULE ARGS...``: ``python -m MODULE ARGS`` with the package from ROOT"""
+
+
+def module_command(module: str, args: Sequence[str] = ()) -> list[str]:
+    """The command line of ``python -m module *args`` that imports this very package: from the
+    folder this process imported it from, not from the current folder (``-m`` puts that first:
+    run from a checkout beside an installed package, a helper would run the checkout's code)."""
+    root = str(Path(__file__).resolve().parent.parent.parent)
+    return [sys.executable, "-P", "-c", _RUN_MODULE, root, module, *args]
 
 
 class ForkedHelper:

@@ -32,6 +32,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from cnc_twin.core.helpers import module_command
 from cnc_twin.core.messages import HEADER, framed
 
 VARIABLE = "CNC_TWIN_SERVER"
@@ -93,7 +94,7 @@ def server_key() -> str:
     code.update(f"{sys.version}\0{os.getuid()}\0".encode())
     # the installed libraries' folders (not a script's folder, the directory of ``python -m`` or
     # what a test runner prepends: modules there are not what the server loads)
-    for folder in (path for path in sys.path if path.endswith(("site-packages", "dist-packages"))):
+    for folder in sorted({path for path in sys.path if path.endswith(("site-packages", "dist-packages"))}):
         try:
             code.update(f"{folder}\0{os.stat(folder or '.').st_mtime_ns}\0".encode())
         except OSError:
@@ -178,7 +179,7 @@ def start_server(key: str, *, after: int | None = None) -> subprocess.Popen:
     that starts it keeps the CPUs), and exits at once if one is starting already."""
     wait = [] if after is None else ["--after", str(after)]
     with open(log_path(key), "ab") as log:  # what it says, should it fail, is kept here
-        return subprocess.Popen([sys.executable, "-m", "cnc_twin.server.daemon", key, *wait], stdin=subprocess.DEVNULL,
+        return subprocess.Popen(module_command("cnc_twin.server.daemon", [key, *wait]), stdin=subprocess.DEVNULL,
                                 stdout=log, stderr=log, close_fds=True, start_new_session=True)
 
 
