@@ -31,6 +31,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 
 from cnc_twin.core.child_process import end_process
+from cnc_twin.core.helpers import module_command
 from cnc_twin.core.messages import framed, read_message, read_payload
 
 LOOKAHEAD = 8
@@ -168,7 +169,7 @@ class _Helper:
     def start(cls) -> _Helper | None:
         """A new helper, or None when one cannot be started (no process to spare)."""
         try:
-            popen = subprocess.Popen([sys.executable, "-m", "cnc_twin.gcode.paths_ahead"], stdin=subprocess.PIPE,
+            popen = subprocess.Popen(module_command("cnc_twin.gcode.paths_ahead"), stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, close_fds=True,
                                      start_new_session=True)
         except OSError:
