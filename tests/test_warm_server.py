@@ -174,14 +174,14 @@ def test_the_server_is_off_when_asked(tmp_path, monkeypatch):
     assert server_link.delegate(["view"]) is None  # not a command it runs
 
 
-def test_a_forked_helper_is_a_process_like_a_new_one(tmp_path, monkeypatch):
-    monkeypatch.setattr(helpers, "FORK", True)
+def test_a_forked_helper_is_a_process_like_a_new_one():
     keep_read, keep_write = os.pipe()
     try:
-        usage = helpers.start_helper("cnc_twin.planner.process", ["--bad"])
-        assert isinstance(usage, helpers.ForkedHelper)
+        usage = helpers.ForkedHelper("cnc_twin.planner.process", ["--bad"])
         assert usage.wait(timeout=30) == 2  # its main's return value is its exit status
-        waiting = helpers.start_helper("cnc_twin.view.rerun_stream")
+        usage.stdin.close()
+        usage.stdout.close()
+        waiting = helpers.ForkedHelper("cnc_twin.view.rerun_stream", [])
         os.close(keep_write)
         keep_write = -1
         assert os.read(keep_read, 1) == b""  # the helper holds none of this process's descriptors
@@ -196,6 +196,27 @@ def test_a_forked_helper_is_a_process_like_a_new_one(tmp_path, monkeypatch):
         os.close(keep_read)
         if keep_write >= 0:
             os.close(keep_write)
+
+
+def test_helpers_are_forked_only_from_a_warm_process_running_no_other_thread(monkeypatch):
+    import threading
+
+    monkeypatch.setattr(helpers, "FORK", False)
+    assert not helpers.can_fork()
+    monkeypatch.setattr(helpers, "FORK", True)
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert not helpers.can_fork()  # a thread holding a lock at the fork would hold it forever
+        started = helpers.start_helper("cnc_twin.planner.process", ["--bad"])
+        assert not isinstance(started, helpers.ForkedHelper)
+        assert started.wait(timeout=60) == 2
+        started.stdin.close()
+        started.stdout.close()
+    finally:
+        stop.set()
+        other.join()
 
 
 def test_a_sweep_handed_to_the_server_forks_its_workers_and_gives_the_same_rows(server, tmp_path):
