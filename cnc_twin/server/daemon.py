@@ -122,18 +122,20 @@ class Server:
     def _make_spare(self) -> None:
         """A recording process for the next command, if none is waiting: forked from this server,
         it imports rerun now, while nothing runs, instead of beside the next run."""
-        if self.spare is not None and self.spare.poll() is None:
-            return
+        if self.spare is not None:
+            if self.spare.poll() is None:
+                return
+            self.spare_stderr.close()  # a spare that died: its file goes with it
         import tempfile
 
         from cnc_twin.core.helpers import ForkedHelper
 
-        stderr = tempfile.TemporaryFile()
+        self.spare_stderr = tempfile.TemporaryFile()  # its last words, should it fail, for its command
         try:
-            self.spare = ForkedHelper(SPARE_RECORDING, [], stderr=stderr, spare=True)
-        except OSError:
+            self.spare = ForkedHelper(SPARE_RECORDING, [], stderr=self.spare_stderr, spare=True)
+        except OSError:  # no process to spare now: the next command starts its own
             self.spare = None
-        self.spare_stderr = stderr if self.spare is not None else stderr.close()
+            self.spare_stderr.close()
 
     def _hand_spare(self) -> dict[str, tuple[int, int, int, int]]:
         """The spare for the command about to be forked (see :data:`cnc_twin.core.helpers.SPARES`)."""
