@@ -25,7 +25,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import IO, Sequence
+from typing import IO, Callable, Sequence
 
 from cnc_twin.core.messages import framed, read_message
 
@@ -90,11 +90,14 @@ class ForkedHelper:
             _child(module, args, in_read, out_write, err_fd, tuple(pass_fds), spare)
         os.close(in_read)
         os.close(out_write)
+        self._own(pid, [module, *args], in_write, out_read)
+
+    def _own(self, pid: int, args: list[str], stdin_fd: int, stdout_fd: int) -> None:
         self.pid = pid
-        self.args = [module, *args]
+        self.args = args
         self.returncode: int | None = None
-        self.stdin = io.open(in_write, "wb")
-        self.stdout = io.open(out_read, "rb")
+        self.stdin = io.open(stdin_fd, "wb")
+        self.stdout = io.open(stdout_fd, "rb")
         self.pidfd = _pidfd(pid)
         """a descriptor that becomes readable when the helper ends (None where Linux has none)"""
 
@@ -148,13 +151,8 @@ class AdoptedHelper(ForkedHelper):
     only that it ended (status 0). ``stderr_file`` is its stderr, a file to read its last words from."""
 
     def __init__(self, pid: int, stdin_fd: int, stdout_fd: int, stderr_fd: int, *, module: str):
-        self.pid = pid
-        self.args = [module]
-        self.returncode = None
-        self.stdin = io.open(stdin_fd, "wb")
-        self.stdout = io.open(stdout_fd, "rb")
+        self._own(pid, [module], stdin_fd, stdout_fd)
         self.stderr_file = io.open(stderr_fd, "w+b")
-        self.pidfd = _pidfd(pid)
         try:  # what a new helper would have from this process (paths relative to it, DISPLAY...)
             self.stdin.write(framed((os.getcwd(), dict(os.environ))))
             self.stdin.flush()
@@ -188,8 +186,8 @@ def _child(module: str, args: list[str], stdin_fd: int, stdout_fd: int, stderr_f
            pass_fds: tuple[int, ...], spare: bool) -> None:  # pragma: no cover - runs in the forked child
     """The forked helper: its descriptors and signals as a new interpreter's, then (a spare: after
     ``prepare()`` and its adopter's directory and environment) ``main(args)``; never returns."""
-    code = 1
-    try:
+
+    def helper() -> int | None:
         os.dup2(stdin_fd, 0)
         os.dup2(stdout_fd, 1)
         if stderr_fd != 2:
@@ -197,42 +195,62 @@ def _child(module: str, args: list[str], stdin_fd: int, stdout_fd: int, stderr_f
         keep = sorted({0, 1, 2, *pass_fds})
         for low, high in zip(keep, keep[1:] + [os.sysconf("SC_OPEN_MAX")]):
             os.closerange(low + 1, high)
-        signal.set_wakeup_fd(-1)
+        as_new_interpreter()
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        for signum in (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGCHLD, signal.SIGUSR1):
-            signal.signal(signum, signal.SIG_DFL)
-        sys.stdin = io.TextIOWrapper(io.open(0, "rb", closefd=False), encoding=sys.__stdin__.encoding or "utf-8")
-        sys.stdout = io.TextIOWrapper(io.open(1, "wb", closefd=False), encoding=sys.__stdout__.encoding or "utf-8",
-                                      line_buffering=True)
-        sys.stderr = io.TextIOWrapper(io.open(2, "wb", buffering=0, closefd=False), errors="backslashreplace",
-                                      encoding=sys.__stderr__.encoding or "utf-8", write_through=True)
-        helper = importlib.import_module(module)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        code = importlib.import_module(module)
         if spare:
-            getattr(helper, "prepare", lambda: None)()
+            getattr(code, "prepare", lambda: None)()
             adopted = read_message(0)
             if adopted is None:  # the server ended without handing it to a command
-                code = 0
-                return
+                return 0
             cwd, environment = adopted
             os.chdir(cwd)
             os.environ.clear()
             os.environ.update(environment)
-        code = helper.main(args)
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
+        return code.main(args)
+
+    exit_as_program(helper)
+
+
+def as_new_interpreter() -> None:  # pragma: no cover - in forked processes
+    """A forked process's signals and standard streams as a new interpreter would have them:
+    no wake-up descriptor, SIGCHLD, SIGHUP, SIGQUIT and the user signals at their defaults, and
+    ``sys.stdin``/``stdout``/``stderr`` new objects over descriptors 0, 1, 2 (nothing the parent
+    buffered is written twice), buffered as Python buffers them (``PYTHONUNBUFFERED`` read now).
+    SIGINT and SIGTERM are the caller's to set."""
+    signal.set_wakeup_fd(-1)
+    for signum in (signal.SIGCHLD, signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1, signal.SIGUSR2):
+        signal.signal(signum, signal.SIG_DFL)
+    unbuffered = bool(os.environ.get("PYTHONUNBUFFERED"))
+    sys.stdin = io.TextIOWrapper(io.open(0, "rb", closefd=False), encoding=sys.__stdin__.encoding,
+                                 errors=sys.__stdin__.errors)
+    sys.stdout = io.TextIOWrapper(io.open(1, "wb", closefd=False), encoding=sys.__stdout__.encoding,
+                                  errors=sys.__stdout__.errors, line_buffering=os.isatty(1), write_through=unbuffered)
+    sys.stderr = io.TextIOWrapper(io.open(2, "wb", closefd=False), encoding=sys.__stderr__.encoding,
+                                  errors="backslashreplace", line_buffering=True, write_through=unbuffered)
+
+
+def exit_as_program(main: Callable[[], int | None]) -> None:  # pragma: no cover - in forked processes
+    """Run ``main`` as a program's own would run, then end this forked process with its status:
+    what it returns (None: 0); SystemExit's code as Python ends with it; 1, with the traceback,
+    for any other exception. The standard streams are flushed, and nothing of the process it was
+    forked from is torn down (``os._exit``)."""
+    code = 1
+    try:
+        result = main()
+        code = 0 if result is None else result
+    except SystemExit as exc:  # argparse's usage errors, sys.exit()
+        if exc.code is None or isinstance(exc.code, int):
+            code = exc.code or 0
+        else:
+            print(exc.code, file=sys.stderr)
     except BaseException:
         traceback.print_exc()
-        code = 1
     finally:
-        exit_fork(code if isinstance(code, int) else 0)
-
-
-def exit_fork(code: int) -> None:  # pragma: no cover - runs in forked children
-    """End a forked process: its standard streams flushed, then ``os._exit(code)`` (nothing of
-    the process it was forked from torn down or flushed twice)."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except Exception:  # the reader is gone: nothing more to tell it
-            pass
-    os._exit(code)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except Exception:  # the reader is gone: nothing more to tell it
+                pass
+        os._exit(code)

@@ -1,11 +1,12 @@
-"""Messages between the twin's processes over pipes (the recording process, the paths helper): a
-pickle after its length, 8 bytes little-endian."""
+"""Messages between the twin's processes over pipes and sockets (the recording process, the paths
+helper, the warm server): a pickle after its length, 8 bytes little-endian."""
 
 from __future__ import annotations
 
 import os
 import pickle
 import struct
+from collections.abc import Callable
 
 HEADER = struct.Struct("<Q")
 """a message: its pickle's length, then the pickle"""
@@ -17,11 +18,13 @@ def framed(message) -> bytes:
     return HEADER.pack(len(payload)) + payload
 
 
-def read_exact(fd: int, size: int) -> bytes | None:
-    """Exactly ``size`` bytes from ``fd``; None at its end first."""
+def read_exact(source: int | Callable[[int], bytes], size: int) -> bytes | None:
+    """Exactly ``size`` bytes from ``source`` (a descriptor, or a function reading up to n bytes,
+    such as a socket's ``recv``); None at its end first."""
+    read = (lambda n: os.read(source, n)) if isinstance(source, int) else source
     parts, left = [], size
     while left:
-        chunk = os.read(fd, min(left, 1 << 20))
+        chunk = read(min(left, 1 << 20))
         if not chunk:
             return None
         parts.append(chunk)
@@ -29,13 +32,13 @@ def read_exact(fd: int, size: int) -> bytes | None:
     return b"".join(parts)
 
 
-def read_payload(fd: int) -> bytes | None:
+def read_payload(source: int | Callable[[int], bytes]) -> bytes | None:
     """The next message's pickle, not yet loaded (a reading thread hands it on); None at the end."""
-    header = read_exact(fd, HEADER.size)
-    return None if header is None else read_exact(fd, HEADER.unpack(header)[0])
+    header = read_exact(source, HEADER.size)
+    return None if header is None else read_exact(source, HEADER.unpack(header)[0])
 
 
-def read_message(fd: int):
-    """The next message; None at the end of ``fd``."""
-    payload = read_payload(fd)
+def read_message(source: int | Callable[[int], bytes]):
+    """The next message; None at the end of ``source`` (see :func:`read_exact`)."""
+    payload = read_payload(source)
     return None if payload is None else pickle.loads(payload)

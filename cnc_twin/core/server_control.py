@@ -44,19 +44,14 @@ def start_and_wait(timeout: float = START_TIMEOUT) -> dict | None:
 
 
 def _lock_held(key: str) -> bool:
-    import fcntl
-
-    lock = server_link.socket_folder() / f"{key}.lock"
+    """Whether a server of ``key`` holds its lock (it runs, or is starting)."""
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
+        fd = server_link.take_lock(server_link.lock_path(key))
     except OSError:
         return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
+    if fd is None:
         return True
-    finally:
-        os.close(fd)
+    os.close(fd)
     return False
 
 

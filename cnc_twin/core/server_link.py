@@ -23,6 +23,7 @@ its owner may use; the server also checks each caller's user id.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
 import signal
@@ -33,7 +34,7 @@ import sys
 from pathlib import Path
 
 from cnc_twin.core.helpers import module_command
-from cnc_twin.core.messages import HEADER, framed
+from cnc_twin.core.messages import framed, read_message
 
 VARIABLE = "CNC_TWIN_SERVER"
 """``off`` (or ``0``, ``no``): every command in its own process, no server started"""
@@ -135,27 +136,23 @@ def send_message(sock: socket.socket, message) -> None:
 
 def receive_message(sock: socket.socket):
     """The next framed message on ``sock``; None if it closed first."""
-    import pickle
+    return read_message(sock.recv)
 
-    header = _receive_exact(sock, HEADER.size)
-    if header is None:
+
+def lock_path(key: str) -> Path:
+    """The file whose lock the server of ``key`` holds while it runs."""
+    return socket_folder() / f"{key}.lock"
+
+
+def take_lock(path: Path) -> int | None:
+    """A descriptor holding the lock of ``path`` (made if missing), or None: another process holds it."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
         return None
-    payload = _receive_exact(sock, HEADER.unpack(header)[0])
-    return None if payload is None else pickle.loads(payload)
-
-
-def _receive_exact(sock: socket.socket, size: int) -> bytes | None:
-    parts, left = [], size
-    while left:
-        try:
-            chunk = sock.recv(min(left, 1 << 20))
-        except InterruptedError:  # pragma: no cover - PEP 475 retries; kept for other platforms
-            continue
-        if not chunk:
-            return None
-        parts.append(chunk)
-        left -= len(chunk)
-    return b"".join(parts)
+    return fd
 
 
 def connect(key: str) -> socket.socket | None:
@@ -256,19 +253,22 @@ def _hand_over(sock: socket.socket, argv: list[str]) -> int | None:
     return code
 
 
+def _ask(path: Path, tag: bytes):
+    """The server at ``path``'s answer to the one-byte request ``tag``; OSError if nobody answers."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+        sock.settimeout(5.0)
+        sock.connect(str(path))
+        sock.sendall(tag)
+        return receive_message(sock)
+
+
 def server_status(path: Path) -> dict | None:
     """What the server at ``path`` says of itself (its process id, key, start time, commands
     served and running); None if nobody answers there."""
-    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
-        sock.settimeout(5.0)
-        sock.connect(str(path))
-        sock.sendall(b"?")
-        answer = receive_message(sock)
+        answer = _ask(path, b"?")
     except OSError:
         return None
-    finally:
-        sock.close()
     return answer if isinstance(answer, dict) else None
 
 
@@ -285,16 +285,9 @@ def stop_servers(paths: list[Path] | None = None) -> int:
     they are running go on to their end. Returns how many answered."""
     stopped = 0
     for path in running_servers() if paths is None else paths:
-        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
-            sock.settimeout(5.0)
-            sock.connect(str(path))
-            sock.sendall(b"s")
-            if receive_message(sock) == {"stopping": True}:
+            if _ask(path, b"s") == {"stopping": True}:
                 stopped += 1
         except OSError:
             path.unlink(missing_ok=True)  # nobody listens there: a server that died without tidying
-        finally:
-            sock.close()
     return stopped
-

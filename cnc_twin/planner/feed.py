@@ -337,27 +337,33 @@ SAMPLES_KEPT = 8
 _SAMPLES: OrderedDict[bytes, _Samples] = OrderedDict()
 
 
-def _kept(kept: OrderedDict, key: bytes | None, kind: str):
+def _kept(kept: OrderedDict, key: bytes | None, kind: str, most: int):
     """What ``kept`` holds under ``key`` (now its most recently used), else what an earlier process
-    kept on disk under it (:mod:`cnc_twin.core.disk_cache`, ``kind``), or None."""
+    kept on disk under it (:mod:`cnc_twin.core.disk_cache`, ``kind``; kept here too from now on),
+    or None."""
     if key is None:
         return None
     if key in kept:
         kept.move_to_end(key)
         return kept[key]
-    return disk_cache.load(kind, _disk_name(key))
+    found = disk_cache.load(kind, _disk_name(key))
+    if found is not None:
+        _remember(kept, key, found, most)
+    return found
 
 
-def _keep(kept: OrderedDict, key: bytes | None, value, most: int, kind: str, *, on_disk: bool = True) -> None:
-    """Keep ``value`` under ``key`` (None: keep nothing), dropping the least recently used beyond
-    ``most``; and on disk for later processes (``on_disk``: not what was just read from there)."""
-    if key is None:
-        return
+def _keep(kept: OrderedDict, key: bytes | None, value, most: int, kind: str) -> None:
+    """Keep ``value`` under ``key`` (None: keep nothing) here and on disk for later processes."""
+    if key is not None:
+        _remember(kept, key, value, most)
+        disk_cache.store(kind, _disk_name(key), value)
+
+
+def _remember(kept: OrderedDict, key: bytes, value, most: int) -> None:
+    """``value`` under ``key`` in ``kept``, the least recently used beyond ``most`` dropped."""
     kept[key] = value
     while len(kept) > most:
         kept.popitem(last=False)
-    if on_disk:
-        disk_cache.store(kind, _disk_name(key), value)
 
 
 def _disk_name(key: bytes) -> str:
@@ -372,12 +378,10 @@ def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_
     ``key`` (:func:`plan_key`): the samples taken under the same key earlier in this process, if
     kept (the last :data:`SAMPLES_KEPT`), or by an earlier process (the disk cache), as
     :func:`plan_feed_windows` keeps its plans."""
-    samples = _kept(_SAMPLES, key, SAMPLES_KIND)
-    made = samples is None
-    if made:
+    samples = _kept(_SAMPLES, key, SAMPLES_KIND, SAMPLES_KEPT)
+    if samples is None:
         samples = _sample(curve, limits, period, axis_path, axis_limits)
-    if made or key not in _SAMPLES:
-        _keep(_SAMPLES, key, samples, SAMPLES_KEPT, SAMPLES_KIND, on_disk=made)
+        _keep(_SAMPLES, key, samples, SAMPLES_KEPT, SAMPLES_KIND)
     return samples
 
 
@@ -428,10 +432,8 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     card, not the path; a second run of the same program); a completed plan is kept under it.
     None: plan, keep nothing.
     """
-    planned = _kept(_PLANS, key, PLANS_KIND)
+    planned = _kept(_PLANS, key, PLANS_KIND, PLANS_KEPT)
     if planned is not None:
-        if key not in _PLANS:  # read from disk: kept here too
-            _keep(_PLANS, key, planned, PLANS_KEPT, PLANS_KIND, on_disk=False)
         yield from planned
         return
     if samples is None:

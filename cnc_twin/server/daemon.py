@@ -21,7 +21,6 @@ starts from the same loaded state, and lockstep runs give the traces they give w
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import io
 import os
 import select
@@ -259,30 +258,18 @@ def _tidy(folder: Path) -> None:
     (none holds the lock)."""
     for lock in folder.glob(f"{server_link.family()}-*.lock"):
         try:
-            fd = os.open(lock, os.O_RDWR | os.O_CLOEXEC)
+            fd = server_link.take_lock(lock)
+            if fd is None:  # held: that server runs
+                continue
+            try:
+                lock.unlink(missing_ok=True)
+                log = lock.with_suffix(".log")
+                if log.exists() and log.stat().st_size == 0:
+                    log.unlink()
+            finally:
+                os.close(fd)
         except OSError:
             continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            lock.unlink(missing_ok=True)
-            log = lock.with_suffix(".log")
-            if log.exists() and log.stat().st_size == 0:
-                log.unlink()
-        except OSError:  # held: that server runs
-            pass
-        finally:
-            os.close(fd)
-
-
-def _take_lock(folder: Path, key: str) -> bool:
-    fd = os.open(folder / f"{key}.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        os.close(fd)
-        return False
-    _LOCK[0] = fd
-    return True
 
 
 def _wait_for(pid: int, timeout: float) -> None:
@@ -309,14 +296,17 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     folder = server_link.socket_folder()
-    if key != server_link.server_key() or not _take_lock(folder, key):
-        return 0  # the code or the environment changed meanwhile, or another is starting: not needed
+    if key != server_link.server_key():
+        return 0  # the code or the environment changed meanwhile: not needed
+    _LOCK[0] = server_link.take_lock(server_link.lock_path(key))
+    if _LOCK[0] is None:
+        return 0  # another is starting: not needed
     if len(args) == 3:
         # The command that started it is running: it gets the machine's CPUs; the server warms
         # up after it (not niced: its commands inherit its priority, which could not be raised again).
         _wait_for(int(args[2]), server_link.IDLE_SECONDS)
     warm_up()
-    path = folder / f"{key}.sock"
+    path = server_link.socket_path(key)
     staged = folder / f".{key}.{os.getpid()}.sock"
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     staged.unlink(missing_ok=True)

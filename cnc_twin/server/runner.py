@@ -10,12 +10,9 @@ its status; helpers it starts are forks of it (:data:`cnc_twin.core.helpers.FORK
 
 from __future__ import annotations
 
-import io
 import os
 import resource
-import signal
 import sys
-import traceback
 
 
 def become_command(request: dict, fds: list[int], close: list[int],
@@ -24,8 +21,9 @@ def become_command(request: dict, fds: list[int], close: list[int],
     descriptors ``fds`` (the client's stdin, stdout, stderr) after closing the server's own
     ``close``, with the helpers the server started ahead (:data:`cnc_twin.core.helpers.SPARES`);
     never returns."""
-    code = 1
-    try:
+    from cnc_twin.core import helpers
+
+    def command() -> int:
         for fd in close:
             os.close(fd)
         os.setpgid(0, 0)
@@ -36,7 +34,6 @@ def become_command(request: dict, fds: list[int], close: list[int],
                 os.close(fd)
         _take_on(request)
         from cnc_twin import entry
-        from cnc_twin.core import helpers
         from cnc_twin.core.phases import mark
 
         entry.install_start_handlers()
@@ -45,20 +42,15 @@ def become_command(request: dict, fds: list[int], close: list[int],
         mark("forked")
         from cnc_twin.cli import main
 
-        code = main()
-    except SystemExit as exc:  # argparse's usage errors, as the program would end
-        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    except BaseException:
-        traceback.print_exc()
-        code = 1
-    finally:
-        from cnc_twin.core.helpers import exit_fork
+        return main()
 
-        exit_fork(code)
+    helpers.exit_as_program(command)
 
 
 def _take_on(request: dict) -> None:
     """The client's directory, environment, umask, limits, signals and standard streams."""
+    from cnc_twin.core.helpers import as_new_interpreter
+
     os.chdir(request["cwd"])
     os.umask(request["umask"])
     os.environ.clear()
@@ -70,16 +62,7 @@ def _take_on(request: dict) -> None:
         soft = _lower(_lower(soft, have_soft), hard)
         if (soft, hard) != (have_soft, have_hard):
             resource.setrlimit(limit, (soft, hard))
-    signal.set_wakeup_fd(-1)
-    for signum in (signal.SIGCHLD, signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1, signal.SIGUSR2):
-        signal.signal(signum, signal.SIG_DFL)
-    unbuffered = bool(os.environ.get("PYTHONUNBUFFERED"))
-    sys.stdin = io.TextIOWrapper(io.open(0, "rb", closefd=False), encoding=sys.__stdin__.encoding,
-                                 errors=sys.__stdin__.errors)
-    sys.stdout = io.TextIOWrapper(io.open(1, "wb", closefd=False), encoding=sys.__stdout__.encoding,
-                                  errors=sys.__stdout__.errors, line_buffering=os.isatty(1), write_through=unbuffered)
-    sys.stderr = io.TextIOWrapper(io.open(2, "wb", closefd=False), encoding=sys.__stderr__.encoding,
-                                  errors="backslashreplace", line_buffering=True, write_through=unbuffered)
+    as_new_interpreter()  # after the environment: PYTHONUNBUFFERED is the caller's
     sys.argv = ["cnc-twin", *request["argv"]]
 
 
