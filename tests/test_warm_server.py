@@ -26,14 +26,17 @@ LONG = scenarios_dir() / "freeform_polish.yaml"
 
 
 def _cli(*words: str) -> list[str]:
-    return [sys.executable, "-m", "cnc_twin", *words]
+    """The command, run by the installed package wherever it starts (``-P``: not a ``cnc_twin``
+    folder in the working directory, as ``python -m`` would from a checkout beside a non-editable
+    install: that is other code, with a server of its own)."""
+    return [sys.executable, "-P", "-m", "cnc_twin", *words]
 
 
 def _status(env: dict[str, str]) -> dict:
     """The state of the server for ``env`` (asked from a process with that environment)."""
     code = ("import json; from cnc_twin.core import server_link as s; "
             "print(json.dumps(s.server_status(s.socket_path(s.server_key()))))")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    out = subprocess.run([sys.executable, "-P", "-c", code], env=env, capture_output=True, text=True, timeout=60)
     return json.loads(out.stdout)
 
 
