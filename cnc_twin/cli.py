@@ -37,31 +37,47 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message}\n")
 
 
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    """The options ``run`` and ``serve`` share: the scenario, where the run goes, what it shows."""
+    parser.add_argument("scenario", nargs="?", type=input_path,
+                        help="scenario YAML or NC program (.ngc): a path, or a bundled one by name (cnc-twin list); "
+                             "default: jog_axes")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="run directory to create (default: runs/<name>-<UTC time>)")
+    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
+    parser.add_argument("--rerun", action="store_true", help="show the run in a spawned rerun viewer as it runs")
+    parser.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
+    parser.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
+    parser.add_argument("--tool-table", type=Path, default=None,
+                        help="an NC program's LinuxCNC tool table, for G43 H (a scenario's program.tool_table)")
+    parser.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
+    parser.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
+    parser.add_argument("--in-air", type=float, default=None, metavar="MM",
+                        help="prove an NC program in the air: run it this far above where it is written, the pad never "
+                             "reaching the work (a scenario's program.in_air)")
+    parser.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
+                        help="run on this bundled machine instead of the one the scenario names (its model and "
+                             "parameter file; the scenario's own axes: keys still apply)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="cnc-twin", description="Digital twin of a six-axis PC + DSP polishing machine.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="run a scenario and write a run directory")
-    run.add_argument("scenario", nargs="?", type=input_path,
-                     help="scenario YAML or NC program (.ngc): a path, or a bundled one by name (cnc-twin list); "
-                          "default: jog_axes")
-    run.add_argument("--out", type=Path, default=None,
-                     help="run directory to create (default: runs/<name>-<UTC time>)")
-    run.add_argument("--runs-dir", type=Path, default=Path("runs"), help="parent of the default run directory")
-    run.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
-    run.add_argument("--rerun", action="store_true", help="show the run in a spawned rerun viewer as it runs")
-    run.add_argument("--rrd", type=Path, default=None, help="also save the rerun recording to this path")
-    run.add_argument("--no-rrd", action="store_true", help="do not write recording.rrd into the run directory")
-    run.add_argument("--tool-table", type=Path, default=None,
-                     help="an NC program's LinuxCNC tool table, for G43 H (a scenario's program.tool_table)")
-    run.add_argument("--tool-units", choices=("mm", "inch"), default="mm", help="the tool table's length unit")
-    run.add_argument("--subroutine-path", type=folder_list, default=(), metavar="DIR[:DIR]", help=SUB_HELP)
-    run.add_argument("--in-air", type=float, default=None, metavar="MM",
-                     help="prove an NC program in the air: run it this far above where it is written, the pad never "
-                          "reaching the work (a scenario's program.in_air)")
-    run.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
-                     help="run on this bundled machine instead of the one the scenario names (its model and "
-                          "parameter file; the scenario's own axes: keys still apply)")
+    serve = sub.add_parser("serve", help="run a scenario with your own PC program as the card's PC side")
+    for parser_ in (run, serve):
+        _run_options(parser_)
+    run.add_argument("--replay", type=Path, default=None, metavar="PC_STREAM",
+                     help="the PC side writes this recorded stream again (a served run's pc_stream.bin) instead of "
+                          "the twin's planner planning the program (a scenario's planner.replay)")
+    serve.add_argument("--attach", type=Path, default=None, metavar="DIR",
+                       help="make the attach folder your program opens here (default: a new one in the temporary "
+                            "directory, printed)")
+    serve.add_argument("--wait", type=float, default=None, metavar="S",
+                       help="how long to wait for the program to attach [s] (default: the scenario's "
+                            "planner.start_timeout, 60)")
 
     sweep = sub.add_parser("sweep", help="run a scenario over a grid (or random set) of overrides")
     sweep.add_argument("scenario", type=input_path, help="scenario: a path, or a bundled one by name")
@@ -148,9 +164,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(args: argparse.Namespace) -> int:
-    handlers = {"run": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
+    handlers = {"run": _run, "serve": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
                 "gcode": _gcode, "list": _list, "server": _server}
-    if args.whole_process and args.command not in ("run", "sweep"):
+    if args.whole_process and args.command not in ("run", "serve", "sweep"):
         # The start handlers (cnc_twin/entry.py) end the program at once; from here Ctrl-C is a KeyboardInterrupt
         # and SIGTERM ends these commands as Ctrl-C does: through the runs' cleanup (planners, shared memory).
         # run and sweep keep the start handlers until their SignalGuard takes over (nothing to clean before).
@@ -216,6 +232,9 @@ def _check_destinations(args: argparse.Namespace) -> None:
     check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
     if args.out is not None and args.out.exists():
         raise ScenarioError(args.out, "", "run directory already exists; choose another --out")
+    attach = getattr(args, "attach", None)
+    if attach is not None and (attach.exists() or attach.is_symlink() or not attach.parent.is_dir()):
+        raise ScenarioError(attach, "", "--attach: must be a new folder (the twin makes it) in an existing one")
 
 
 def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
@@ -231,8 +250,14 @@ def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
         print("warning: --rerun: no display (DISPLAY and WAYLAND_DISPLAY unset), no viewer opened; "
               "serve the run to a browser afterwards with `cnc-twin view RUN_DIR --web`", file=sys.stderr)
         args.rerun = False
-    with PlannerPool() as planners:
+    if args.command == "serve":  # the PC side is the user's program, which attaches by itself
+        from cnc_twin.run.external_pc import ExternalPc
+
+        planners = ExternalPc(args.attach, announce=_say_where_to_attach)
+    else:
+        planners = PlannerPool()
         planners.prestart()
+    with planners:
         recorder = None
         if not args.no_rrd or args.rrd is not None or args.rerun:
             from cnc_twin.view.rerun_stream import RecordingProcess
@@ -243,6 +268,11 @@ def _run_guarded(args: argparse.Namespace, guard: SignalGuard) -> int:
         finally:
             if recorder is not None:
                 recorder.close()
+
+
+def _say_where_to_attach(folder: Path) -> None:
+    """The line a served run's PC program (or the script that starts it) waits for: its attach folder."""
+    print(f"attach: {folder}", flush=True)
 
 
 def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) -> int:
@@ -260,6 +290,10 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
         overrides.update({"program.tool_table": _beside(args.tool_table, source), "program.tool_units": args.tool_units})
     if args.in_air is not None:
         overrides["program.in_air"] = args.in_air
+    if getattr(args, "replay", None) is not None:
+        overrides["planner.replay"] = _beside(args.replay, source)
+    if getattr(args, "wait", None) is not None:
+        overrides["planner.start_timeout"] = args.wait
     if args.subroutine_path:  # as the scenario key would say it (a G-code program's)
         overrides["program.subroutine_path"] = [_beside(folder, source) for folder in args.subroutine_path]
     scenario = load_scenario(source, overrides=overrides or None)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.axis_config import AxisConfig, Compensation, DriveConfig, Notch  # noqa: F401  (part of this module's interface)
@@ -325,6 +326,9 @@ class PlannerConfig:
     """wall-clock time without a planner heartbeat before the DSP declares it lost [s]"""
     start_timeout: float
     """wall-clock time allowed for the planner process to start and attach [s]"""
+    replay: Any = None
+    """None, or the :class:`~cnc_twin.whiteboard.capture.PcStream` the planner writes again instead
+    of planning the program (``planner.replay``)"""
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from cnc_twin.core.config import (
 )
 from cnc_twin.motion.segments import DwellSegment, MoveSegment, Segment
 from cnc_twin.planner.ptp import plan_point_to_point
+from cnc_twin.whiteboard.capture import PcStream
 from cnc_twin.whiteboard.records import Dwell, EndOfProgram, Move, Record
 
 
@@ -38,6 +39,9 @@ class PlannerJob:
     """ask the card for the next exchange only once the next record fits (see the whiteboard's WAKE_FREE)"""
     window: float = 0.05
     """curve length planned per window [m]"""
+    replay: PcStream | None = None
+    """a PC program's recorded stream to write again instead of planning ``program``
+    (:mod:`cnc_twin.planner.replay`)"""
 
 
 _RECORD_OF = {

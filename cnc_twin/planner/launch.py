@@ -48,6 +48,9 @@ class PlannerProcess:
     and ``poll()`` tell liveness).
     """
 
+    capture = False
+    """the card does not keep this planner's stream (it plans it again from the scenario)"""
+
     def __init__(self):
         self.bells = PipeDoorbells()
         env = dict(os.environ)

@@ -53,8 +53,14 @@ def planner_main(shm_name: str, job: PlannerJob, wait_dsp: Connection | int, rin
     wb = Whiteboard.attach(shm_name, L.Layout(job.layout_words))
     port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp))
     try:
-        streamer = Streamer(chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
-        feeder = Feeder(job, streamer)
+        if job.replay is not None:  # a PC program's recorded stream: the same words, the same answers
+            from cnc_twin.planner.replay import Replay
+
+            feeder = streamer = Replay(job.replay)
+            streamer.before_first_status(port)
+        else:
+            streamer = Streamer(chunk_words=job.chunk_words, lookahead_periods=job.lookahead_periods)
+            feeder = Feeder(job, streamer)
         faults = FaultSchedule(job.faults)
         # The first chunks are planned before the card is told the planner is ready, as a PC fills
         # the card's buffer before cycle start: the run's clock does not wait for them. Lockstep

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +12,7 @@ import numpy as np
 
 from cnc_twin.core.config import Scenario
 from cnc_twin.core.phases import mark
+from cnc_twin.run.external_pc import STREAM_FILE, replay_text
 from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
@@ -30,6 +31,10 @@ class RunResult:
     """(period, latency [us]) of every answered exchange: wall clock, so kept out of the trace"""
     removal: Any = field(default=None, repr=False)
     """the removal map of a surface polishing run (:class:`cnc_twin.polishing.removal.PrestonModel`)"""
+    pc_stream: Any = field(default=None, repr=False)
+    """what the PC side wrote, exchange by exchange (:class:`~cnc_twin.whiteboard.capture.PcStream`),
+    when it was an outside program's (``cnc-twin serve``) or a replay of one: the run directory
+    keeps it as ``pc_stream.bin``, named by its scenario's ``planner.replay``"""
     _figures: dict[str, bytes] | None = field(default=None, init=False, repr=False)
 
     @property
@@ -69,6 +74,8 @@ class RunResult:
             from cnc_twin.run.program_kinds import write_run_files
 
             write_run_files(self.scenario.program, folder)
+            if self.pc_stream is not None:
+                (folder / STREAM_FILE).write_bytes(self.pc_stream.to_bytes())
             if self.removal is not None:
                 self.removal.save(folder)
             for name, png in self.figures().items():
@@ -82,7 +89,10 @@ class RunResult:
             mark("recording")
         if run_dir is None:
             run_dir = new_run_dir(runs_dir, self.scenario.name)
-        self.run_dir = write_run_dir(Path(run_dir), scenario=self.scenario, trace=self.trace, metrics=self.metrics,
+        scenario = self.scenario
+        if self.pc_stream is not None:  # it runs again with the stream beside it
+            scenario = replace(scenario, source_text=replay_text(scenario.source_text))
+        self.run_dir = write_run_dir(Path(run_dir), scenario=scenario, trace=self.trace, metrics=self.metrics,
                                      extra=extra)
         return self.run_dir
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import tempfile
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,7 @@ from cnc_twin.planner.job import PlannerJob
 from cnc_twin.planner.launch import PlannerPool, PlannerProcess
 from cnc_twin.run import servo_kernel
 from cnc_twin.run.clock import Clock, ProgressCallback
+from cnc_twin.run.external_pc import OPEN_ENDED_MAX_TIME, ExternalPc
 from cnc_twin.run.faults import FaultInjector
 from cnc_twin.run.metrics import compute_metrics
 from cnc_twin.run.program_kinds import kind_of, lookahead_periods
@@ -48,6 +50,7 @@ from cnc_twin.trace.parquet import ROW_GROUP_PERIODS
 from cnc_twin.trace.recorder import Recorder
 from cnc_twin.trace.trace import Trace
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.capture import StreamCapture
 from cnc_twin.whiteboard.layout import Layout
 from cnc_twin.whiteboard.ports import DspPort, PlannerLost, signal_shutdown
 from cnc_twin.whiteboard.status import DspState, FaultCode
@@ -111,6 +114,7 @@ class Twin:
             faults=tuple(f for f in scenario.faults if f.kind in PLANNER_FAULTS),
             lockstep=timing.mode == "lockstep",
             fifo_interrupt=scenario.whiteboard.fifo_interrupt,
+            replay=scenario.planner.replay,
         )
         self.supervisor = Supervisor(scenario.axes, scenario.supervisor, power_on=scenario.home,
                                      period=timing.interpolation_period, ticks_per_period=timing.ticks_per_period,
@@ -127,6 +131,8 @@ class Twin:
         self.begun = False
         """True once the clock runs (compiled, planner started): from then a stop keeps what was recorded"""
         self.plan_us = self.plan_blocks = 0
+        self.pc_stream = None
+        """after a run: what an outside PC program wrote (or the replayed stream), for the run directory"""
         self.observer = None
         self.port = self.process = None
         self.expected_periods = 0
@@ -165,7 +171,8 @@ class Twin:
         self.stop_reason = reason
 
     def run(self, *, progress: ProgressCallback | None = None,
-            observer: Callable[["Twin"], None] | None = None, planners: PlannerPool | None = None) -> RunResult:
+            observer: Callable[["Twin"], None] | None = None,
+            planners: PlannerPool | ExternalPc | None = None) -> RunResult:
         """Run the program on the simulated clock and return the result.
 
         ``observer(twin)`` is called a few hundred times during the run, after whole periods, with
@@ -174,13 +181,15 @@ class Twin:
 
         ``planners``: a :class:`~cnc_twin.planner.launch.PlannerPool` to take the planner process
         from and give it back to (runs in a loop then skip the planner's start-up); without one,
-        the run starts its own planner and closes it at the end.
+        the run starts its own planner and closes it at the end. An
+        :class:`~cnc_twin.run.external_pc.ExternalPc` instead: the PC side is an outside program
+        that attaches by itself (``cnc-twin serve``).
         """
         self.observer = observer
         sc = self.scenario
         wb: Whiteboard | None = None
-        planner: PlannerProcess | None = None
-        port = None
+        planner: PlannerProcess | ExternalPc | None = None
+        port = dsp = None
         try:
             with signals_deferred():  # a signal's exception cannot come between creating and owning
                 wb = Whiteboard.create(Layout(sc.whiteboard.words))
@@ -192,11 +201,13 @@ class Twin:
             self.plant.switch_inputs()
             self.load_kernels()  # compiles (or loads) while the planner starts and plans
             mark("kernels")
-            bells, process = planner.bells, planner.popen
-            port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=lambda: process.poll() is None,
+            bells = planner.bells
+            port = DspPort(wb, lockstep=sc.timing.mode == "lockstep", planner_alive=planner.alive,
                            heartbeat_timeout=sc.planner.heartbeat_timeout, ring_pc=bells.ring_pc,
                            wait_pc=bells.wait_pc)
-            self.port, self.process = port, process  # for observers (diagnostics, tests)
+            if planner.capture:  # an outside PC program's stream, kept to be replayed
+                port.capture = StreamCapture()
+            self.port, self.process = port, planner.popen  # for observers (diagnostics, tests)
             dsp = DspTask(servo=self.servo, interpolator=self.interpolator, port=port,
                           period=sc.timing.interpolation_period, read_inputs=self.plant.switch_inputs,
                           supervisor=self.supervisor)
@@ -206,6 +217,10 @@ class Twin:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
             mark("planner")
+            attached = dsp.fault != FaultCode.PLANNER_START
+            # an outside program that did not say its length (and its replay): open-ended
+            if (planner.capture or sc.planner.replay is not None) and planned == 0 and sc.max_time is None:
+                self.scenario = sc = replace(sc, max_time=OPEN_ENDED_MAX_TIME)
             clock = Clock(self, dsp, planned, progress)
             # observers read the recorder during the run
             self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
@@ -219,6 +234,10 @@ class Twin:
                     dsp.explain_planner_fault(reason)
             retransmits = int(wb.retransmits[0])
             self.plan_us, self.plan_blocks = int(wb.plan_us[0]), int(wb.plan_blocks[0])
+            if port.capture is None:
+                self.pc_stream = sc.planner.replay
+            elif attached:  # what the outside program sent (nothing to replay if it never came)
+                self.pc_stream = port.capture.stream(sc.whiteboard.words, int(wb.program_periods[0]))
         finally:
             # Every step guarded: whatever failed above, the planner is reaped and the segment
             # unlinked, and a long run's trace file is closed whole (readable).
@@ -229,7 +248,8 @@ class Twin:
                 pass  # the run's own failure, if any, is the one to tell
             try:
                 if wb is not None:
-                    signal_shutdown(wb, planner.bells.ring_pc if planner is not None else None)
+                    signal_shutdown(wb, planner.bells.ring_pc if planner is not None and planner.bells is not None
+                                    else None, end=None if dsp is None else (dsp.state, dsp.fault))
             finally:
                 try:
                     _release(planner, planners)
@@ -335,10 +355,10 @@ class Twin:
             metrics["status"] = "fault"
         latency = (np.asarray(port.latency_period, dtype=np.int64), np.asarray(port.latency_ns, dtype=np.float64) / 1e3)
         return RunResult(scenario=sc, trace=trace, metrics=metrics, model=self.plant.model, exchange_latency=latency,
-                         removal=None if self.removal is None else self.removal.finished_map())
+                         removal=None if self.removal is None else self.removal.finished_map(), pc_stream=self.pc_stream)
 
 
-def _release(planner: PlannerProcess | None, planners: PlannerPool | None) -> None:
+def _release(planner: PlannerProcess | ExternalPc | None, planners: PlannerPool | ExternalPc | None) -> None:
     """After the shutdown word: keep the planner in the pool if its run ended cleanly, else close
     it (EOF, then terminate, then kill)."""
     if planner is None:

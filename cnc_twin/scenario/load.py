@@ -227,6 +227,8 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
             heartbeat_timeout=(spec.planner.heartbeat_timeout if spec.planner.heartbeat_timeout is not None
                                else HEARTBEAT_DEFAULT_MS[spec.timing.mode]) * units.MS,
             start_timeout=spec.planner.start_timeout,
+            replay=None if spec.planner.replay is None else _pc_stream(spec.planner.replay, folder, label,
+                                                                       spec.whiteboard.words),
         ),
         whiteboard=WhiteboardConfig(words=spec.whiteboard.words, chunk_words=spec.whiteboard.chunk // 2,
                                     fifo_interrupt=spec.whiteboard.fifo_interrupt),
@@ -286,6 +288,23 @@ def _named_by(label: Path, key: str):
     except ScenarioError as exc:
         inner = f"{exc.file}: {exc.key_path}" if exc.key_path else exc.file
         raise ScenarioError(label, key, f"{inner}: {exc.message}") from None
+
+
+def _pc_stream(name: str, folder: Path | None, label: Path, words: int):
+    """``planner.replay``'s stream, read and checked (a ScenarioError at that key otherwise)."""
+    from cnc_twin.whiteboard.capture import PcStream
+
+    path = Path(name) if folder is None else folder / name
+    try:
+        stream = PcStream.read(path)
+    except OSError as exc:
+        raise ScenarioError(label, "planner.replay", f"cannot read '{name}': {exc.strerror}") from None
+    except ValueError as exc:
+        raise ScenarioError(label, "planner.replay", f"'{name}': {exc}") from None
+    if stream.layout_words != words:
+        raise ScenarioError(label, "planner.replay", f"'{name}' was written on a whiteboard of {stream.layout_words} "
+                            f"words, this scenario's has {words} (whiteboard.words)")
+    return stream
 
 
 def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:

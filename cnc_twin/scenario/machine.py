@@ -201,6 +201,9 @@ class PlannerSpec(Strict):
         "default 1000 in realtime mode, 10000 in lockstep (where the card waits anyway, and a busy machine "
         "running a sweep must not pass for a hung planner)")
     start_timeout: float = Field(60.0, gt=0, le=3600.0, description="wall-clock time for the planner process to start [s]")
+    replay: str | None = Field(None, description="a PC program's recorded stream (the pc_stream.bin of a `cnc-twin "
+                               "serve` run), relative to the scenario: the planner writes it again, answer by answer, "
+                               "instead of planning the program (which still sets up the machine and the metrics)")
 
 
 class WhiteboardSpec(Strict):

@@ -70,6 +70,16 @@ class FifoReader:
         """Take the published write index as the limit of what may be consumed (DSP owns the bus)."""
         self._limit = int(self._write[0])
 
+    @property
+    def limit(self) -> int:
+        """The write index of the last snapshot (mod 2^32)."""
+        return self._limit
+
+    def published_since(self, limit: int) -> np.ndarray:
+        """The words published from write index ``limit`` to the last snapshot (a copy)."""
+        n = (self._limit - limit) % _U32
+        return self._take(limit % self.capacity, n) if n else np.zeros(0, np.uint16)
+
     def fill(self) -> int:
         """Words published up to the snapshot and not yet consumed."""
         return (self._limit - int(self._read[0])) % _U32

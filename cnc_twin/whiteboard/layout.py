@@ -58,6 +58,8 @@ DSP_HOLDA = 0         # u16, 1 while the bus is granted to the PC
 DSP_FIFO_READ = 2     # u32, words consumed from the FIFO so far (mod 2^32)
 DSP_HEARTBEAT = 4     # u32, the DSP's period counter
 DSP_SHUTDOWN = 6      # u16, 1 when the run is over: the planner exits
+DSP_END_STATE = 7     # u16, the controller state the run ended in (DspState), written before SHUTDOWN
+DSP_END_FAULT = 8     # u16, the fault code it ended with (FaultCode, 0 none), written before SHUTDOWN
 
 
 class PcState:

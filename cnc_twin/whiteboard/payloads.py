@@ -77,18 +77,48 @@ class RecordError(ValueError):
     """A record failed a check (sync, length, type, CRC); the DSP rejects it."""
 
 
-_MOVE = struct.Struct("<6d4dI")
-_PROBE_TAIL = struct.Struct("<dHH")
+FIELDS = {
+    "move": (("end", "d", 6), ("t_acc", "d", 1), ("t_flat", "d", 1), ("v_peak", "d", 1), ("accel", "d", 1),
+             ("periods", "I", 1)),
+    "probe_tail": (("trip_force", "d", 1), ("kind", "H", 1), ("pad", "H", 1)),
+    "dwell": (("periods", "I", 1),),
+    "fraction": (("fraction", "d", 1),),
+    "newtons": (("newtons", "d", 1),),
+    "spindle": (("on", "H", 1), ("pad", "H", 1), ("speed", "d", 1)),
+    "chip": (("op", "H", 1), ("axis", "H", 1), ("profile", "H", 1), ("pad", "H", 1), ("deltas", "i", 3),
+             ("distance", "i", 1), ("speed", "d", 1), ("creep", "d", 1), ("accel", "d", 1), ("jerk", "d", 1),
+             ("time", "d", 1)),
+    "step_contour": (("method", "H", 1), ("kind", "H", 1), ("clockwise", "H", 1), ("pad", "H", 1),
+                     ("dda_bits", "H", 1), ("pad2", "H", 1), ("start", "i", 2), ("end", "i", 2), ("centre", "i", 2),
+                     ("length", "d", 1), ("v0", "d", 1), ("vp", "d", 1), ("v1", "d", 1), ("a_max", "d", 1),
+                     ("j_max", "d", 1)),
+    "mark": (("number", "I", 1),),
+    "curve_head": (("degree", "H", 1), ("n", "H", 1), ("degree2", "H", 1), ("n2", "H", 1), ("held", "d", 3)),
+    "curve_block": (("length", "d", 1), ("v0", "d", 1), ("vp", "d", 1), ("v1", "d", 1), ("a_max", "d", 1),
+                    ("j_max", "d", 1)),
+    "part_head": (("type", "H", 1), ("index", "H", 1), ("count", "H", 1), ("pad", "H", 1)),
+}
+"""The fixed payloads and payload heads, field by field: ``(name, struct code, count)``, packed
+little-endian without padding. The one definition of these layouts: the structs below are built
+from it, and so are the client libraries' (``cnc_twin.whiteboard.client_files``)."""
+
+
+def _struct(name: str) -> struct.Struct:
+    return struct.Struct("<" + "".join(f"{count if count > 1 else ''}{code}" for _, code, count in FIELDS[name]))
+
+
+_MOVE = _struct("move")
+_PROBE_TAIL = _struct("probe_tail")
 """what a Probe adds to a Move's payload: trip force, kind, pad"""
-_DWELL = struct.Struct("<I")
-_F64 = struct.Struct("<d")
-_SPINDLE = struct.Struct("<HHd")
-_CHIP = struct.Struct("<4H4i5d")
-_STEP_CONTOUR = struct.Struct("<6H6i6d")
-_MARK = struct.Struct("<I")
-_CURVE_HEAD = struct.Struct("<HHHH3d")
-_CURVE_BLOCK = struct.Struct("<6d")
-PART_HEAD = struct.Struct("<HHHH")
+_DWELL = _struct("dwell")
+_F64 = _struct("fraction")
+_SPINDLE = _struct("spindle")
+_CHIP = _struct("chip")
+_STEP_CONTOUR = _struct("step_contour")
+_MARK = _struct("mark")
+_CURVE_HEAD = _struct("curve_head")
+_CURVE_BLOCK = _struct("curve_block")
+PART_HEAD = _struct("part_head")
 """a geometry part's head: the whole record's type, part index, part count, pad"""
 PART_HEAD_WORDS = PART_HEAD.size // 2
 _SURFACE_HEAD = struct.Struct("<HHHH8d")

@@ -47,6 +47,7 @@ import numpy as np
 
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.block import Whiteboard
+from cnc_twin.whiteboard.capture import BEFORE_FIRST_STATUS, StreamCapture
 from cnc_twin.whiteboard.doorbell import SPIN_POLLS, Doorbell
 from cnc_twin.whiteboard.fifo import FifoReader, FifoWriter
 from cnc_twin.whiteboard.status import STATUS_DTYPE, STATUS_STRUCT
@@ -55,8 +56,12 @@ WAKE_INTERVAL = 0.002
 """longest a blocked waiter sleeps before re-checking liveness and heartbeat [s]"""
 
 
-def signal_shutdown(wb: Whiteboard, ring_pc: Doorbell | None) -> None:
-    """Tell the planner the run is over: the shutdown word, then a ring so it wakes to see it."""
+def signal_shutdown(wb: Whiteboard, ring_pc: Doorbell | None, end: tuple[int, int] | None = None) -> None:
+    """Tell the planner the run is over: the state and fault it ended with (``end``, when the card
+    ran), the shutdown word, then a ring so it wakes to see it."""
+    if end is not None:
+        dsp = wb.layout.dsp_control
+        wb.words[dsp + L.DSP_END_STATE], wb.words[dsp + L.DSP_END_FAULT] = end
     wb.words[wb.SHUTDOWN] = 1
     if ring_pc is not None:
         ring_pc.ring()
@@ -110,6 +115,8 @@ class DspPort:
         """the period each latency belongs to (the period whose status was answered)"""
         self._pc_ack_time = np.ndarray((1,), dtype="<u8", buffer=wb.shm.buf, offset=2 * (wb.layout.pc_control + L.PC_ACK_TIME))
         self._status_offset = 2 * wb.layout.status_base
+        self.capture: StreamCapture | None = None
+        """when set, every exchange the card takes is kept in it (an outside PC program's stream)"""
 
     def wait_ready(self, timeout: float) -> int:
         """Wait until the planner attached and announced its program; returns its length [periods]."""
@@ -146,11 +153,16 @@ class DspPort:
             self.latency_period.append(self.last_posted)
         self.answered = True
         self.words[self.wb.HOLDA] = 0
+        before = self.fifo.limit
         self.fifo.snapshot()
         # Read while the DSP owns the bus, right after the PC's answer: the same period on every
         # lockstep run, so going solo or quiet never changes what the card does.
-        self.solo = bool(self.words[self.wb.ALL_SENT])
+        all_sent = int(self.words[self.wb.ALL_SENT])
+        self.solo = bool(all_sent)
         self.wake_free = int(self.words[self.wb.WAKE_FREE])
+        if self.capture is not None:
+            answered = BEFORE_FIRST_STATUS if self.last_posted is None else self.last_posted
+            self.capture.take(answered, all_sent, self.wake_free, self.fifo.published_since(before))
         return True
 
     @property
