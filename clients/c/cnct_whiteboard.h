@@ -127,7 +127,6 @@ typedef struct __attribute__((packed)) {
 } cnct_status;
 _Static_assert(sizeof(cnct_status) == 320, "cnct_status: 320 bytes");
 
-/* payload: move */
 typedef struct __attribute__((packed)) {
     double end[6];
     double t_acc;
@@ -135,38 +134,32 @@ typedef struct __attribute__((packed)) {
     double v_peak;
     double accel;
     uint32_t periods;
-} cnct_move;
-_Static_assert(sizeof(cnct_move) == 84, "cnct_move: 84 bytes");
-/* payload: probe_tail */
+} cnct_move_payload;
+_Static_assert(sizeof(cnct_move_payload) == 84, "cnct_move_payload: 84 bytes");
 typedef struct __attribute__((packed)) {
     double trip_force;
     uint16_t kind;
     uint16_t pad;
-} cnct_probe_tail;
-_Static_assert(sizeof(cnct_probe_tail) == 12, "cnct_probe_tail: 12 bytes");
-/* payload: dwell */
+} cnct_probe_tail_payload;
+_Static_assert(sizeof(cnct_probe_tail_payload) == 12, "cnct_probe_tail_payload: 12 bytes");
 typedef struct __attribute__((packed)) {
     uint32_t periods;
-} cnct_dwell;
-_Static_assert(sizeof(cnct_dwell) == 4, "cnct_dwell: 4 bytes");
-/* payload: fraction */
+} cnct_dwell_payload;
+_Static_assert(sizeof(cnct_dwell_payload) == 4, "cnct_dwell_payload: 4 bytes");
 typedef struct __attribute__((packed)) {
     double fraction;
-} cnct_fraction;
-_Static_assert(sizeof(cnct_fraction) == 8, "cnct_fraction: 8 bytes");
-/* payload: newtons */
+} cnct_fraction_payload;
+_Static_assert(sizeof(cnct_fraction_payload) == 8, "cnct_fraction_payload: 8 bytes");
 typedef struct __attribute__((packed)) {
     double newtons;
-} cnct_newtons;
-_Static_assert(sizeof(cnct_newtons) == 8, "cnct_newtons: 8 bytes");
-/* payload: spindle */
+} cnct_newtons_payload;
+_Static_assert(sizeof(cnct_newtons_payload) == 8, "cnct_newtons_payload: 8 bytes");
 typedef struct __attribute__((packed)) {
     uint16_t on;
     uint16_t pad;
     double speed;
-} cnct_spindle;
-_Static_assert(sizeof(cnct_spindle) == 12, "cnct_spindle: 12 bytes");
-/* payload: chip */
+} cnct_spindle_payload;
+_Static_assert(sizeof(cnct_spindle_payload) == 12, "cnct_spindle_payload: 12 bytes");
 typedef struct __attribute__((packed)) {
     uint16_t op;
     uint16_t axis;
@@ -179,9 +172,8 @@ typedef struct __attribute__((packed)) {
     double accel;
     double jerk;
     double time;
-} cnct_chip;
-_Static_assert(sizeof(cnct_chip) == 64, "cnct_chip: 64 bytes");
-/* payload: step_contour */
+} cnct_chip_payload;
+_Static_assert(sizeof(cnct_chip_payload) == 64, "cnct_chip_payload: 64 bytes");
 typedef struct __attribute__((packed)) {
     uint16_t method;
     uint16_t kind;
@@ -198,23 +190,20 @@ typedef struct __attribute__((packed)) {
     double v1;
     double a_max;
     double j_max;
-} cnct_step_contour;
-_Static_assert(sizeof(cnct_step_contour) == 84, "cnct_step_contour: 84 bytes");
-/* payload: mark */
+} cnct_step_contour_payload;
+_Static_assert(sizeof(cnct_step_contour_payload) == 84, "cnct_step_contour_payload: 84 bytes");
 typedef struct __attribute__((packed)) {
     uint32_t number;
-} cnct_mark;
-_Static_assert(sizeof(cnct_mark) == 4, "cnct_mark: 4 bytes");
-/* payload: curve_head */
+} cnct_mark_payload;
+_Static_assert(sizeof(cnct_mark_payload) == 4, "cnct_mark_payload: 4 bytes");
 typedef struct __attribute__((packed)) {
     uint16_t degree;
     uint16_t n;
     uint16_t degree2;
     uint16_t n2;
     double held[3];
-} cnct_curve_head;
-_Static_assert(sizeof(cnct_curve_head) == 32, "cnct_curve_head: 32 bytes");
-/* payload: curve_block */
+} cnct_curve_head_payload;
+_Static_assert(sizeof(cnct_curve_head_payload) == 32, "cnct_curve_head_payload: 32 bytes");
 typedef struct __attribute__((packed)) {
     double length;
     double v0;
@@ -222,15 +211,14 @@ typedef struct __attribute__((packed)) {
     double v1;
     double a_max;
     double j_max;
-} cnct_curve_block;
-_Static_assert(sizeof(cnct_curve_block) == 48, "cnct_curve_block: 48 bytes");
-/* payload: part_head */
+} cnct_curve_block_payload;
+_Static_assert(sizeof(cnct_curve_block_payload) == 48, "cnct_curve_block_payload: 48 bytes");
 typedef struct __attribute__((packed)) {
     uint16_t type;
     uint16_t index;
     uint16_t count;
     uint16_t pad;
-} cnct_part_head;
-_Static_assert(sizeof(cnct_part_head) == 8, "cnct_part_head: 8 bytes");
+} cnct_part_head_payload;
+_Static_assert(sizeof(cnct_part_head_payload) == 8, "cnct_part_head_payload: 8 bytes");
 
 #endif

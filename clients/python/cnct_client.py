@@ -271,6 +271,8 @@ class Card:
             os.write(self._ring, b"\x01")
         except BlockingIOError:  # a full pipe: the card has wake-ups pending
             pass
+        except BrokenPipeError:
+            raise CardGone("the card's doorbell closed: the twin's run ended") from None
 
     def set_state(self, state: int) -> None:
         self.word[W.PC_STATE] = state

@@ -134,8 +134,7 @@ def c_header() -> str:
     out += _c_struct("status", _status_fields(), STATUS_DTYPE.itemsize)
     out.append("")
     for name, fields in FIELDS.items():
-        out.append(f"/* payload: {name} */")
-        out += _c_struct(name, [(*field, None) for field in fields])
+        out += _c_struct(f"{name}_payload", [(*field, None) for field in fields])
     out += ["", "#endif", ""]
     return "\n".join(out)
 
