@@ -143,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-QUICK_EXIT = ("run", "validate", "gcode", "list")
+QUICK_EXIT = ("run", "serve", "validate", "gcode", "list")
 """commands that, run as the program, end without the interpreter's teardown once they are done
 (their files closed, their helper processes ended): freeing every module's objects costs a run
 0.3 - 0.7 s after its last file is written"""

@@ -109,6 +109,7 @@ int cnct_wait_status(cnct_card *card, cnct_status *out) {
     uint32_t mailbox = CNCT_MAILBOX_TO_PC(card->words), shutdown = CNCT_DSP_CONTROL(card->words) + CNCT_DSP_SHUTDOWN;
     struct pollfd bell = {card->wake_fd, POLLIN, 0};
     char drain[256];
+    for (unsigned i = 0; i < card->spin_polls && load16(card, mailbox) == card->last_seen; i++) {}
     while (load16(card, mailbox) == card->last_seen && !load16(card, shutdown)) {
         beat(card);
         if (poll(&bell, 1, WAKE_INTERVAL_MS) > 0) {

@@ -35,6 +35,8 @@ typedef struct {
     size_t words;              /* its size [words] */
     int wake_fd, ring_fd;      /* doorbells: to_pc (read), to_dsp (write) */
     uint16_t last_seen;        /* the card's mailbox value last answered */
+    unsigned spin_polls;       /* mailbox polls before sleeping on the doorbell (0: none; the PC
+                                  answers status k while the card runs period k) */
 } cnct_card;
 
 /* Map FOLDER/whiteboard and open the doorbells, waiting up to timeout_s for the folder. Ignores

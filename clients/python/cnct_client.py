@@ -37,9 +37,6 @@ import cnct_layout as W
 
 WAKE_INTERVAL = 0.002
 """[s] the longest a waiting PC sleeps before it advances its heartbeat and looks again"""
-SPIN_POLLS = 0
-"""mailbox polls before sleeping on the doorbell: none by default (the PC answers status k while
-the card runs period k, so it has a whole period; a spinning PC takes a core from the card)"""
 _U32 = 1 << 32
 
 
@@ -160,9 +157,13 @@ class Card:
     Maps the shared memory (``folder/whiteboard``) and opens the two doorbells (``to_pc``, read;
     ``to_dsp``, write), waiting up to ``timeout`` [s] for the folder to be made (a PC program may
     start together with ``cnc-twin serve``). Nothing is written before :meth:`attach`.
+
+    ``spin_polls``: mailbox polls before sleeping on the doorbell. None by default: the PC answers
+    status k while the card runs period k, so it has a whole period, and a spinning PC takes a
+    core from the card; a PC that must answer within microseconds spins (a few hundred polls).
     """
 
-    def __init__(self, folder, *, timeout: float = 30.0):
+    def __init__(self, folder, *, timeout: float = 30.0, spin_polls: int = 0):
         folder = Path(folder)
         deadline = time.monotonic() + timeout
         while not (folder / "to_pc").exists():  # made last: the folder is whole once it is there
@@ -182,6 +183,7 @@ class Card:
         self._poll = select.poll()
         self._poll.register(self._wake, select.POLLIN | select.POLLHUP)
         self._last_seen = 0
+        self.spin_polls = spin_polls
         dsp = self.area["dsp_control"]
         self._shutdown = dsp + W.DSP_SHUTDOWN
         self._holda = dsp + W.DSP_HOLDA
@@ -213,7 +215,7 @@ class Card:
         tuples), or None when the run is over (the card's shutdown word). CardGone if the twin's
         process ended meanwhile."""
         mailbox = self.area["mailbox_to_pc"]
-        for _ in range(SPIN_POLLS):
+        for _ in range(self.spin_polls):
             if self.word[mailbox] != self._last_seen:
                 break
         while self.word[mailbox] == self._last_seen and not self.word[self._shutdown]:
@@ -324,7 +326,7 @@ class Streamer:
     limit. The record after the running one always goes, and a card in FEED_HOLD always gets
     records. ``fifo_interrupt``: when the next record does not fit, ask for no exchange before the
     FIFO has room for it (WAKE_FREE). ``corrupt(seq, data) -> data``: a hook that may change a
-    record's bytes as it is written (to test a program's handling of rejects).
+    record's bytes as it is written (to test a program's handling of rejects). ``solo``: see below.
     """
 
     card: Card
@@ -332,6 +334,9 @@ class Streamer:
     lookahead_periods: int = 0
     fifo_interrupt: bool = True
     corrupt: object = None
+    solo: bool = True
+    """raise ALL_SENT once the whole program is in the FIFO (the card then stops exchanging until it
+    needs a resend); False: the card keeps posting a status every period"""
     complete: bool = False
     encoded: list = field(default_factory=list)
     cumulative: list = field(default_factory=lambda: [0])
@@ -385,7 +390,7 @@ class Streamer:
         written = self.answer(status)
         self.card._set_u32(W.PC_RECORDS_SENT, self.next_index)
         self.card._set_u32(W.PC_RETRANSMITS, self.retransmitted)
-        self.card.end(all_sent=self.all_sent, wake_free=self.wake_free if self.fifo_interrupt else 0)
+        self.card.end(all_sent=self.solo and self.all_sent, wake_free=self.wake_free if self.fifo_interrupt else 0)
         self.card.set_state(W.PC_STATE_STREAMING)
         return written
 

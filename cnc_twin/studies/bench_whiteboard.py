@@ -2,7 +2,10 @@
 
 ``exchange_round_trip``: the DSP posts a status and waits for the PC's acknowledgement, over and
 over with no servo work between (the full hand-over: mailbox, HOLD/HOLDA, status copy, ack).
-Figures: median and p99 of post -> acknowledgement seen [us].
+Figures: median and p99 of post -> acknowledgement seen [us]. The PC side is the twin's own port
+with the inherited pipe doorbells, spinning on the mailbox first or not (``spin``);
+``external_round_trip`` measures the same with an outside program as the PC side, through an
+attach folder's named-pipe doorbells (``cnc-twin serve``'s; benchmarks/pc_echo.py and .c).
 
 ``stream_throughput``: the PC streams pre-encoded records as fast as the FIFO and the chunk size
 allow; the DSP copies each exchange's records out of the ring, hands the bus back, then checks
@@ -32,10 +35,10 @@ from cnc_twin.whiteboard.status import STATUS_DTYPE
 PCI_BURST_MB_S = 132.0
 
 
-def _echo(shm_name: str, wait_dsp, ring_dsp, words: int) -> None:
+def _echo(shm_name: str, wait_dsp, ring_dsp, words: int, spin: bool = True) -> None:
     """PC side of the round-trip benchmark: acknowledge every status, write nothing."""
     wb = Whiteboard.attach(shm_name, Layout(words))
-    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp), spin_polls=SPIN_POLLS)
+    port = PcPort(wb, wait_dsp=Doorbell(wait_dsp), ring_dsp=Doorbell(ring_dsp), spin_polls=SPIN_POLLS if spin else 0)
     try:
         port.announce(program_periods=0)
         while port.wait_status() is not None:
@@ -97,8 +100,8 @@ def _with_pc(target, args: tuple, words: int, body) -> Any:
         wb.close()
 
 
-def exchange_round_trip(n: int = 20000, *, words: int = 8192) -> dict[str, Any]:
-    """Round trips DSP post -> PC acknowledgement seen, between two processes [us]."""
+def _round_trips(n: int):
+    """The DSP side of ``n`` round trips: figures [us] from a ready port."""
     status = np.zeros(1, dtype=STATUS_DTYPE)
 
     def body(port: DspPort) -> dict[str, Any]:
@@ -116,7 +119,40 @@ def exchange_round_trip(n: int = 20000, *, words: int = 8192) -> dict[str, Any]:
         return {"exchanges": n, "median_us": float(np.median(us)), "p99_us": float(np.percentile(us, 99)),
                 "min_us": float(us.min())}
 
-    return _with_pc(_echo, (words,), words, body)
+    return body
+
+
+def exchange_round_trip(n: int = 20000, *, words: int = 8192, spin: bool = True) -> dict[str, Any]:
+    """Round trips DSP post -> PC acknowledgement seen, between two processes [us]; the PC's port
+    spins on the mailbox before it sleeps on its doorbell, or (``spin=False``) sleeps at once."""
+    return _with_pc(_echo, (words, spin), words, _round_trips(n))
+
+
+def external_round_trip(command: list[str], n: int = 20000, *, words: int = 8192) -> dict[str, Any]:
+    """Round trips as :func:`exchange_round_trip`, the PC side the outside program ``command``
+    given the attach folder as its last argument (an echo: acknowledge every status)."""
+    import subprocess
+
+    from cnc_twin.whiteboard.attach_point import AttachPoint
+
+    wb = Whiteboard.create(Layout(words))
+    point = AttachPoint(wb.name)
+    proc = subprocess.Popen([*command, str(point.folder)])
+    try:
+        port = DspPort(wb, lockstep=True, planner_alive=lambda: proc.poll() is None and not point.pc_gone(),
+                       heartbeat_timeout=5.0, ring_pc=point.ring_pc, wait_pc=point.wait_pc)
+        port.wait_ready(60.0)
+        return _round_trips(n)(port)
+    finally:
+        signal_shutdown(wb, point.ring_pc)
+        try:
+            proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        port = None
+        point.close()
+        wb.close()
 
 
 def stream_throughput(*, kind: str = "block", count: int = 4000, words: int = 8192, chunk_bytes: int = 4096) -> dict[str, Any]:
