@@ -120,14 +120,19 @@ def test_the_bundled_jog_example_is_the_twins_own_jog_bit_for_bit_and_replays(tm
     assert not served.attach.exists() and _segments_of(served.proc.pid) == []
 
 
-def test_the_c_example_streams_a_curve_that_replays_bit_for_bit(tmp_path):
+def _build_c(source: Path, program: Path) -> Path:
+    """``source`` with the C client, built by the system's C compiler (warnings are errors)."""
     compiler = shutil.which("cc") or shutil.which("gcc")
     assert compiler is not None, "no C compiler (cc) on this machine: the C client cannot be tested"
-    program = tmp_path / "pc_curve"
     built = subprocess.run([compiler, "-O2", "-std=c11", "-Wall", "-Wextra", "-Werror", f"-I{REPO / 'clients' / 'c'}",
-                            REPO / "examples" / "pc_curve.c", REPO / "clients" / "c" / "cnct_client.c", "-lm", "-o",
-                            program], capture_output=True, text=True, timeout=120)
+                            source, REPO / "clients" / "c" / "cnct_client.c", "-lm", "-o", program],
+                           capture_output=True, text=True, timeout=120)
     assert built.returncode == 0, built.stderr
+    return program
+
+
+def test_the_c_example_streams_a_curve_that_replays_bit_for_bit(tmp_path):
+    program = _build_c(REPO / "examples" / "pc_curve.c", tmp_path / "pc_curve")
     served = Served("nurbs_circle", tmp_path / "served")
     client = subprocess.run([program, served.wait_for_attach()], capture_output=True, text=True, timeout=120)
     code, _, err = served.finish()
@@ -155,6 +160,18 @@ def test_a_corrupted_record_is_rejected_and_resent_and_the_run_replays_with_its_
     assert trace.column("records_rejected").to_pylist()[-1] == 1
     _replay(tmp_path / "served", tmp_path / "replayed")  # the same words again: the same reject
     assert _trace(tmp_path / "replayed").equals(trace)
+
+
+def test_the_c_clients_go_back_n_resends_a_rejected_record(tmp_path, short_jog):
+    program = _build_c(Path(__file__).with_name("pc_corrupt.c"), tmp_path / "pc_corrupt")
+    served = Served(short_jog[0], tmp_path / "served")
+    client = subprocess.run([program, served.wait_for_attach(), "2", "90"], capture_output=True, text=True,
+                            timeout=120)
+    code, _, err = served.finish()
+    assert (code, client.returncode) == (0, 0), err + client.stdout
+    assert client.stdout.split() == ["ended", "5", "0", "sent", "4", "again", "3"]  # FINISHED, no fault
+    board = _metrics(tmp_path / "served")["whiteboard"]
+    assert (board["records_rejected"], board["records_accepted"], board["records_retransmitted"]) == (1, 4, 3)
 
 
 def test_a_program_that_stops_answering_is_lost_after_its_heartbeat_timeout(tmp_path, short_jog):
