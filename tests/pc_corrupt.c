@@ -17,9 +17,10 @@ static void corrupt(uint32_t seq, uint16_t *words, size_t n, void *ctx) {
     flipped = 1;
 }
 
-/* a 60 mm X move at the axis's limits (0.4 m/s, 2 m/s^2), stretched to whole 1 ms periods */
+/* a 60 mm X move within the axis's limits (0.4 m/s, 2 m/s^2: it never reaches 0.4, a triangle),
+ * stretched to whole 1 ms periods */
 static uint32_t add_move(cnct_stream *s, double x) {
-    double v = 0.4 / 0.06, a = 2.0 / 0.06, t_acc = v / a, t_flat = 1.0 / v - t_acc, duration = 2 * t_acc + t_flat;
+    double a = 2.0 / 0.06, t_acc = sqrt(1.0 / a), v = a * t_acc, t_flat = 0.0, duration = 2 * t_acc + t_flat;
     uint32_t periods = (uint32_t)ceil(duration / 0.001 - 1e-9);
     double k = periods * 0.001 / duration, end[6] = {x, 0, 0, 0, 0, 0};
     cnct_record r;
