@@ -213,6 +213,7 @@ def test_a_signal_inside_an_extension_module_import_is_the_interruption(monkeypa
     one line with its exit code, not the import's traceback."""
     import cnc_twin.cli as cli
     from cnc_twin.run.signals import Interrupted
+    from cnc_twin.studies import run_command
 
     def interrupted_import(*args, **kwargs):
         try:
@@ -220,7 +221,7 @@ def test_a_signal_inside_an_extension_module_import_is_the_interruption(monkeypa
         except Interrupted as exc:
             raise ImportError("initialization failed") from exc
 
-    monkeypatch.setattr(cli, "check_writable_parent", interrupted_import)
+    monkeypatch.setattr(run_command, "check_writable_parent", interrupted_import)
     code = cli.main(["run", str(SCENARIO), "--out", str(tmp_path / "run"), "--no-rrd"])
     err = capsys.readouterr().err
     assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"
@@ -236,6 +237,7 @@ def test_a_signal_that_an_extension_module_loses_in_its_import_error_is_still_th
     import signal as signals
 
     import cnc_twin.cli as cli
+    from cnc_twin.studies import run_command
 
     def import_losing_the_signal(*args, **kwargs):
         try:
@@ -244,7 +246,7 @@ def test_a_signal_that_an_extension_module_loses_in_its_import_error_is_still_th
             pass  # what PyCapsule_Import does with it
         raise ImportError("PyCapsule_Import could not import module \"datetime\"")
 
-    monkeypatch.setattr(cli, "check_writable_parent", import_losing_the_signal)
+    monkeypatch.setattr(run_command, "check_writable_parent", import_losing_the_signal)
     code = cli.main(["run", str(SCENARIO), "--out", str(tmp_path / "run"), "--no-rrd"])
     err = capsys.readouterr().err
     assert code == 130 and err.strip() == "interrupted by SIGINT before the run began; nothing was written"

@@ -5,6 +5,29 @@ from __future__ import annotations
 from pathlib import Path
 
 
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2
+"""a scenario, program or option is wrong: one line, nothing run"""
+EXIT_FAULT = 3
+"""the run ended by a fault of the card (its run directory complete, saying which)"""
+EXIT_RESOURCE = 4
+"""the machine could not give the run what it needs (disk space, shared memory, a folder that
+stays writable): one line saying which and what is free; what could be kept is"""
+
+
+class ResourceError(Exception):
+    """What the run needs from the machine it does not get: rendered by the CLI as one line
+    ``WHERE: what is missing`` and :data:`EXIT_RESOURCE`."""
+
+    def __init__(self, where: str | Path, message: str):
+        self.where = str(where)
+        self.message = message
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return one_line(f"{self.where}: {self.message}")
+
+
 class ScenarioError(Exception):
     """A scenario (or a file it references) is invalid.
 

@@ -60,7 +60,7 @@ class RunResult:
         return frame
 
     def write(self, run_dir: str | Path | None = None, *, recording: bool | Callable[[], Path | None] = True,
-              runs_dir: str | Path = "runs") -> Path:
+              runs_dir: str | Path = "runs", claimed: bool = False) -> Path:
         """Write ``scenario.yaml`` (and the files it names that a re-run needs: a G-code program),
         ``trace.parquet``, ``metrics.json`` and, unless
         ``recording=False``, ``recording.rrd`` (rerun) to ``run_dir`` (a new folder; by default
@@ -69,7 +69,8 @@ class RunResult:
         ``recording`` may instead be a callable, called once the trace is written, that returns
         the path of a finished recording of this run to move in (one a
         :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
-        system), or None to export it now after all."""
+        system), or None to export it now after all. ``claimed``: ``run_dir`` was claimed for this
+        run (:func:`~cnc_twin.run.run_dir.claim_run_dir`), an empty folder the written one replaces."""
         def extra(folder: Path) -> None:
             from cnc_twin.run.program_kinds import write_run_files
 
@@ -93,7 +94,7 @@ class RunResult:
         if self.pc_stream is not None:  # it runs again with the stream beside it
             scenario = replace(scenario, source_text=replay_text(scenario.source_text))
         self.run_dir = write_run_dir(Path(run_dir), scenario=scenario, trace=self.trace, metrics=self.metrics,
-                                     extra=extra)
+                                     extra=extra, claimed=claimed)
         return self.run_dir
 
     def export_rerun(self, *, rrd: Path | None = None, spawn: bool = False) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from cnc_twin.core.config import Scenario
+from cnc_twin.core.errors import ResourceError
 from cnc_twin.core.phases import mark
 from cnc_twin.trace.parquet import write_trace
 from cnc_twin.trace.trace import Trace
@@ -26,28 +28,104 @@ SCENARIO_FILE = "scenario.yaml"
 RECORDING_FILE = "recording.rrd"
 
 
-def new_run_dir(parent: str | Path, name: str) -> Path:
+def new_run_dir(parent: str | Path, name: str, *, claim: bool = False) -> Path:
     """``parent/<name>-<UTC time>`` (``-2``, ``-3``, ... added if taken): a run directory's
-    default name, the CLI's and :meth:`~cnc_twin.run.result.RunResult.write`'s."""
+    default name, the CLI's and :meth:`~cnc_twin.run.result.RunResult.write`'s; with ``claim``,
+    made empty at once (:func:`claim_run_dir`), so two runs started in the same second get two."""
     parent = Path(parent)
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     candidate = parent / f"{name}-{stamp}"
     n = 2
-    while candidate.exists():
+    while True:
+        if claim:
+            try:
+                return claim_run_dir(candidate)
+            except FileExistsError:
+                pass
+        elif not candidate.exists():
+            return candidate
         candidate = parent / f"{name}-{stamp}-{n}"
         n += 1
-    return candidate
+
+
+def claim_run_dir(run_dir: Path) -> Path:
+    """Make ``run_dir`` now, empty (its parents too): the name is this run's (FileExistsError if it
+    is taken, however it was taken). :func:`write_run_dir` with ``claimed`` replaces it whole."""
+    run_dir = Path(run_dir)
+    run_dir.parent.mkdir(parents=True, exist_ok=True)
+    run_dir.mkdir()
+    return run_dir
+
+
+def release_run_dir(run_dir: Path) -> None:
+    """Remove a claimed ``run_dir`` that is still empty (the run never got written)."""
+    try:
+        run_dir.rmdir()
+    except OSError:  # written (not empty), or gone
+        pass
+
+
+ROOM_FACTOR = 3.0
+"""the files a run writes, at most, per byte of its raw signals: trace.parquet about 0.6, the
+recording about 1.2 (measured on jog_axes and nurbs_circle), with a margin"""
+ROOM_SPARE = 4 << 20
+"""[bytes] room beyond the estimate: metrics, the scenario, the pictures"""
+
+
+def check_room(run_dir: Path, twin, planned: int, *, recording: bool) -> None:
+    """Refuse (:class:`ResourceError`) a run whose files would not fit where its run directory is:
+    the estimate from ``planned`` periods (the program's length the planner announced), against
+    the space free there."""
+    from cnc_twin.trace.layout import raw_bytes
+
+    timing = twin.scenario.timing
+    raw = raw_bytes((planned + 2) * timing.ticks_per_period, planned + 2)
+    need = int(raw * (ROOM_FACTOR if recording else ROOM_FACTOR / 3.0)) + ROOM_SPARE
+    free = shutil.disk_usage(run_dir if run_dir.exists() else run_dir.parent).free
+    if free < need:
+        raise ResourceError(run_dir, f"not enough room for this run's files: about {need / 1e6:.1f} MB needed "
+                            f"({planned * timing.interpolation_period:g} s of program), {free / 1e6:.1f} MB free")
+
+
+def keep_after_failed_write(run_dir: Path, metrics: dict[str, Any], exc: OSError) -> str:
+    """After writing ``run_dir`` failed with ``exc`` (its partial files already removed): keep
+    ``metrics.json`` there with the run's status and why it was not written, if even that fits.
+    Returns one line: which file, why, what was kept."""
+    where = Path(exc.filename).name if getattr(exc, "filename", None) else "the run directory"
+    reason = f"not written: {where}: {exc.strerror or exc}"
+    try:
+        run_dir.mkdir(exist_ok=True)
+        _write_metrics(run_dir / METRICS_FILE, {**metrics, "written": False, "write_error": reason})
+        return f"{reason}; kept: {METRICS_FILE} (the run's status and this reason)"
+    except OSError:
+        (run_dir / METRICS_FILE).unlink(missing_ok=True)
+        release_run_dir(run_dir)
+        return f"{reason}; nothing could be kept"
+
+
+def _named(name: str, write) -> None:
+    """``write()``, its OSError naming the file ``name`` when it names none (Arrow's do not), with
+    the system's words for its errno (Arrow gives "Detail: [errno 28]" only)."""
+    try:
+        write()
+    except OSError as exc:
+        if exc.filename:
+            raise
+        found = re.search(r"\[errno (\d+)\]", str(exc))
+        number = exc.errno or (int(found.group(1)) if found else None)
+        raise OSError(number, os.strerror(number) if number else str(exc), name) from exc
 
 
 def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: dict[str, Any],
-                  extra=None) -> Path:
+                  extra=None, claimed: bool = False) -> Path:
     """Write the run directory atomically: a hidden temporary folder renamed when complete.
 
     ``trace``: a :class:`Trace`, written; or a long run's
     :class:`~cnc_twin.trace.trace_file.TraceFile`, its file moved in (copied if it is already in
     another run directory).
 
-    ``extra(folder)`` may add files (the rerun recording) before the rename.
+    ``extra(folder)`` may add files (the rerun recording) before the rename. ``claimed``: the run
+    claimed ``run_dir`` (:func:`claim_run_dir`): the whole directory replaces that empty one.
     """
     run_dir = Path(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -58,7 +136,7 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
     in_file = hasattr(trace, "move_to")  # a long run's trace, already in its file
     was = (trace.path, trace.staged) if in_file else None
     try:
-        (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8")
+        _named(SCENARIO_FILE, lambda: (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8"))
         # The trace is encoded beside the other files (Arrow works without the GIL while the
         # pictures render and the recording closes); the block waits for it, whatever happens.
         with ThreadPoolExecutor(max_workers=1) as background:
@@ -70,13 +148,13 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
             if extra is not None:
                 extra(tmp)
             if writing is not None:
-                writing.result()
+                _named(TRACE_FILE, writing.result)
         mark("trace")
         _write_metrics(tmp / METRICS_FILE, metrics)
         mark("metrics")
-        if run_dir.exists():
+        if run_dir.exists() and not (claimed and run_dir.is_dir() and not any(run_dir.iterdir())):
             raise FileExistsError(f"run directory {run_dir} already exists")
-        os.replace(tmp, run_dir)
+        os.replace(tmp, run_dir)  # onto the claimed empty folder too: rename(2) replaces it
     except BaseException:
         if in_file and was[1] and trace.path != was[0]:  # the run's file goes back where it was, not lost
             shutil.move(trace.path, was[0])

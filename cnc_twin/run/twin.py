@@ -131,6 +131,9 @@ class Twin:
         self.begun = False
         """True once the clock runs (compiled, planner started): from then a stop keeps what was recorded"""
         self.plan_us = self.plan_blocks = 0
+        self.before_clock: Callable[[int], None] | None = None
+        """called with the program's length [periods] once the planner is ready, before the clock
+        starts: it may refuse the run (an exception, no motion)"""
         self.pc_stream = None
         """after a run: what an outside PC program wrote (or the replayed stream), for the run directory"""
         self.observer = None
@@ -217,6 +220,8 @@ class Twin:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
             mark("planner")
+            if self.before_clock is not None:  # e.g. room for what the run will write
+                self.before_clock(planned)
             attached = dsp.fault != FaultCode.PLANNER_START
             # an outside program that did not say its length (and its replay): open-ended
             if (planner.capture or sc.planner.replay is not None) and planned == 0 and sc.max_time is None:

@@ -1,0 +1,96 @@
+"""The machine failing around a run (docs/faults.md, "When the computer fails"): a disk too small
+for the run or filling up under it, the same run directory taken twice, a damaged recording. Each
+case is provoked for real: a small tmpfs of its own (tests/small_disk.py, in a user and mount
+namespace: no root needed), two processes, a file of garbage."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+SMALL_DISK = Path(__file__).with_name("small_disk.py")
+
+
+def _cli(*words) -> list[str]:
+    return [sys.executable, "-m", "cnc_twin", *map(str, words)]
+
+
+def _on_small_disk(tmp_path: Path, size_kb: int, *words, fill_leaving_kb: int | None = None) -> dict:
+    """``cnc-twin WORDS`` with a tmpfs of ``size_kb`` mounted on ``tmp_path/disk`` (the run's
+    folder); what happened, as tests/small_disk.py reports it."""
+    fill = [] if fill_leaving_kb is None else ["--fill-when-running", str(fill_leaving_kb)]
+    done = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", sys.executable, SMALL_DISK,
+                           tmp_path / "disk", str(size_kb), *fill, "--", *_cli(*words)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, f"a small disk could not be mounted here (unshare: user namespaces?): {done.stderr}"
+    return json.loads(done.stdout)
+
+
+def test_a_run_whose_files_cannot_fit_is_refused_before_its_clock_starts(tmp_path):
+    seen = _on_small_disk(tmp_path, 2048, "run", "nurbs_circle", "--out", tmp_path / "disk" / "run")
+    assert seen["code"] == 4, seen["stderr"]
+    assert len(seen["stderr"].strip().splitlines()) == 1 and "Traceback" not in seen["stderr"]
+    assert ": running (" not in seen["stderr"]  # refused before any motion
+    assert seen["files"] == []  # the claimed run directory and the staged recording: gone
+
+
+def test_a_write_that_fails_keeps_metrics_with_the_runs_status_and_why(tmp_path):
+    seen = _on_small_disk(tmp_path, 8192, "run", "nurbs_circle", "--out", tmp_path / "disk" / "run", "--no-rrd",
+                          fill_leaving_kb=64)
+    assert seen["filled"] and seen["code"] == 4, seen["stderr"]
+    lines = [line for line in seen["stderr"].strip().splitlines() if ": running (" not in line]
+    assert len(lines) == 1 and "trace.parquet" in lines[0], seen["stderr"]
+    assert seen["files"] == ["run", "run/metrics.json"]  # no partial trace, no temporary folder
+    kept = json.loads(seen["metrics"]["run/metrics.json"])
+    assert kept["status"] == "complete" and kept["written"] is False and "trace.parquet" in kept["write_error"]
+
+
+def test_a_write_that_cannot_even_keep_metrics_leaves_nothing(tmp_path):
+    seen = _on_small_disk(tmp_path, 8192, "run", "nurbs_circle", "--out", tmp_path / "disk" / "run", "--no-rrd",
+                          fill_leaving_kb=0)
+    assert seen["filled"] and seen["code"] == 4, seen["stderr"]
+    assert seen["files"] == []
+
+
+def test_a_run_directory_taken_by_a_running_run_is_refused_at_once(tmp_path):
+    out = tmp_path / "same"
+    first = subprocess.Popen(_cli("run", "nurbs_circle", "--out", out, "--no-rrd"), stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        for line in first.stderr:
+            if ": running (" in line:
+                break
+        started = time.monotonic()
+        second = subprocess.run(_cli("run", "nurbs_circle", "--out", out, "--no-rrd"), capture_output=True,
+                                text=True, timeout=300)
+        refused_after = time.monotonic() - started
+        assert first.poll() is None, "the first run ended before the second was refused: the test proves nothing"
+    finally:
+        first.communicate(timeout=300)
+    assert second.returncode == 2 and len(second.stderr.strip().splitlines()) == 1, second.stderr
+    assert "running (" not in second.stderr  # refused before its run, not after simulating it
+    assert first.returncode == 0
+    assert json.loads((out / "metrics.json").read_text())["status"] == "complete"  # the first is whole
+    assert refused_after < 60
+
+
+def test_view_refuses_a_damaged_recording_in_one_line(tmp_path):
+    from cnc_twin.run.twin import run_scenario
+    from cnc_twin.scenario.load import load_scenario
+    from cnc_twin.scenario.resources import scenarios_dir
+
+    run = run_scenario(load_scenario(scenarios_dir() / "jog_axes.yaml", overrides={"program.settle": 0.0})).write(
+        tmp_path / "run")
+    from cnc_twin.view.recording_check import check_recording
+
+    check_recording(run / "recording.rrd")  # a whole one passes
+    whole = (run / "recording.rrd").read_bytes()
+    cases = {"garbage": bytes(range(256)) * 40, "cut": whole[: len(whole) // 2], "empty": b""}
+    for name, data in cases.items():
+        (run / "recording.rrd").write_bytes(data)
+        done = subprocess.run(_cli("view", run, "--web", "--port", "0"), capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2, (name, done.stderr)
+        assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr, (name, done.stderr)
