@@ -94,3 +94,33 @@ def test_view_refuses_a_damaged_recording_in_one_line(tmp_path):
         done = subprocess.run(_cli("view", run, "--web", "--port", "0"), capture_output=True, text=True, timeout=60)
         assert done.returncode == 2, (name, done.stderr)
         assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr, (name, done.stderr)
+
+
+def test_no_room_in_shared_memory_is_one_line_before_any_motion(tmp_path):
+    """/dev/shm too small for the whiteboard (a container's default is 64 MB, and other programs
+    fill it): before, the zeroing of the segment ended the run with SIGBUS."""
+    command = " ".join(f"'{w}'" for w in _cli("run", "jog_axes", "--out", tmp_path / "run", "--no-rrd"))
+    done = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", "sh", "-c",
+                           f"mount -t tmpfs -o size=8k tmpfs /dev/shm && exec {command}"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 4, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "/dev/shm" in done.stderr, done.stderr
+    assert not (tmp_path / "run").exists() and list(tmp_path.glob(".run*")) == []
+
+
+def test_a_run_directory_left_empty_by_a_killed_run_is_taken_over_and_one_in_use_is_not(tmp_path):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (tmp_path / "left").mkdir()  # what a run killed (SIGKILL) after its claim leaves
+    (tmp_path / f".left.claim-{dead.pid}").touch()
+    done = subprocess.run(_cli("run", "jog_axes", "--out", tmp_path / "left", "--no-rrd", "--quiet"),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "left" / "metrics.json").is_file() and list(tmp_path.glob(".left.claim-*")) == []
+    (tmp_path / "mine").mkdir()  # a folder of the user's (no claim), or a live run's: refused
+    (tmp_path / "live").mkdir()
+    (tmp_path / f".live.claim-{__import__('os').getpid()}").touch()
+    for name in ("mine", "live"):
+        refused = subprocess.run(_cli("run", "jog_axes", "--out", tmp_path / name, "--no-rrd"), capture_output=True,
+                                 text=True, timeout=300)
+        assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr

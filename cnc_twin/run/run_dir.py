@@ -19,6 +19,7 @@ from typing import Any
 from cnc_twin.core.config import Scenario
 from cnc_twin.core.errors import ResourceError
 from cnc_twin.core.phases import mark
+from cnc_twin.run.run_claim import claim_run_dir, release_run_dir
 from cnc_twin.trace.parquet import write_trace
 from cnc_twin.trace.trace import Trace
 
@@ -46,23 +47,6 @@ def new_run_dir(parent: str | Path, name: str, *, claim: bool = False) -> Path:
             return candidate
         candidate = parent / f"{name}-{stamp}-{n}"
         n += 1
-
-
-def claim_run_dir(run_dir: Path) -> Path:
-    """Make ``run_dir`` now, empty (its parents too): the name is this run's (FileExistsError if it
-    is taken, however it was taken). :func:`write_run_dir` with ``claimed`` replaces it whole."""
-    run_dir = Path(run_dir)
-    run_dir.parent.mkdir(parents=True, exist_ok=True)
-    run_dir.mkdir()
-    return run_dir
-
-
-def release_run_dir(run_dir: Path) -> None:
-    """Remove a claimed ``run_dir`` that is still empty (the run never got written)."""
-    try:
-        run_dir.rmdir()
-    except OSError:  # written (not empty), or gone
-        pass
 
 
 ROOM_FACTOR = 3.0

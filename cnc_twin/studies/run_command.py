@@ -17,6 +17,7 @@ from pathlib import Path
 
 from cnc_twin.core.errors import EXIT_FAULT, EXIT_OK, ResourceError, ScenarioError
 from cnc_twin.core.phases import mark
+from cnc_twin.run.run_claim import taken
 from cnc_twin.run.signals import SignalGuard, exit_code
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, default_scenario
 
@@ -41,7 +42,7 @@ def _check_destinations(args: argparse.Namespace) -> None:
     if args.rrd is not None and not args.rrd.parent.is_dir():
         raise ScenarioError(args.rrd, "", "--rrd: the folder for the recording does not exist")
     check_writable_parent(args.out if args.out is not None else args.runs_dir / "run", "--out" if args.out else "--runs-dir")
-    if args.out is not None and args.out.exists():
+    if args.out is not None and taken(args.out):
         raise ScenarioError(args.out, "", "run directory already exists; choose another --out")
     attach = getattr(args, "attach", None)
     if attach is not None and (attach.exists() or attach.is_symlink() or not attach.parent.is_dir()):
@@ -90,7 +91,8 @@ def _run_with(args: argparse.Namespace, planners, recorder, guard: SignalGuard) 
     """One run; ``recorder`` (a :class:`~cnc_twin.view.rerun_stream.RecordingProcess`, or None when
     no recording is wanted) records it while it runs."""
     from cnc_twin.scenario.load import load_scenario
-    from cnc_twin.run.run_dir import claim_run_dir, new_run_dir, release_run_dir  # numpy...: not for gcode / list
+    from cnc_twin.run.run_claim import claim_run_dir, release_run_dir
+    from cnc_twin.run.run_dir import new_run_dir  # the scenario's config, pyarrow...: after the helpers started
 
     mark("imported")
 

@@ -16,10 +16,13 @@ from multiprocessing import resource_tracker, shared_memory
 import numpy as np
 
 from cnc_twin.core.deferred_signals import signals_deferred
+from cnc_twin.core.errors import ResourceError
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.status import STATUS_DTYPE
 
 NAME_PREFIX = "cnc_twin_"
+SHM_FOLDER = "/dev/shm"
+"""where Linux keeps POSIX shared memory (a tmpfs)"""
 
 
 class Whiteboard:
@@ -77,7 +80,20 @@ class Whiteboard:
         """Create and zero a new segment with a unique name (DSP side; owns and unlinks it)."""
         layout = layout or L.Layout()
         name = f"{NAME_PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
-        shm = shared_memory.SharedMemory(name=name, create=True, size=layout.nbytes)
+        # A full /dev/shm still lets the segment be made (tmpfs allots pages when written), and the
+        # zeroing below would then end the process with SIGBUS: its room is checked first.
+        try:
+            info = os.statvfs(SHM_FOLDER)
+        except OSError as exc:
+            raise ResourceError(SHM_FOLDER, f"no shared memory for the whiteboard: {exc.strerror}") from None
+        free = info.f_bavail * info.f_frsize
+        if free < layout.nbytes:
+            raise ResourceError(SHM_FOLDER, f"no room for the whiteboard: {layout.nbytes} bytes needed, {free} free "
+                                "(a container's --shm-size, or what fills it)")
+        try:
+            shm = shared_memory.SharedMemory(name=name, create=True, size=layout.nbytes)
+        except OSError as exc:
+            raise ResourceError(SHM_FOLDER, f"cannot make the whiteboard's segment: {exc.strerror or exc}") from None
         try:
             shm.buf[: layout.nbytes] = bytes(layout.nbytes)
             return cls(shm, layout, owner=True)
