@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 SMALL_DISK = Path(__file__).with_name("small_disk.py")
 
 
@@ -124,3 +126,93 @@ def test_a_run_directory_left_empty_by_a_killed_run_is_taken_over_and_one_in_use
         refused = subprocess.run(_cli("run", "jog_axes", "--out", tmp_path / name, "--no-rrd"), capture_output=True,
                                  text=True, timeout=300)
         assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+
+
+def _helpers_of(pid: int, module: str) -> list[int]:
+    """Live children of ``pid`` running ``module`` (the planner, the recording process)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if not proc.name.isdigit():
+                continue
+            stat = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+            if int(stat[1]) == pid and stat[0] != "Z" and module.encode() in (proc / "cmdline").read_bytes():
+                found.append(int(proc.name))
+        except (OSError, IndexError):
+            continue
+    return found
+
+
+def _marked_processes(mark: str) -> list[int]:
+    """Live processes whose environment carries ``mark`` (a command and every process it started)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and mark.encode() in (proc / "environ").read_bytes() and \
+                    (proc / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
+                found.append(int(proc.name))
+        except OSError:
+            continue
+    return found
+
+
+@pytest.mark.parametrize("module, seed", [("cnc_twin.planner.process", 1), ("cnc_twin.planner.process", 2),
+                                          ("cnc_twin.view.rerun_stream", 1), ("cnc_twin.view.rerun_stream", 2)])
+def test_a_helper_killed_at_a_random_moment_ends_the_run_as_documented(tmp_path, module, seed):
+    """SIGKILL to the planner: the card's PLANNER_LOST (a controlled stop, exit 3), or a complete
+    run when it came after the program was all on the card; to the recording process: the run
+    goes on and its recording is exported after it. Either way a whole run directory, no orphan,
+    no segment."""
+    import os
+    import random
+    import signal
+    import uuid
+
+    from cnc_twin.view.recording_check import check_recording
+
+    mark = uuid.uuid4().hex
+    env = {**os.environ, "CNC_TWIN_TEST_MARK": mark}
+    run = subprocess.Popen(_cli("run", "nurbs_circle", "--out", tmp_path / "run"), stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, env=env)
+    for line in run.stderr:
+        if ": running (" in line:
+            break
+    time.sleep(random.Random(seed).uniform(0.0, 2.0))  # within the run (4.5 s simulated, slower than real time)
+    victims = _helpers_of(run.pid, module)
+    for pid in victims:
+        os.kill(pid, signal.SIGKILL)
+    out, err = run.communicate(timeout=300)
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert len(victims) == 1 or run.returncode == 0, "no helper to kill: the test proves nothing"
+    if module.endswith("process"):
+        assert (run.returncode, metrics["status"]) in ((3, "fault"), (0, "complete")), err
+        if run.returncode == 3:
+            assert metrics["fault"]["code"] == "PLANNER_LOST" and metrics["fault"]["at_rest_s"] is not None
+    else:
+        assert run.returncode == 0 and metrics["status"] == "complete", err
+        check_recording(tmp_path / "run" / "recording.rrd")  # exported after the run, whole
+    assert "Traceback" not in err
+    time.sleep(0.5)
+    assert _marked_processes(mark) == [], "a process of the run outlived it"
+    assert not list(Path("/dev/shm").glob(f"cnc_twin_{run.pid}_*"))
+
+
+@pytest.mark.parametrize("words", [("tune", "jog_axes", "--axis", "X"), ("bench", "nurbs_circle", "--repeat", "1")])
+@pytest.mark.parametrize("signum, code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_tune_and_bench_end_on_a_signal_leaving_nothing_behind(tmp_path, words, signum, code):
+    import os
+    import signal
+    import uuid
+
+    mark = uuid.uuid4().hex
+    proc = subprocess.Popen(_cli(*words), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "CNC_TWIN_TEST_MARK": mark}, cwd=tmp_path)
+    time.sleep(5.0)  # into their runs: planners started, whiteboards made
+    assert proc.poll() is None, "it ended before the signal: the test proves nothing"
+    proc.send_signal(getattr(signal, signum))
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1] in ("interrupted", "terminated (SIGTERM)")
+    time.sleep(0.5)
+    assert _marked_processes(mark) == [], "a planner or helper outlived the command"
+    assert not list(Path("/dev/shm").glob(f"cnc_twin_{proc.pid}_*"))
