@@ -20,10 +20,12 @@ def _cli(*words) -> list[str]:
     return [sys.executable, "-m", "cnc_twin", *map(str, words)]
 
 
-def _on_small_disk(tmp_path: Path, size_kb: int, *words, fill_leaving_kb: int | None = None) -> dict:
+def _on_small_disk(tmp_path: Path, size_kb: int, *words, fill_leaving_kb: int | None = None,
+                   read_only: bool = False) -> dict:
     """``cnc-twin WORDS`` with a tmpfs of ``size_kb`` mounted on ``tmp_path/disk`` (the run's
     folder); what happened, as tests/small_disk.py reports it."""
     fill = [] if fill_leaving_kb is None else ["--fill-when-running", str(fill_leaving_kb)]
+    fill += ["--read-only-when-running"] if read_only else []
     done = subprocess.run(["unshare", "--user", "--map-root-user", "--mount", sys.executable, SMALL_DISK,
                            tmp_path / "disk", str(size_kb), *fill, "--", *_cli(*words)],
                           capture_output=True, text=True, timeout=600)
@@ -48,6 +50,24 @@ def test_a_write_that_fails_keeps_metrics_with_the_runs_status_and_why(tmp_path)
     assert seen["files"] == ["run", "run/metrics.json"]  # no partial trace, no temporary folder
     kept = json.loads(seen["metrics"]["run/metrics.json"])
     assert kept["status"] == "complete" and kept["written"] is False and "trace.parquet" in kept["write_error"]
+
+
+def test_a_disk_that_fills_under_a_recorded_run_makes_room_for_metrics_first(tmp_path):
+    """The recording process writes its file during the run: the disk fills with it; the partial
+    recording goes first, and metrics.json fits in its room."""
+    seen = _on_small_disk(tmp_path, 16384, "run", "nurbs_circle", "--out", tmp_path / "disk" / "run",
+                          fill_leaving_kb=64)
+    assert seen["filled"] and seen["code"] == 4, seen["stderr"]
+    assert seen["files"] == ["run", "run/metrics.json"], seen["files"]
+
+
+def test_a_disk_turned_read_only_under_the_run_is_one_line(tmp_path):
+    seen = _on_small_disk(tmp_path, 16384, "run", "nurbs_circle", "--out", tmp_path / "disk" / "run", "--no-rrd",
+                          read_only=True)
+    assert seen["filled"] and seen["code"] == 4, seen["stderr"]
+    assert [line for line in seen["stderr"].strip().splitlines() if ": running (" not in line][0].endswith(
+        "nothing could be kept")
+    assert "Traceback" not in seen["stderr"]
 
 
 def test_a_write_that_cannot_even_keep_metrics_leaves_nothing(tmp_path):

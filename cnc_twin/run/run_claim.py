@@ -57,7 +57,10 @@ def release_run_dir(run_dir: Path) -> None:
         run_dir.rmdir()
     except OSError:  # written (not empty), or gone
         pass
-    _claim_mark(run_dir, os.getpid()).unlink(missing_ok=True)
+    try:
+        _claim_mark(run_dir, os.getpid()).unlink(missing_ok=True)
+    except OSError:  # a folder turned read-only: the mark stays, a dead claimer's (taken over later)
+        pass
 
 
 

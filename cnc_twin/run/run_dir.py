@@ -82,7 +82,10 @@ def keep_after_failed_write(run_dir: Path, metrics: dict[str, Any], exc: OSError
         _write_metrics(run_dir / METRICS_FILE, {**metrics, "written": False, "write_error": reason})
         return f"{reason}; kept: {METRICS_FILE} (the run's status and this reason)"
     except OSError:
-        (run_dir / METRICS_FILE).unlink(missing_ok=True)
+        try:
+            (run_dir / METRICS_FILE).unlink(missing_ok=True)
+        except OSError:  # read-only: nothing was written either
+            pass
         release_run_dir(run_dir)
         return f"{reason}; nothing could be kept"
 

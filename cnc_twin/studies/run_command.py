@@ -154,8 +154,8 @@ def _run_claimed(args: argparse.Namespace, scenario, source: Path, run_dir: Path
     finally:
         if staged is not None:  # not moved in (still there): the run stopped with an error
             recorder.close()  # first: a signal before the run began can find it still creating the file
-            staged.unlink(missing_ok=True)
-        twin.trace_file.unlink(missing_ok=True)  # likewise
+            _remove(staged)
+        _remove(twin.trace_file)  # likewise
 
 
 def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None, planners,
@@ -174,6 +174,10 @@ def _run_and_write(args, twin, bar, run_dir: Path, recorder, staged: Path | None
         except OSError as exc:  # disk full, read-only, removed...: what could be kept is, and why
             from cnc_twin.run.run_dir import keep_after_failed_write
 
+            if staged is not None:  # partial files first: their room may hold metrics.json
+                recorder.close()
+                _remove(staged)
+            _remove(twin.trace_file)
             raise ResourceError(run_dir, keep_after_failed_write(run_dir, result.metrics, exc)) from None
     mark("written")
     # read once: a signal after this only ends the command's printing, the run being whole and marked
@@ -260,3 +264,12 @@ class NullStream:
 
     def isatty(self) -> bool:
         return False
+
+
+def _remove(path: Path) -> None:
+    """Remove a staged file if it is there (on a folder turned read-only it stays: the one-line
+    error says so already)."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass
