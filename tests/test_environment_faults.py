@@ -111,9 +111,14 @@ def test_view_refuses_a_damaged_recording_in_one_line(tmp_path):
     check_recording(run / "recording.rrd")  # a whole one passes
     whole = (run / "recording.rrd").read_bytes()
     cases = {"garbage": bytes(range(256)) * 40, "cut": whole[: len(whole) // 2], "empty": b""}
+    import socket
+
+    with socket.socket() as probe:  # a port free now: without the check the viewer would serve (and time out)
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
     for name, data in cases.items():
         (run / "recording.rrd").write_bytes(data)
-        done = subprocess.run(_cli("view", run, "--web", "--port", "0"), capture_output=True, text=True, timeout=60)
+        done = subprocess.run(_cli("view", run, "--web", "--port", port), capture_output=True, text=True, timeout=60)
         assert done.returncode == 2, (name, done.stderr)
         assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr, (name, done.stderr)
 
