@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -86,7 +87,14 @@ class RunResult:
             if finished is not None:
                 os.replace(finished, folder / RECORDING_FILE)
             elif recording:
-                self.export_rerun(rrd=folder / RECORDING_FILE)
+                try:
+                    self.export_rerun(rrd=folder / RECORDING_FILE)
+                except RuntimeError as exc:  # rerun's I/O failures: RuntimeError "... (os error 28)"
+                    found = re.search(r"os error (\d+)", str(exc))
+                    if found is None:
+                        raise
+                    number = int(found.group(1))
+                    raise OSError(number, os.strerror(number), RECORDING_FILE) from exc
             mark("recording")
         if run_dir is None:
             run_dir = new_run_dir(runs_dir, self.scenario.name)

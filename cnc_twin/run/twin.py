@@ -220,13 +220,13 @@ class Twin:
                 dsp.raise_fault(FaultCode.PLANNER_START, str(exc), 0)
                 planned = 0
             mark("planner")
-            if self.before_clock is not None:  # e.g. room for what the run will write
-                self.before_clock(planned)
             attached = dsp.fault != FaultCode.PLANNER_START
             # an outside program that did not say its length (and its replay): open-ended
             if (planner.capture or sc.planner.replay is not None) and planned == 0 and sc.max_time is None:
                 self.scenario = sc = replace(sc, max_time=OPEN_ENDED_MAX_TIME)
-            clock = Clock(self, dsp, planned, progress)
+            clock = Clock(self, dsp, planned, progress)  # refuses a run too large for its limits (bad input) first
+            if self.before_clock is not None:  # e.g. room for what the run will write
+                self.before_clock(planned)
             # observers read the recorder during the run
             self.recorder, self.period_batch, self.expected_periods = clock.recorder, clock.batch, clock.expected_periods
             self.begun = True
