@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -14,7 +13,7 @@ import numpy as np
 from cnc_twin.core.config import Scenario
 from cnc_twin.core.phases import mark
 from cnc_twin.run.external_pc import STREAM_FILE, replay_text
-from cnc_twin.run.run_dir import RECORDING_FILE, new_run_dir, write_run_dir
+from cnc_twin.run.run_dir import RECORDING_FILE, named_io, new_run_dir, write_run_dir
 from cnc_twin.trace.trace import Trace
 
 
@@ -87,14 +86,7 @@ class RunResult:
             if finished is not None:
                 os.replace(finished, folder / RECORDING_FILE)
             elif recording:
-                try:
-                    self.export_rerun(rrd=folder / RECORDING_FILE)
-                except RuntimeError as exc:  # rerun's I/O failures: RuntimeError "... (os error 28)"
-                    found = re.search(r"os error (\d+)", str(exc))
-                    if found is None:
-                        raise
-                    number = int(found.group(1))
-                    raise OSError(number, os.strerror(number), RECORDING_FILE) from exc
+                named_io(RECORDING_FILE, lambda: self.export_rerun(rrd=folder / RECORDING_FILE))
             mark("recording")
         if run_dir is None:
             run_dir = new_run_dir(runs_dir, self.scenario.name)

@@ -63,7 +63,6 @@ def release_run_dir(run_dir: Path) -> None:
         pass
 
 
-
 def taken(run_dir: Path) -> bool:
     """Whether ``run_dir`` exists and is not an abandoned claim (an empty folder whose claimer is
     gone): what a run on that name is refused for."""

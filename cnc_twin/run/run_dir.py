@@ -90,16 +90,19 @@ def keep_after_failed_write(run_dir: Path, metrics: dict[str, Any], exc: OSError
         return f"{reason}; nothing could be kept"
 
 
-def _named(name: str, write) -> None:
-    """``write()``, its OSError naming the file ``name`` when it names none (Arrow's do not), with
-    the system's words for its errno (Arrow gives "Detail: [errno 28]" only)."""
+def named_io(name: str, write) -> None:
+    """``write()``, a failure to write turned into an OSError that names the file ``name`` when it
+    names none, with the system's words for its errno: Arrow's OSErrors name no file and say only
+    "Detail: [errno 28]"; rerun's are RuntimeErrors saying "(os error 28)". Other errors pass."""
     try:
         write()
-    except OSError as exc:
-        if exc.filename:
+    except (OSError, RuntimeError) as exc:
+        if isinstance(exc, OSError) and exc.filename:
             raise
-        found = re.search(r"\[errno (\d+)\]", str(exc))
-        number = exc.errno or (int(found.group(1)) if found else None)
+        found = re.search(r"(?:\[errno|os error) (\d+)", str(exc))
+        number = (exc.errno if isinstance(exc, OSError) else None) or (int(found.group(1)) if found else None)
+        if number is None and not isinstance(exc, OSError):
+            raise  # not an I/O failure
         raise OSError(number, os.strerror(number) if number else str(exc), name) from exc
 
 
@@ -123,7 +126,7 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
     in_file = hasattr(trace, "move_to")  # a long run's trace, already in its file
     was = (trace.path, trace.staged) if in_file else None
     try:
-        _named(SCENARIO_FILE, lambda: (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8"))
+        named_io(SCENARIO_FILE, lambda: (tmp / SCENARIO_FILE).write_text(scenario.source_text, encoding="utf-8"))
         # The trace is encoded beside the other files (Arrow works without the GIL while the
         # pictures render and the recording closes); the block waits for it, whatever happens.
         with ThreadPoolExecutor(max_workers=1) as background:
@@ -135,7 +138,7 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
             if extra is not None:
                 extra(tmp)
             if writing is not None:
-                _named(TRACE_FILE, writing.result)
+                named_io(TRACE_FILE, writing.result)
         mark("trace")
         _write_metrics(tmp / METRICS_FILE, metrics)
         mark("metrics")

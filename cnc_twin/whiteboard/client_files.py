@@ -17,16 +17,15 @@ would be written (the test suite runs that check).
 
 from __future__ import annotations
 
+import struct
 import sys
 from pathlib import Path
-
-import numpy as np
 
 from cnc_twin.whiteboard import layout as L
 from cnc_twin.whiteboard.codec import HEADER_WORDS, SYNC, TRAILER_WORDS
 from cnc_twin.whiteboard.payloads import BY_CODE, FIELDS, MAX_GEOMETRY_WORDS, PART_HEAD_WORDS
 from cnc_twin.whiteboard.records import MAX_BLOCK_WORDS
-from cnc_twin.whiteboard.status import STATUS_DTYPE, DspState, FaultCode
+from cnc_twin.whiteboard.status import STATUS_DTYPE, STATUS_STRUCT, DspState, FaultCode
 
 C_HEADER = Path("clients/c/cnct_whiteboard.h")
 PYTHON_LAYOUT = Path("clients/python/cnct_layout.py")
@@ -95,23 +94,19 @@ def _status_fields() -> list[tuple[str, str, int, int]]:
 
 def _c_struct(name: str, fields, size: int | None = None) -> list[str]:
     """A packed C struct of ``(field, code, count, offset or None)``, padding as explicit bytes."""
-    lines, at, pad = [f"typedef struct __attribute__((packed)) {{"], 0, 0
+    lines, at, pad = ["typedef struct __attribute__((packed)) {"], 0, 0
     for field, code, count, offset in fields:
         if offset is not None and offset > at:
             lines.append(f"    uint8_t pad_{pad}[{offset - at}];")
             pad, at = pad + 1, offset
         lines.append(f"    {_C_TYPES[code]} {field}{f'[{count}]' if count > 1 else ''};")
-        at += np.dtype(_size_code(code)).itemsize * count
+        at += struct.calcsize("<" + code) * count
     if size is not None and size > at:
         lines.append(f"    uint8_t pad_{pad}[{size - at}];")
         at = size
     lines.append(f"}} cnct_{name};")
     lines.append(f"_Static_assert(sizeof(cnct_{name}) == {at}, \"cnct_{name}: {at} bytes\");")
     return lines
-
-
-def _size_code(code: str) -> str:
-    return {"d": "<f8", "I": "<u4", "H": "<u2", "i": "<i4", "h": "<i2"}[code]
 
 
 def c_header() -> str:
@@ -151,15 +146,7 @@ def python_layout() -> str:
             '    return {"fifo_base": CONTROL_WORDS, "fifo_words": words // 2 - CONTROL_WORDS, "dsp_control": words // 2,',
             '            "status_base": words // 2 + CONTROL_WORDS, "mailbox_to_dsp": words - 2, "mailbox_to_pc": words - 1}',
             "", ""]
-    fmt, at = "<", 0
-    for _name, code, count, offset in _status_fields():
-        if offset > at:
-            fmt += f"{offset - at}x"
-        fmt += f"{count if count > 1 else ''}{code}"
-        at = offset + np.dtype(_size_code(code)).itemsize * count
-    if STATUS_DTYPE.itemsize > at:
-        fmt += f"{STATUS_DTYPE.itemsize - at}x"
-    out.append(f'STATUS_FORMAT = "{fmt}"')
+    out.append(f'STATUS_FORMAT = "{STATUS_STRUCT.format}"')  # the struct the card packs its status with
     out.append('"""the status block, for struct.unpack_from at 2 x its base address"""')
     out.append("STATUS_FIELDS = (" + ", ".join(f'("{n}", {c})' for n, _, c, _ in _status_fields()) + ")")
     out.append('"""its fields in order, with their counts (per-axis fields: 6)"""')
