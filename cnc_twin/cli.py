@@ -1,4 +1,4 @@
-"""``cnc-twin`` command line: run | view | validate | tune | sweep | bench | gcode | list | server.
+"""``cnc-twin`` command line: run | view | validate | tune | sweep | bench | gcode | list | schema | server.
 
 Exit codes: 0 ok; 2 bad input (one line on stderr naming file and key); 3 the run ended by a
 fault (the run directory is complete and says which); 4 the machine could not give the run what it
@@ -108,6 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("list", help="list the bundled scenarios and NC programs, which run by name from anywhere")
 
+    schema = sub.add_parser("schema", help="write the JSON Schema of a scenario file, for editors' completion and "
+                                           "checks as one types (scenarios/scenario.schema.json is its copy)")
+    schema.add_argument("--out", type=Path, default=None, metavar="FILE", help="write it to FILE (default: stdout)")
+
     validate = sub.add_parser("validate", help="check scenario files without running them")
     validate.add_argument("scenarios", nargs="+", type=input_path, help="scenarios: paths, or bundled ones by name")
 
@@ -141,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-QUICK_EXIT = ("run", "serve", "validate", "gcode", "list")
+QUICK_EXIT = ("run", "serve", "validate", "gcode", "list", "schema")
 """commands that, run as the program, end without the interpreter's teardown once they are done
 (their files closed, their helper processes ended): freeing every module's objects costs a run
 0.3 - 0.7 s after its last file is written"""
@@ -163,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     handlers = {"run": _run, "serve": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
-                "gcode": _gcode, "list": _list, "server": _server}
+                "gcode": _gcode, "list": _list, "schema": _schema, "server": _server}
     if args.whole_process and args.command not in ("run", "serve", "sweep"):
         # The start handlers (cnc_twin/entry.py) end the program at once; from here Ctrl-C is a KeyboardInterrupt
         # and SIGTERM ends these commands as Ctrl-C does: through the runs' cleanup (planners, shared memory).
@@ -207,6 +211,20 @@ def _list(args: argparse.Namespace) -> int:
     from cnc_twin.scenario.catalogue import catalogue_lines
 
     print("\n".join(catalogue_lines()))
+    return EXIT_OK
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from cnc_twin.scenario.json_schema import schema_text
+
+    text = schema_text()
+    if args.out is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    try:
+        args.out.write_text(text, encoding="ascii")
+    except OSError as exc:  # no such folder, a folder of that name, no permission, disk full
+        raise ScenarioError(args.out, "", f"--out: cannot write: {exc.strerror or exc}") from None
     return EXIT_OK
 
 

@@ -3,7 +3,7 @@
 A command needs numpy, MuJoCo, numba and the twin's compiled kernels in its process; loading them
 takes a new interpreter a second or more, several times a short run's own clock. The warm server
 (:mod:`cnc_twin.server.daemon`) is a process that has loaded them once. For ``run``, ``serve``, ``validate``,
-``gcode``, ``list`` and ``sweep`` (whose local workers are then forks of it too) the command (the client, which imports nothing heavy) connects to it over a
+``gcode``, ``list``, ``schema`` and ``sweep`` (whose local workers are then forks of it too) the command (the client, which imports nothing heavy) connects to it over a
 Unix socket and sends its arguments, working directory, environment, umask, resource limits and
 its stdin, stdout and stderr (the descriptors themselves). The server forks a process that
 becomes the command (:mod:`cnc_twin.server.runner`) and reports its process id, then its exit.
@@ -39,7 +39,7 @@ from cnc_twin.core.messages import framed, read_message
 VARIABLE = "CNC_TWIN_SERVER"
 """``off`` (or ``0``, ``no``): every command in its own process, no server started"""
 
-COMMANDS = ("run", "serve", "validate", "gcode", "list", "sweep")
+COMMANDS = ("run", "serve", "validate", "gcode", "list", "schema", "sweep")
 """the commands a warm server runs"""
 
 IDLE_SECONDS = 900.0

@@ -48,6 +48,9 @@ from cnc_twin.scenario.yaml_input import MAX_FILE_BYTES, check_structure, parse,
 
 MAX_NAME_LENGTH = 100
 """[characters] of a scenario name"""
+NAME_PATTERN = r"^[^./\\\s]([^/\\]*[^/\\\s])?$"
+"""a scenario name as a regular expression (JSON Schema's): no folder separator, not hidden, no
+space at either end"""
 
 ProgramSpec = Annotated[Union[PointToPointProgram, NurbsCurveProgram, SurfacePolishProgram, ContourProgramSpec,
                               MotionChipProgramSpec, GcodeProgramSpec],
@@ -58,13 +61,16 @@ class ScenarioFile(Strict):
     """A whole scenario file, after the machine parameters were merged in."""
 
     name: str = Field(min_length=1, max_length=MAX_NAME_LENGTH,
-                      description="names the default run directory: one file name, printable")
-    description: str = ""
+                      description="names the default run directory: one file name, printable",
+                      # for editors, what _one_file_name checks that a pattern can say (not the printable part)
+                      json_schema_extra={"pattern": NAME_PATTERN})
+    description: str = Field("", description="what the scenario does: its first sentence is its line in `cnc-twin list`")
     seed: int = Field(0, ge=0, le=2**64 - 1, description="seed for every random source in the run")
     timing: TimingSpec = TimingSpec()
     machine: MachineRef = MachineRef()
-    axes: AxesSpec
-    force_sensor: ForceSensorSpec
+    axes: AxesSpec = Field(description="the six axes by name: the machine parameter file's, the scenario's keys over them")
+    force_sensor: ForceSensorSpec = Field(description="the load cell: the machine parameter file's, the scenario's keys "
+                                                      "over them")
     planner: PlannerSpec = PlannerSpec()
     whiteboard: WhiteboardSpec = WhiteboardSpec()
     faults: list[FaultSpec] = Field(default_factory=list)

@@ -127,6 +127,8 @@ class AxisSpec(Strict):
 
 
 class AxesSpec(Strict):
+    """The six axes by name: X, Y, Z linear [mm], A, B, C rotary [deg]."""
+
     X: AxisSpec
     Y: AxisSpec
     Z: AxisSpec
@@ -181,6 +183,9 @@ class TimingSpec(Strict):
 
 
 class MachineRef(Strict):
+    """The machine the scenario runs on: its MJCF model and its parameter file, each looked for
+    next to the scenario, then among the bundled models."""
+
     model: str = Field("scene.xml", description="MJCF file, relative to the scenario or bundled in models/")
     parameters: str = Field("polisher.yaml", description="machine parameter file, same lookup as model")
     block_shift: list[float] = Field(
@@ -209,7 +214,8 @@ class PlannerSpec(Strict):
 class WhiteboardSpec(Strict):
     """The emulated dual-port RAM."""
 
-    words: int = Field(8192, description="size [16-bit words]; a power of two from 2048 to 32768")
+    words: int = Field(8192, description="size [16-bit words]; a power of two from 2048 to 32768",
+                       json_schema_extra={"enum": [2048, 4096, 8192, 16384, 32768]})  # for editors: _power_of_two's
     chunk: int = Field(4096, ge=64, description="most bytes of records the planner writes per exchange [bytes]")
     fifo_interrupt: bool = Field(True, description="the card's FIFO-threshold interrupt: while the planner's next "
                                  "record does not fit, no exchange until it does (false: an exchange every period)")
