@@ -138,6 +138,7 @@ def scenario_text(name: str) -> str:
     exact = name.endswith("exact")
     what = "segment by segment (G61.1)" if exact else "fitted within G64 P0.01"
     return "\n".join([
+        "# yaml-language-server: $schema=scenario.schema.json",  # editors: the schema beside it (cnc-twin schema)
         f"# The dense 5-axis CAM raster (programs/{name}.ngc, written by scripts/make_cam_raster.py) run {what}.",
         "# The tip passes 1 mm above the freeform_polish face; the scene's block lies below it.",
         f"name: gcode_{name}",

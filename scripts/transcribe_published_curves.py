@@ -100,6 +100,7 @@ def number(x: float) -> str:
 def scenario_text(name: str, source: str, title: str, curve: dict) -> str:
     pts = curve["points"]
     lines = [
+        "# yaml-language-server: $schema=../scenario.schema.json",  # editors: the bundled schema (cnc-twin schema)
         f"# {title}: a published NURBS benchmark curve, degree {curve['order'] - 1}, {len(pts)} control points.",
         f"# Source: {CITATION}, file '{source}'.",
         "# The control points, weights and knots are transcribed from that program as written (mm);",
