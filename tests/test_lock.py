@@ -43,7 +43,8 @@ def _declared() -> list[tuple[str, Requirement]]:
     rows = [("dependencies", Requirement(text)) for text in project["dependencies"]]
     for extra, texts in project.get("optional-dependencies", {}).items():
         rows += [(f"optional-dependencies.{extra}", Requirement(text)) for text in texts]
-    return rows
+    # an extra naming another of the project's own (test takes in docs) is that one's rows, not a pin
+    return [(where, r) for where, r in rows if canonicalize_name(r.name) != canonicalize_name(project["name"])]
 
 
 def _supported_pythons() -> list[str]:
