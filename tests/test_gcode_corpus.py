@@ -1,7 +1,7 @@
 """Every example program LinuxCNC ships (185 .ngc files in its Debian 12 package), read by
 LinuxCNC's ``rs274`` and by ours: each is matched call for call (both readers may refuse it
 alike, e.g. a tool missing from the table) or refused by ours, naming a feature the twin's machine
-does not have, before any difference. None may differ. README states the counts."""
+does not have, before any difference. None may differ. docs/gcode.md states the counts."""
 
 from __future__ import annotations
 
@@ -31,10 +31,10 @@ def test_every_shipped_program_is_matched_or_refused_with_a_reason(tmp_path):
     assert not differing, differing
     counts = Counter(v.kind for v in verdicts.values())
     both_refused = sum(1 for v in verdicts.values() if v.kind == "matched" and v.detail)
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "gcode.md").read_text()
     stated = re.search(r"LinuxCNC's 185 example programs: (\d+) matched call for call \((\d+) of them refused "
                        r"alike by both readers\), (\d+) refused with a reason, (\d+) differing", readme)
-    assert stated, "README must state the corpus counts"
+    assert stated, "docs/gcode.md must state the corpus counts"
     assert tuple(int(g) for g in stated.groups()) == (counts["matched"], both_refused, counts["refused"], 0)
 
 

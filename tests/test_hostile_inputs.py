@@ -208,13 +208,13 @@ def test_fuzzed_numbers_names_nesting_and_duplicates_never_escape(tmp_path, key,
     assert [p.name for p in folder.iterdir()] == ["fuzz.yaml"]
 
 
-def test_readme_axis_table_states_the_ranges_the_schema_enforces(tmp_path):
-    """The 'accepted' column of README's machine-parameter table is the schema's own bounds; a
+def test_the_docs_axis_table_states_the_ranges_the_schema_enforces(tmp_path):
+    """The 'accepted' column of docs/scenarios.md's machine-parameter table is the schema's own bounds; a
     value just beyond each stated upper bound is refused at that key."""
     from cnc_twin.scenario.machine import AxisSpec, ForceSensorSpec
     from cnc_twin.scenario.ranges import accepted_range
 
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    readme = (Path(__file__).parents[1] / "docs" / "scenarios.md").read_text()
     table = readme.split("Machine parameters (", 1)[1].split("\n\n")[1].splitlines()
     assert table[0].startswith("| key | unit (linear / rotary) | accepted |")
     rows = [[cell.strip() for cell in line.strip("|").split(" | ")] for line in table[2:]]

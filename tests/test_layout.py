@@ -262,7 +262,7 @@ def test_the_checks_catch_what_they_are_for(tmp_path):
 
 
 def test_the_public_api_imports_from_the_top():
-    """What README shows is importable from ``cnc_twin`` itself, whatever the folders hold."""
+    """What README and docs/ show is importable from ``cnc_twin`` itself, whatever the folders hold."""
     import cnc_twin
     from cnc_twin import (  # noqa: F401
         PlannerPool, RecordingProcess, RunResult, Scenario, ScenarioError, Twin, analyse, load_scenario,

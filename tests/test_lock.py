@@ -82,7 +82,7 @@ def test_the_supported_pythons_agree_with_requires_python():
     assert not requires.contains(below), f"requires-python {requires} admits {below}, below the lowest classifier"
 
 
-def test_the_lock_says_how_it_is_made_and_the_readme_installs_from_it():
+def test_the_lock_says_how_it_is_made_and_the_quickstart_installs_from_it():
     header = LOCK.read_text(encoding="utf-8").splitlines()[:2]
     command = header[1].lstrip("# ").strip()
     assert command.startswith("uv pip compile pyproject.toml") and "--all-extras" in command \
@@ -92,7 +92,8 @@ def test_the_lock_says_how_it_is_made_and_the_readme_installs_from_it():
     commands = re.findall(r"```bash\n(.*?)\n```", quickstart, re.S)
     assert len(commands) == 2, commands
     assert all("pip install -c requirements.lock " in c for c in commands), commands
-    assert command in readme, "README does not say how to refresh the lock"
+    contributing = (ROOT / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    assert command in contributing, "CONTRIBUTING.md does not say how to refresh the lock"
 
 
 def test_the_newest_dependencies_pass_runs_test_files_that_exist():

@@ -3,7 +3,7 @@ Estlcam, PyCAM, CamBam, pcb2gcode, Eagle, Inkscape gcodetools, CAMotics examples
 LinuxCNC programs; sources and licences in its SOURCES.tsv), each read by LinuxCNC's ``rs274`` and
 by ours with the bundled machine's tool table (T1-T99): matched call for call (both may refuse it
 alike, e.g. a file with no program end), or refused by ours naming a feature the polishing machine
-does not have, before any difference. None may differ. README states the counts and names each
+does not have, before any difference. None may differ. docs/gcode.md states the counts and names each
 refusal's reason."""
 
 from __future__ import annotations
@@ -35,11 +35,11 @@ def test_every_outside_program_is_matched_or_refused_with_a_reason(tmp_path, mon
     counts = Counter(v.kind for v in verdicts.values())
     alike = sum(1 for v in verdicts.values() if v.kind == "matched" and v.detail)
     reasons = sorted({re.sub(r"^line \d+: ", "", v.detail) for v in verdicts.values() if v.kind == "refused"})
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "gcode.md").read_text()
     stated = re.search(r"(\d+) outside programs: (\d+) matched call for call \((\d+) of them refused alike by both "
                        r"readers\), (\d+) refused with a reason, (\d+) differing", readme)
-    assert stated, "README must state the outside corpus's counts"
+    assert stated, "docs/gcode.md must state the outside corpus's counts"
     assert tuple(int(g) for g in stated.groups()) == (len(programs), counts["matched"], alike, counts["refused"], 0)
-    for reason in reasons:  # each refusal's reason named in README (the feature, as the refusal names it)
+    for reason in reasons:  # each refusal's reason named in docs/gcode.md (the feature, as the refusal names it)
         feature = reason.split(" is not supported")[0]
-        assert feature in readme, f"README must name the refusal: {reason}"
+        assert feature in readme, f"docs/gcode.md must name the refusal: {reason}"
