@@ -96,12 +96,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     import oracle
 
+    from cnc_twin.studies.bench_context import measurement_context
+
     folder = args.keep or Path(tempfile.mkdtemp(prefix="long-programs-"))
     folder.mkdir(parents=True, exist_ok=True)
     lib = oracle.ROOT / "usr" / "lib"
     rs274_env = dict(os.environ, LD_LIBRARY_PATH=f"{lib}:{lib / 'x86_64-linux-gnu'}")
     table = ROOT / "models" / "polisher.tbl"
     rows = []
+    measured = measurement_context(["python", "benchmarks/bench_long_programs.py", *(argv or sys.argv[1:])])
     print(f"{'passes':>6} {'lines':>9} {'step':<10} {'code':>4} {'wall s':>8} {'peak MB':>8}  notes", flush=True)
     for passes in args.passes:
         program = folder / f"raster_{passes}.ngc"
@@ -130,8 +133,8 @@ def main(argv: list[str] | None = None) -> int:
                     notes += f"; while running {row['memory_mb']['at_start']:.0f} -> {row['memory_mb']['run_max']:.0f} MB"
             print(f"{passes:>6} {lines:>9} {name:<10} {str(row['code']):>4} {row['wall_s']:>8.1f} "
                   f"{(row['rss_mb'] or 0):>8.0f}  {notes}", flush=True)
-            if args.json:
-                args.json.write_text(json.dumps(rows, indent=1))
+            if args.json:  # after each step: a benchmark stopped early keeps what it measured
+                args.json.write_text(json.dumps({"measured": measured, "rows": rows}, indent=1))
     return 0
 
 

@@ -60,6 +60,7 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``cnc-twin`` command line: its subcommands and their options."""
     parser = _Parser(prog="cnc-twin", description="Digital twin of a six-axis PC + DSP polishing machine.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -152,8 +153,11 @@ QUICK_EXIT = ("run", "serve", "validate", "gcode", "list", "schema")
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``cnc-twin`` command ``argv`` (None: this program's own arguments) and return its
+    exit code."""
     args = build_parser().parse_args(argv)
     args.whole_process = argv is None  # run as the program (not called from Python): see SignalGuard
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # the command as given, kept with bench's figures
     code = _main(args)
     if args.whole_process and args.command in QUICK_EXIT:
         for stream in (sys.stdout, sys.stderr):

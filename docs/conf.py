@@ -27,6 +27,7 @@ author = "the cnc-twin developers"
 copyright = f"{date.today().year}, {author}"
 
 extensions = [
+    "bench_figures",
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
@@ -59,8 +60,8 @@ nitpicky = True
 # them stays plain text instead of failing the build
 nitpick_ignore_regex = [
     # pydantic fields' constraints (Annotated[float, Field(gt=0)]) rendered in the signatures
-    (r"py:class", r"annotated_types\..*|(gt|ge|lt|le|min_length|max_length|multiple_of|pattern|strict|allow_inf_nan)=.*"),
-    (r"py:.*", r"(np|numpy|npt|numpy\.typing|mujoco|pa|pyarrow|pd|pandas|pydantic|scipy|control|rr|rerun|yaml|numba|dask|distributed|matplotlib)\..*"),
+    (r"py:class", r"annotated_types\..*|(gt|ge|lt|le|min_length|max_length|multiple_of|pattern|strict|allow_inf_nan|annotation|required|discriminator)=.*"),
+    (r"py:.*", r"(np|numpy|npt|numpy\.typing|mujoco|pa|pyarrow|pd|pandas|pydantic|pydantic_core|scipy|control|rr|rerun|yaml|numba|dask|distributed|matplotlib)\..*"),
     (r"py:.*", r"(collections\.abc|typing|os|io|pathlib|subprocess|socket|threading|multiprocessing|concurrent\.futures|enum|dataclasses|argparse|signal|struct|mmap|types|ctypes|selectors|logging|queue|json|re|datetime|contextlib|array|tempfile|select|shutil|itertools|functools|weakref|abc|typing_extensions)\..*"),
     (r"py:class", r"(NDArray|ArrayLike|DTypeLike|Path|Callable|Iterator|Iterable|Sequence|Mapping|Any|Self|TextIO|BinaryIO|IO|Literal|ClassVar|Generator|ndarray|dtype|MjModel|MjData|Table|DataFrame|BaseModel|Enum|IntEnum|IntFlag|StrEnum|Popen|Thread|Event|Lock|socket|datetime|timedelta|Namespace|ArgumentParser|Queue|Connection|Process|Future|deque|TracebackType|FrameType|mmap|Exception|OSError|ValueError|RuntimeError|TimeoutError|KeyError|NamedTuple|TypedDict|ModuleType|CompletedProcess|RecordingStream|Figure|Axes|StateSpace|TransferFunction|LinearIOSystem|NonlinearIOSystem|Client|ConfigDict|FieldInfo|ValidationError|Protocol|Generic|TypeVar|ParamSpec|Iterator\[.*\]|float64|int64|uint8|int32|uint32|bool_)"),
 ]

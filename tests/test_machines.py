@@ -49,6 +49,13 @@ def test_bench_measures_the_machine_it_is_given(tmp_path):
     assert code == 0, err
     figures = json.loads((tmp_path / "bench.json").read_text())
     assert figures["model"] == "scene_rigid.xml"
+    # what they were measured on, kept with them (the docs' performance page shows it)
+    import mujoco
+
+    measured = figures["measured"]
+    assert measured["versions"]["mujoco"] == mujoco.__version__
+    assert measured["command"].startswith("cnc-twin bench ") and "--machine rigid" in measured["command"]
+    assert measured["machine"]["cores"] >= 1 and measured["date_utc"].endswith("+00:00")
 
 
 def test_a_scenario_without_a_machine_runs_on_the_compliant_default(tmp_path):

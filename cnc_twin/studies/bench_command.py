@@ -28,10 +28,7 @@ def bench_command(args) -> int:
 
         figures.update(whiteboard_figures())
     print(format_bench(figures))
-    if args.json is not None:
-        import json
-
-        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    _write_json(args, figures)
     return 0
 
 
@@ -48,8 +45,18 @@ def _startup(args) -> int:
     figures = bench_startup(scenarios, repeat=args.repeat, progress=said)
     print(file=sys.stderr)
     print(format_startup(figures))
-    if args.json is not None:
-        import json
-
-        args.json.write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+    _write_json(args, figures)
     return 0
+
+
+def _write_json(args, figures: dict) -> None:
+    """The figures as JSON at ``args.json`` (nothing when None), with what they were measured on
+    under ``measured`` (:func:`~cnc_twin.studies.bench_context.measurement_context`)."""
+    if args.json is None:
+        return
+    import json
+
+    from cnc_twin.studies.bench_context import measurement_context
+
+    record = {"measured": measurement_context(["cnc-twin", *args.argv]), **figures}
+    args.json.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
