@@ -3,7 +3,8 @@
 - :mod:`~cnc_twin.core.config`         the validated scenario in SI units: frozen dataclasses
 - :mod:`~cnc_twin.core.axes`           the six axes, their order and MJCF names; the home keyframe; switch bits
 - :mod:`~cnc_twin.core.units`          the unit conversion factors (scenario units -> SI)
-- :mod:`~cnc_twin.core.errors`         :class:`ScenarioError`, one line naming file, key path and problem
+- :mod:`~cnc_twin.core.errors`         :class:`~cnc_twin.core.errors.ScenarioError`, one line naming file, key path
+  and problem
 - :mod:`~cnc_twin.core.child_process`  ending a helper process (planner, recorder): EOF, SIGTERM, SIGKILL
 - :mod:`~cnc_twin.core.messages`       pickled messages over a pipe to a helper process (recorder, paths helper)
 - :mod:`~cnc_twin.core.kernel_cache`   numba's on-disk cache purged when a compiled kernel's other sources change

@@ -40,6 +40,8 @@ class ForceSensorConfig:
 
 @dataclass(frozen=True)
 class Move:
+    """One point-to-point move in SI: its targets, its feed cap and the dwell after it."""
+
     targets: tuple[float | None, ...]
     """per axis absolute target [m | rad] or None (keep), shape (6,)"""
     feed: float | None
@@ -50,6 +52,8 @@ class Move:
 
 @dataclass(frozen=True)
 class PointToPoint:
+    """The point-to-point program in SI: its moves in order, then the settle time."""
+
     moves: tuple[Move, ...]
     settle: float
     """[s]"""
@@ -412,7 +416,8 @@ class BallbarTest:
 
 @dataclass(frozen=True)
 class Scenario:
-    """A validated scenario, SI units throughout. Build with :func:`load_scenario`."""
+    """A validated scenario, SI units throughout. Build with
+    :func:`~cnc_twin.scenario.load.load_scenario`."""
 
     name: str
     description: str

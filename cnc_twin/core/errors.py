@@ -35,10 +35,13 @@ class ScenarioError(Exception):
 
     Parameters
     ----------
-    file : path of the offending file.
-    key_path : dotted key path inside the file, e.g. ``program.moves[2].X``; empty when the
-        problem is the file as a whole.
-    message : what was expected or what is wrong.
+    file
+        path of the offending file.
+    key_path
+        dotted key path inside the file, e.g. ``program.moves[2].X``; empty when the problem is
+        the file as a whole.
+    message
+        what was expected or what is wrong.
     """
 
     def __init__(self, file: str | Path, key_path: str, message: str):

@@ -147,8 +147,9 @@ class ForkedHelper:
 
 class AdoptedHelper(ForkedHelper):
     """A helper another process started (the warm server's spare, :data:`SPARES`): used as a
-    :class:`ForkedHelper`, but its exit status is its parent's to collect, so :meth:`poll` knows
-    only that it ended (status 0). ``stderr_file`` is its stderr, a file to read its last words from."""
+    :class:`ForkedHelper`, but its exit status is its parent's to collect, so
+    :meth:`~AdoptedHelper.poll` knows only that it ended (status 0). ``stderr_file`` is its stderr,
+    a file to read its last words from."""
 
     def __init__(self, pid: int, stdin_fd: int, stdout_fd: int, stderr_fd: int, *, module: str):
         self._own(pid, [module], stdin_fd, stdout_fd)

@@ -1,6 +1,7 @@
-"""A long text held compressed (:class:`PackedText`): a CAM program's text, which the run directory
-keeps as it was read, held through a run at a fifth of its size (a 5 000 000-line raster: 151 MB
-as a string, 31 MB packed) and written out without a whole copy of it in memory."""
+"""A long text held compressed (:class:`~cnc_twin.core.packed_text.PackedText`): a CAM program's
+text, which the run directory keeps as it was read, held through a run at a fifth of its size (a
+5 000 000-line raster: 151 MB as a string, 31 MB packed) and written out without a whole copy of it
+in memory."""
 
 from __future__ import annotations
 

@@ -127,10 +127,12 @@ def outdated(key: str, others: list[Path]) -> list[Path]:
 
 
 def socket_path(key: str) -> Path:
+    """The socket the server of ``key`` listens on."""
     return socket_folder() / f"{key}.sock"
 
 
 def send_message(sock: socket.socket, message) -> None:
+    """Send ``message`` on ``sock``, framed (pickled after its length)."""
     sock.sendall(framed(message))
 
 

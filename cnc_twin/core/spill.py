@@ -1,6 +1,7 @@
-"""Arrays a long run needs only at its end, kept on disk meanwhile (:class:`StoredArray`): a
-CAM program's programmed paths (what the run is measured against when it is over) would
-otherwise hold 24 bytes per line through the whole run (120 MB for 5 000 000 lines).
+"""Arrays a long run needs only at its end, kept on disk meanwhile
+(:class:`~cnc_twin.core.spill.StoredArray`): a CAM program's programmed paths (what the run is
+measured against when it is over) would otherwise hold 24 bytes per line through the whole run
+(120 MB for 5 000 000 lines).
 
 An array of :data:`SPILL_BYTES` or more is written to the process's spill file, an unlinked
 temporary file (nothing is left on disk whatever ends the process), and read back whole each
@@ -65,8 +66,8 @@ def _spill_file() -> _SpillFile:
 
 
 class StoredArray:
-    """An array kept in the spill file when large (else held); :meth:`array` gives it back (read
-    from the file each time, or the held array itself: not to be written into)."""
+    """An array kept in the spill file when large (else held); :meth:`~StoredArray.array` gives it
+    back (read from the file each time, or the held array itself: not to be written into)."""
 
     __slots__ = ("shape", "dtype", "_held", "_file", "_offset")
 
@@ -87,6 +88,7 @@ class StoredArray:
         return self._file is not None
 
     def array(self) -> np.ndarray:
+        """The array: read from the spill file (a new copy each time) or the held one itself."""
         if self._held is not None:
             return self._held
         assert self._file is not None
