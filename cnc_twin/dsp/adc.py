@@ -35,7 +35,7 @@ ADC = np.dtype([("range_min", np.float64), ("range_max", np.float64), ("lsb", np
 
 
 def setup_adc(adc, range_min: float, range_max: float, *, bits: int = 12) -> None:
-    """Fill ``adc`` (an :data:`ADC` record) for ``range_min .. range_max`` [N] at ``bits``."""
+    """Fill ``adc`` (an :data:`ADC` record) for ``range_min`` to ``range_max`` [N] at ``bits``."""
     if not range_min < range_max:
         raise ValueError(f"need range_min < range_max, got {range_min}, {range_max}")
     adc["range_min"], adc["range_max"] = range_min, range_max
@@ -45,7 +45,7 @@ def setup_adc(adc, range_min: float, range_max: float, *, bits: int = 12) -> Non
 
 
 def new_adc(range_min: float, range_max: float, *, bits: int = 12) -> np.void:
-    """An :data:`ADC` record mapped onto ``range_min .. range_max`` [N]."""
+    """An :data:`ADC` record mapped onto ``range_min`` to ``range_max`` [N]."""
     record = np.zeros(1, ADC)[0]
     setup_adc(record, range_min, range_max, bits=bits)
     return record

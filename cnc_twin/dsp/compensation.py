@@ -32,8 +32,9 @@ from cnc_twin.core.axis_config import COMP_MAX_POINTS as MAX_POINTS
 COMP = np.dtype([("points", np.int64), ("backlash", np.float64), ("step", np.float64),
                  ("direction", np.float64), ("correction", np.float64)])
 """One axis's compensation; its table is an array of its own (:data:`TABLE_ROWS` x
-:data:`MAX_POINTS`, see :func:`setup_comp`), kept out of the record so the compiled servo's
-records stay small (a 6 KB record per axis doubled numba's compile time):
+:data:`~cnc_twin.core.axis_config.COMP_MAX_POINTS`, see :func:`setup_comp`), kept out of the
+record so the compiled servo's records stay small (a 6 KB record per axis doubled numba's
+compile time):
 
 ==========  ======  ===========================================================
 field       unit    meaning
@@ -51,8 +52,9 @@ TABLE_ROWS = 3
 
 def setup_comp(c, table, *, nominal=(), forward=(), reverse=(), backlash: float = 0.0, step: float = np.inf) -> None:
     """Fill ``c`` (a :data:`COMP` record) and ``table`` (shape ``(TABLE_ROWS, MAX_POINTS)``) in
-    counts and clear the state. ValueError for a table longer than :data:`MAX_POINTS`, of unequal
-    columns, or whose nominal positions do not increase."""
+    counts and clear the state. ValueError for a table longer than
+    :data:`~cnc_twin.core.axis_config.COMP_MAX_POINTS`, of unequal columns, or whose nominal
+    positions do not increase."""
     nominal, forward, reverse = (np.asarray(v, dtype=np.float64) for v in (nominal, forward, reverse))
     if not len(nominal) == len(forward) == len(reverse):
         raise ValueError("the table's columns differ in length")

@@ -55,12 +55,12 @@ purge_stale(__file__, [span_eval.__file__])
 
 SECOND_STEP = 1e-3
 """a Newton correction larger than this fraction of the predicted step is followed by more
-Newton steps with a refined length (near a cusp of the parametrisation, where |C'| is small and
+Newton steps with a refined length (near a cusp of the parametrisation, where ``|C'|`` is small and
 changes fast, one step with one Simpson panel leaves a relative feed error of 1e-6 to 1e-5)"""
 MAX_NEWTON = 4
 """Newton steps after the first, at most"""
 ROUGH_SIMPSON = 2e-3
-"""|C'| bending over the step by more than this fraction of its midpoint value (``|s_0 + s_1 -
+"""``|C'|`` bending over the step by more than this fraction of its midpoint value (``|s_0 + s_1 -
 2 s_mid| / s_mid``) makes one Simpson panel too rough for the length, even when the Newton
 correction is small (a slow, tight bend of a degree-5 curve: relative feed error 1.4e-6): one
 Newton step more, with the refined length"""
@@ -91,7 +91,7 @@ def simpson_panels(ev, a, b, speed_a, speed_b, n, w):
 @njit(cache=True)
 def refined_length(ev, u, u1, speed_u, speed_u1, w):
     """``integral |C'|`` over [u, u1], split at a knot inside, each side by Simpson's rule on 1, 2,
-    4 ... panels until two results agree to 1e-12 (at most :data:`MAX_PANELS`): where |C'| is
+    4 ... panels until two results agree to 1e-12 (at most :data:`MAX_PANELS`): where ``|C'|`` is
     small and changes fast (a cusp of the parametrisation) one panel is off by 1e-5 of the length."""
     knot = next_break(ev, u)
     total = 0.0
@@ -242,21 +242,31 @@ class CurveStepper:
 
     Parameters
     ----------
-    evaluator : the curve's span evaluator, or a surface path's evaluator (its ``path``, ``dim``
-        and ``domain``).
-    u : start parameter.
-    correct : apply the Newton corrector (False = Taylor predictor only, for comparison).
-    compiled : run :func:`step` compiled (the default) or its Python source (``py_func``).
+    evaluator
+        the curve's span evaluator, or a surface path's evaluator (its ``path``, ``dim`` and
+        ``domain``).
+    u
+        start parameter.
+    correct
+        apply the Newton corrector (False = Taylor predictor only, for comparison).
+    compiled
+        run :func:`step` compiled (the default) or its Python source (``py_func``).
 
     Attributes
     ----------
-    path : the path's ``ev`` tuple (:mod:`cnc_twin.geometry.span_eval`).
-    state : the state vector (module docstring), shape ``(2 + 3 d + 6,)``; the batch kernel
-        steps it in place, then calls :meth:`sync`.
-    scratch : work space of :func:`scratch_size`.
-    u, point : the parameter and the point [m], shape ``(d,)`` as a list, after the last step.
-    u_end : the path's last parameter.
-    compiled : as given (the batch kernel steps only a compiled stepper's path).
+    path
+        the path's ``ev`` tuple (:mod:`cnc_twin.geometry.span_eval`).
+    state
+        the state vector (module docstring), shape ``(2 + 3 d + 6,)``; the batch kernel steps it
+        in place, then calls :meth:`sync`.
+    scratch
+        work space of :func:`scratch_size`.
+    u, point
+        the parameter and the point [m], shape ``(d,)`` as a list, after the last step.
+    u_end
+        the path's last parameter.
+    compiled
+        as given (the batch kernel steps only a compiled stepper's path).
     """
 
     def __init__(self, evaluator, u: float, *, correct: bool = True, compiled: bool = True):
@@ -275,7 +285,7 @@ class CurveStepper:
         self.sync()
 
     def sync(self) -> None:
-        """Read ``u`` and ``point`` from :attr:`state` (after the batch kernel stepped it)."""
+        """Read ``u`` and ``point`` from ``state`` (after the batch kernel stepped it)."""
         self.u = float(self.state[U])
         self.point = self.state[self._point].tolist()
 

@@ -25,33 +25,33 @@ The loop's state is a :data:`FORCE` record (its interface; :func:`force_update` 
 algorithm, compiled with numba and called by :class:`ForceController` from Python and by the
 period batch, :mod:`cnc_twin.run.period_kernel`, on the same record):
 
-=================  ======  ==============================================  ========================
-field              unit    meaning                                         written by
-=================  ======  ==============================================  ========================
-kp                 m/N     proportional gain                               ``start``
-ki                 m/(N s) integral gain                                   ``start``
-lo                 m       -standoff: the depth's lower clamp              ``start``
-hi                 m       max_depth: its upper clamp                      ``start``
-adapt_threshold    -       feed adaptation's relative force error          ``start``
-adapt_feed         -       the feed factor while adapting                  ``start``
-adapt_hold         s       calm time before the feed returns               ``start``
-setpoint           N       the force without a profile                     ``start``
-period             s       the interpolation period                        set up
-seek_speed         m/s     the seek's approach speed                       ``start``
-retract_speed      m/s     the retract's speed                             ``start``
-ramp_time          s       the ramps' duration (0: a step)                 ``start``
-contact_threshold  N       the force that ends the seek                    ``start``
-integral           m       the PI's integral                               :func:`force_update`
-depth              m       the push along the tool axis (output)           :func:`force_update`
-target             N       the force setpoint in effect                    :func:`force_update`
-feed_factor        -       the feed adaptation's factor                    :func:`force_update`
-calm               s       time the error has stayed small                 :func:`force_update`
-t                  s       time in the state                               :func:`force_update`
-state              -       :class:`ForceState`                             :func:`force_update`
-ramp_from          N       the ramp's start force                          :func:`force_update`
-contact_time       s       when the seek touched (NaN: not yet)            :func:`force_update`
-frozen             0 / 1   depth held (the supervisor's retract)           the period task
-=================  ======  ==============================================  ========================
+=================  =======  ==============================================  ========================
+field              unit     meaning                                         written by
+=================  =======  ==============================================  ========================
+kp                 m/N      proportional gain                               ``start``
+ki                 m/(N s)  integral gain                                   ``start``
+lo                 m        -standoff: the depth's lower clamp              ``start``
+hi                 m        max_depth: its upper clamp                      ``start``
+adapt_threshold    -        feed adaptation's relative force error          ``start``
+adapt_feed         -        the feed factor while adapting                  ``start``
+adapt_hold         s        calm time before the feed returns               ``start``
+setpoint           N        the force without a profile                     ``start``
+period             s        the interpolation period                        set up
+seek_speed         m/s      the seek's approach speed                       ``start``
+retract_speed      m/s      the retract's speed                             ``start``
+ramp_time          s        the ramps' duration (0: a step)                 ``start``
+contact_threshold  N        the force that ends the seek                    ``start``
+integral           m        the PI's integral                               :func:`force_update`
+depth              m        the push along the tool axis (output)           :func:`force_update`
+target             N        the force setpoint in effect                    :func:`force_update`
+feed_factor        -        the feed adaptation's factor                    :func:`force_update`
+calm               s        time the error has stayed small                 :func:`force_update`
+t                  s        time in the state                               :func:`force_update`
+state              -        :class:`ForceState`                             :func:`force_update`
+ramp_from          N        the ramp's start force                          :func:`force_update`
+contact_time       s        when the seek touched (NaN: not yet)            :func:`force_update`
+frozen             0 / 1    depth held (the supervisor's retract)           the period task
+=================  =======  ==============================================  ========================
 
 The force profile (path lengths [m] and forces [N], empty for a constant setpoint) is two arrays
 beside the record (:attr:`ForceController.profile_s`, :attr:`ForceController.profile_f`).
@@ -74,6 +74,9 @@ purge_stale(__file__, [span_eval.__file__])
 
 
 class ForceState:
+    """The force loop's states, the record's ``state``: 0 to 5 from ``OFF`` to ``RETRACT`` (the
+    module docstring's order); ``NAMES`` their names."""
+
     OFF, SEEK, RAMP, TRACK, RAMP_DOWN, RETRACT = range(6)
     NAMES = ("OFF", "SEEK", "RAMP", "TRACK", "RAMP_DOWN", "RETRACT")
 
@@ -179,7 +182,7 @@ def force_update(force, xs, fs, measured, path_s):
 
 
 class ForceController:
-    """Per-period force loop of the card: :func:`force_update` on its :attr:`record`.
+    """Per-period force loop of the card: :func:`force_update` on its :attr:`~ForceController.record`.
 
     Parameters
     ----------

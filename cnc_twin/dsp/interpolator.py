@@ -68,12 +68,12 @@ class SegmentInterpolator(RecordIntake):
 
     Parameters
     ----------
-    axes : the six axes (limits and encoder resolution).
-    power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
-    period : interpolation period [s].
-    ticks_per_period : servo ticks per period (a step interpolator gives a point for each).
-    compiled : step curves with the compiled stepper (:mod:`cnc_twin.dsp.curve_stepper`, the
-        default) or its Python source; the setpoints are the same bit for bit.
+    - axes : the six axes (limits and encoder resolution).
+    - power_on : per axis position where the encoders were cleared [m | rad], shape ``(6,)``.
+    - period : interpolation period [s].
+    - ticks_per_period : servo ticks per period (a step interpolator gives a point for each).
+    - compiled : step curves with the compiled stepper (:mod:`cnc_twin.dsp.curve_stepper`, the
+      default) or its Python source; the setpoints are the same bit for bit.
     """
 
     def __init__(self, *, axes: Sequence[AxisConfig], power_on: Sequence[float], period: float,
@@ -87,7 +87,7 @@ class SegmentInterpolator(RecordIntake):
         self.mark = 0
         """the last Mark record's number (0 before any)"""
         self.inputs = [0] * len(axes)
-        """switch inputs per axis, set by the period task (:data:`cnc_twin.machine.plant.SWITCH_HOME` ...)"""
+        """switch inputs per axis, set by the period task (:data:`~cnc_twin.core.axes.SWITCH_HOME` ...)"""
         self.actual = [0] * len(axes)
         """encoder counts per axis at the last tick, set by the period task"""
         self.events: list[tuple[int, int, int]] = []

@@ -76,13 +76,19 @@ def setup_pid(pid, *, kp: float, ki: float = 0.0, kd: float = 0.0, kvff: float =
 
     Parameters
     ----------
-    kp, ki, kd, kvff, kaff : gains in machine terms (1/s, 1/s^2, -, -, s).
-    friction_ff : friction feed-forward [V]; friction_ff_band : commanded speed [m/s | rad/s] over
-        which it ramps in, so that it does not chatter at rest.
-    speed_per_volt : drive scaling [m/s/V | rad/s/V].
-    counts_per_unit : encoder resolution [counts/m | counts/rad].
-    dt : servo period [s].
-    output_limit : [V]. integrator_limit : [V].
+    kp, ki, kd, kvff, kaff
+        gains in machine terms (1/s, 1/s^2, -, -, s).
+    friction_ff, friction_ff_band
+        friction feed-forward [V]; the commanded speed [m/s | rad/s] over which it ramps in, so
+        that it does not chatter at rest.
+    speed_per_volt
+        drive scaling [m/s/V | rad/s/V].
+    counts_per_unit
+        encoder resolution [counts/m | counts/rad].
+    dt
+        servo period [s].
+    output_limit, integrator_limit
+        [V].
     """
     if not (speed_per_volt > 0 and counts_per_unit > 0 and dt > 0):
         raise ValueError("speed_per_volt, counts_per_unit and dt must be > 0")

@@ -1,5 +1,5 @@
 """The card accepting records: what each record type becomes when the card decodes it, ahead of
-running it (:class:`RecordIntake`, the accepting half of
+running it (:class:`~cnc_twin.dsp.record_intake.RecordIntake`, the accepting half of
 :class:`~cnc_twin.dsp.interpolator.SegmentInterpolator`).
 
 A move becomes a :class:`~cnc_twin.motion.segments.MoveSegment` from the programmed position (a
@@ -29,8 +29,8 @@ from cnc_twin.whiteboard.records import (
 
 
 class RecordIntake:
-    """Queues accepted records (:meth:`push`). Works on the interpolator's own state: ``queue``,
-    ``programmed``, ``queued_path``, ``path_open`` and the queued periods."""
+    """Queues accepted records (:meth:`~RecordIntake.push`). Works on the interpolator's own state:
+    ``queue``, ``programmed``, ``queued_path``, ``path_open`` and the queued periods."""
 
     def push(self, seq: int, record: Record) -> None:
         """Queue an accepted record; moves start from the programmed position."""

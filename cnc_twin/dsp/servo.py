@@ -65,15 +65,15 @@ AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64
 =============  ==============  ===========================================  =========================
 field          unit            meaning                                      written by
 =============  ==============  ===========================================  =========================
-qep            :data:`QEP`     the encoder channel                          :func:`qep_sample`
-pid            :data:`PID`     the position loop                            :func:`pid_update`
-dac            :data:`DAC`     the analog output                            :func:`dac_write`
+qep            :data:`.QEP`    the encoder channel                          :func:`.qep_sample`
+pid            :data:`.PID`    the position loop                            :func:`.pid_update`
+dac            :data:`.DAC`    the analog output                            :func:`.dac_write`
 p_prev         counts          the setpoint at the period's start           :func:`latch_setpoint`
 p_next         counts          the setpoint at the period's end             :func:`latch_setpoint`
 velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
 encoder_fault  counts          added to the reading by injected faults      the fault injector
-comp           :data:`COMP`    backlash and the pitch-error table's state   :func:`comp_correction`
+comp           :data:`.COMP`   backlash and the pitch-error table's state   :func:`.comp_correction`
 =============  ==============  ===========================================  =========================
 """
 
@@ -119,9 +119,9 @@ def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, posi
     tables ``comp_tables``, shape ``(n, TABLE_ROWS, MAX_POINTS)``): the fine
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
     with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
-    correction added to the command (:func:`comp_correction`), PID+FF, DAC. Writes the command
-    [counts] (without the correction), the reading [counts], the DAC code and the output voltage
-    [V] per axis into the ``*_out`` arrays (shape ``(n,)`` each)."""
+    correction added to the command (:func:`~cnc_twin.dsp.compensation.comp_correction`),
+    PID+FF, DAC. Writes the command [counts] (without the correction), the reading [counts], the
+    DAC code and the output voltage [V] per axis into the ``*_out`` arrays (shape ``(n,)`` each)."""
     for i in range(axes.shape[0]):
         a = axes[i]
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
@@ -175,11 +175,16 @@ class ServoTask:
 
     Parameters
     ----------
-    axes : the six axes in order (SI configuration).
-    timing : the scenario's rates.
-    power_on : axis positions when the card powered up [m | rad]; encoders count from here.
-    force_sensor : load-cell ADC configuration.
-    output : ``analog`` (PID + DAC per axis, :meth:`tick`) or ``pulse`` (step generators,
+    axes
+        the six axes in order (SI configuration).
+    timing
+        the scenario's rates.
+    power_on
+        axis positions when the card powered up [m | rad]; encoders count from here.
+    force_sensor
+        load-cell ADC configuration.
+    output
+        ``analog`` (PID + DAC per axis, :meth:`tick`) or ``pulse`` (step generators,
         :meth:`tick_pulses`; the ``dac`` slots of ``frame`` then hold the pulses of the tick).
     """
 
@@ -197,6 +202,7 @@ class ServoTask:
         self.inv_period = 1.0 / timing.interpolation_period
         """1 / the interpolation period [1/s]"""
         self.axes = np.zeros(n, AXIS)
+        """the servo channels, one :data:`AXIS` record per axis, shape ``(n,)``"""
         self.comp_tables = np.zeros((n, TABLE_ROWS, MAX_POINTS))
         """each axis's pitch-error table [counts] (:func:`~cnc_twin.dsp.compensation.setup_comp`)"""
         for i, (cfg, p0) in enumerate(zip(axes, power_on)):
@@ -214,6 +220,7 @@ class ServoTask:
                            forward=np.asarray(comp.forward) * cpu, reverse=np.asarray(comp.reverse) * cpu,
                            backlash=comp.backlash * cpu, step=comp.slew * cpu * timing.servo_period)
         self.load_cell = np.zeros(1, LOAD_CELL)
+        """the load cell's :data:`LOAD_CELL` record, shape ``(1,)``"""
         setup_adc(self.load_cell[0]["adc"], force_sensor.range_min, force_sensor.range_max, bits=force_sensor.bits)
         self.fractions = np.array([(j + 1) / self.ticks_per_period for j in range(self.ticks_per_period)])
         """the fine interpolation's fraction of the period at each tick, shape ``(ticks_per_period,)``"""
@@ -221,11 +228,14 @@ class ServoTask:
         """a step interpolator's command per tick [counts], shape ``(ticks_per_period, n)``, used
         while :attr:`use_tick_commands`"""
         self.use_tick_commands = False
+        """this period's ticks take :attr:`tick_commands` instead of the fine interpolation"""
         self.fault_hook: Callable[[], None] | None = None
         """called before every servo tick's encoder reading while an injected fault changes the
         readings per tick (encoder noise): it writes ``axes["encoder_fault"]``"""
         # command floats, actual and DAC codes ints (as the encoders and DACs produce them)
         self.frame = [0.0] * n + [0] * (2 * n) + [0.0] * (1 + len(PERIOD_FIELDS))
+        """the recorder's frame, filled by every tick: command, actual and DAC code per axis,
+        the force, then the per-period fields (:data:`~cnc_twin.dsp.frame.PERIOD_FIELDS`)"""
         self.period_slot = len(FRAME_FIELDS) * n + 1
         """index in ``frame`` of the first per-period field"""
         self._command, self._volts = np.zeros(n), np.zeros(n)
@@ -260,9 +270,11 @@ class ServoTask:
 
         Parameters
         ----------
-        positions : the encoders' positions [m | rad], shape ``(6,)`` (an array:
+        positions
+            the encoders' positions [m | rad], shape ``(6,)`` (an array:
             :meth:`~cnc_twin.machine.plant.Plant.encoder_positions`).
-        pad_force : load-cell force [N].
+        pad_force
+            load-cell force [N].
 
         Returns
         -------

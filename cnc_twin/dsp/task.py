@@ -19,6 +19,9 @@ Once per interpolation period, before the servo ticks::
 
 The FIFO is the card's command buffer: records stay there until the card needs them, so its
 fill and free space are real and throttle the planner.
+
+::
+
     state: IDLE -> RUNNING <-> FEED_HOLD (starved) -> FINISHED; any -> STOPPING -> FAULT
 
 A lost planner (process exited or heartbeat stopped) makes a controlled stop: the interpolator
@@ -198,7 +201,7 @@ class DspTask:
 
     def write_period_fields(self, event_bits: int) -> None:
         """The period's signals into the servo's ``frame`` after the force, in the order of
-        :data:`~cnc_twin.dsp.servo.PERIOD_FIELDS` (the recorder's period record reads them)."""
+        :data:`~cnc_twin.dsp.frame.PERIOD_FIELDS` (the recorder's period record reads them)."""
         interp, port = self.interpolator, self.port
         force = interp.force
         base = self.servo.period_slot
