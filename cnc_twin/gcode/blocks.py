@@ -1,4 +1,5 @@
-"""One line of an RS274/NGC program read into a :class:`Block`, as LinuxCNC reads it.
+"""One line of an RS274/NGC program read into a :class:`~cnc_twin.gcode.blocks.Block`, as LinuxCNC
+reads it.
 
 Outside comments, spaces and tabs are dropped and letters are lower case (``G1 X 1 0`` is
 ``g1x10``). ``( ... )`` is a comment anywhere in the line (no nesting), ``;`` comments out the rest

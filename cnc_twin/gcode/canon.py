@@ -71,7 +71,7 @@ _FORMATS = {
 class Call:
     """One canonical call (a value: compared field by field, never changed once made).
 
-    ``name``: rs274's name; ``values``: the arguments (see :data:`_FORMATS` for each name's
+    ``name``: rs274's name; ``values``: the arguments (see ``_FORMATS`` for each name's
     form); ``line``: the program line (1-based) that made it, 0 for the interpreter's own
     start-up calls; ``number``: the block's N word as written (``"0030"``), or None;
     ``payload``: what the twin needs beyond the printed text (an arc's or a curve's geometry).

@@ -66,7 +66,10 @@ def refuse_unsupported(block: Block, g: dict[int, int], m: dict[int, int]) -> No
 def check_words(block: Block, g: dict[int, int], m: dict[int, int], motion: int | None, state: State) -> None:
     """LinuxCNC's checks of a block read whole, in its order: the axis words (its
     enhance_block), the group 0 codes (check_g_codes), then the other words
-    (check_other_codes). ``motion`` is the motion the block will make, or None."""
+    (check_other_codes). ``motion`` is the motion the block will make, or None.
+
+    :type block: ~cnc_twin.gcode.blocks.Block
+    """
     _check_axis_words(block, g, state)
     _check_g_codes(block, g, motion, state)
     _check_other_words(block, g, m, motion)

@@ -20,7 +20,7 @@ refuses it, if it must, in its own words). Why the full path does the same with 
   line; no ``#``, so no parameter setting; no ``/``; letters and plain numbers only, so the
   reader's quick path reads each value as ``float`` of its text, as here (and refuses a negative
   F or S: not taken here); the N word's text is :func:`~cnc_twin.gcode.blocks.n_text`'s; a line
-  LinuxCNC finds too long (:attr:`~cnc_twin.gcode.source.Source.too_long`) is never taken;
+  LinuxCNC finds too long (``too_long`` of :class:`~cnc_twin.gcode.source.Source`) is never taken;
 - modal groups (:func:`~cnc_twin.gcode.modal.modal_codes`): one G code of group 1 and no M code
   cannot repeat a group nor meet an axis-owning group 0 code;
 - :func:`~cnc_twin.gcode.checks.refuse_unsupported`: G0 .. G3 are the machine's; no U V W E;
@@ -30,7 +30,7 @@ refuses it, if it must, in its own words). Why the full path does the same with 
   them after G80 and checks a canned cycle's words whole); with no D $ H L P Q word, and A B C
   refused only in a cycle, only I J K R remain, refused without an arc: taken only with G2 / G3
   (the line's, or the mode's for a line with axis words); a comment is no word;
-- the block's steps (:meth:`~cnc_twin.gcode.interpreter.Interpreter._execute`): with no M or T
+- the block's steps (``Interpreter._execute``): with no M or T
   word and no G code but the motion, only the comment
   (:meth:`~cnc_twin.gcode.interpreter.Interpreter.comment`), F, S and the motion run, in that
   order. F sets the feed in units per minute (G94); in inverse time (G93) F sets no feed and each
@@ -42,7 +42,7 @@ refuses it, if it must, in its own words). Why the full path does the same with 
   own arc step (:meth:`~cnc_twin.gcode.motion.MotionRunner.arc`), after F and S as in the full
   path, its checks and refusals included;
 - a motion call forgets the tool length offset changes since the last one (``tool_shift``), as
-  :meth:`~cnc_twin.gcode.interpreter.Interpreter.emit` does.
+  ``Interpreter.emit`` does.
 """
 
 from __future__ import annotations

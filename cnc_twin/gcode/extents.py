@@ -43,6 +43,6 @@ def extents(ops: Iterable[Operation]) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def describe(box: tuple[np.ndarray, np.ndarray]) -> str:
-    """``X -12.5 .. 80 Y 0 .. 40 Z -2 .. 5 mm``."""
+    """The box as a line of text. For example ``X -12.5 .. 80 Y 0 .. 40 Z -2 .. 5 mm``."""
     low, high = box
     return " ".join(f"{name} {lo:.4g} .. {hi:.4g}" for name, lo, hi in zip("XYZ", low, high)) + " mm"

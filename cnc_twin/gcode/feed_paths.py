@@ -1,7 +1,7 @@
 """Consecutive feed elements -> feed paths (:class:`~cnc_twin.gcode.path_ops.FeedPath`): a new
 path where the feed, the held axes or the control mode change, and at corners that are not
 blended; under G64 P runs of gently turning lines fitted as curves
-(:mod:`~cnc_twin.gcode.line_fit`); corners between lines blended (:func:`_blend_corners`).
+(:mod:`~cnc_twin.gcode.line_fit`); corners between lines blended (``_blend_corners``).
 
 A program's G1 lines come as :class:`~cnc_twin.gcode.path_ops.LineChain` (their points in one
 array): their turns are found for the whole chain at once, and a line becomes an
@@ -74,7 +74,7 @@ def gathered_feed_paths(path: list[tuple[Element | OpenChain, tuple]], default_b
 def feed_paths(path: list[tuple[Element | LineChain, tuple]], default_blend: float) -> list[FeedPath]:
     """Consecutive feed elements and chains of lines, each with its modes ``(feed, held A B C,
     control)``, as feed paths: a new path where the modes change, and at corners that are not
-    blended (:func:`_joins`)."""
+    blended (``_joins``)."""
     out: list[FeedPath] = []
     run: list[Element | LineChain] = []
     modes = None
@@ -103,7 +103,7 @@ def _end_of(item: Element | LineChain) -> Element:
 
 
 def _joined_pieces(chain: LineChain, control: tuple) -> list[LineChain]:
-    """``chain`` cut where two of its lines do not join (:func:`_joins`: more than
+    """``chain`` cut where two of its lines do not join (``_joins``: more than
     :data:`BLEND_MAX_ANGLE`, or any corner outside G64)."""
     turns = chain.turns
     blends = control[0] == "CANON_CONTINUOUS"

@@ -95,10 +95,10 @@ class Flow:
 
     def release(self) -> None:
         """Let go of the programs' lines once the reading is over (the main program's and the
-        subroutine files'; :meth:`SubroutineFiles.texts` read first if wanted): the interpreter's
-        parts refer to each other, and such a cycle is freed only when Python's collector comes
-        round to it, late in a run of hours, with the text it holds (150 MB for 5 000 000
-        lines)."""
+        subroutine files'; :meth:`~cnc_twin.gcode.subfiles.SubroutineFiles.texts` read first if
+        wanted): the interpreter's parts refer to each other, and such a cycle is freed only when
+        Python's collector comes round to it, late in a run of hours, with the text it holds (150 MB
+        for 5 000 000 lines)."""
         self.source = self.main = None
         self.frames.clear()
         self.loops.clear()

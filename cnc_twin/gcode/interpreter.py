@@ -10,11 +10,11 @@ force-control M codes, dwell, plane, units, cutter radius compensation off, tool
 work system, path control, distance modes, retract mode, G10 / G28 / G30 / G92, motion, stops.
 O-word lines go to :mod:`~cnc_twin.gcode.flow`.
 
-What the twin's machine does not have is refused in one line naming it (cutter radius
-compensation, threading, lathe modes...), never read differently: the reader either makes the
-calls LinuxCNC makes or says why it will not. A refused or wrong program raises :class:`ProgramError`
-with the line and LinuxCNC's wording; nothing of it reaches the machine, because the whole program
-is read before any motion (its calls handed out in batches as made: :meth:`Interpreter.stream`).
+What the twin's machine does not have is refused in one line naming it (cutter radius compensation,
+threading, lathe modes...), never read differently: the reader either makes the calls LinuxCNC makes or
+says why it will not. A refused or wrong program raises :class:`~cnc_twin.gcode.outcome.ProgramError`
+with the line and LinuxCNC's wording; nothing of it reaches the machine, because the whole program is
+read before any motion (its calls handed out in batches as made: :meth:`Interpreter.stream`).
 """
 
 from __future__ import annotations
@@ -96,10 +96,10 @@ class Interpreter:
         return Reading(self.calls, self.printed, self.flow.files.texts())
 
     def stream(self, batch: int | None):
-        """Run the program, handing out its calls as it goes: each time ``batch`` calls or more
-        are made, at a line's end, they are yielded (a list) and no longer kept; the rest, at its
-        end, as the last list (``batch`` None: all of them, also left in :attr:`calls`). A refused
-        program raises :class:`ProgramError` with the calls made since the last batch."""
+        """Run the program, handing out its calls as it goes: each time ``batch`` calls or more are
+        made, at a line's end, they are yielded (a list) and no longer kept; the rest, at its end, as
+        the last list (``batch`` None: all of them, also left in ``calls``). A refused program raises
+        :class:`~cnc_twin.gcode.outcome.ProgramError` with the calls made since the last batch."""
         if self.source.too_long[:1] == [0]:  # LinuxCNC reads the first line on opening, before its reset
             self._preamble(opening=True)
             raise ProgramError(1, "Command too long", self.calls, self.printed)
@@ -495,7 +495,7 @@ class Interpreter:
 def read_program(source: Source, tools: ToolTable, *, start: Sequence[float] | None = None,
                  parameters: Mapping[int, float] | None = None, probe: Probe | None = None,
                  subroutine_path: Sequence[Path] = (), max_calls: int = MAX_CALLS) -> Reading:
-    """Run ``source`` with ``tools``; :class:`ProgramError` if it is refused.
+    """Run ``source`` with ``tools``; :class:`~cnc_twin.gcode.outcome.ProgramError` if it is refused.
 
     ``parameters``: numbered parameters as LinuxCNC's parameter file (``.var``) holds them at the
     start, in machine units (the work offsets #5221.., the active system #5220, G92's #5210..);

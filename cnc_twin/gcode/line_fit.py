@@ -151,9 +151,9 @@ def _cut_point(points: np.ndarray) -> int:
 
 
 def split_tool_axis_path(path: ToolAxisPath) -> list[ToolAxisPath]:
-    """``path`` cut at a programmed point (:func:`_cut_point`) into two, each fitted again (a card
+    """``path`` cut at a programmed point (``_cut_point``) into two, each fitted again (a card
     whose memory cannot hold the whole curve runs them one after the other, rest to rest); a half
-    the fit cannot follow any more raises :class:`FitError`."""
+    the fit cannot follow any more raises :class:`~cnc_twin.geometry.fit.FitError`."""
     middle = _cut_point(path.program_points)
     if min(middle, len(path.program_points) - 1 - middle) < MIN_SEGMENTS:
         raise FitError("too short to cut")

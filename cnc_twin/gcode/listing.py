@@ -24,7 +24,8 @@ MOVES = ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "NURBS_FEED", "DWELL"
 
 class LineWriter:
     """Lines to a text stream, written a few thousand at a time (:func:`list_program`'s ``out``):
-    the same text as ``print("\\n".join(lines))`` of them all, once :meth:`finish` has the rest."""
+    the same text as ``print("\\n".join(lines))`` of them all, once :meth:`~LineWriter.finish` has
+    the rest."""
 
     def __init__(self, stream, every: int = 4096):
         self.stream, self.every, self.pending, self.wrote = stream, every, [], False

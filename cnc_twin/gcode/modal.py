@@ -226,8 +226,9 @@ def m_code(value: float) -> int:
 def read_codes(block: Block) -> tuple[dict[int, int], dict[int, int]]:
     """``(g, m)``: group -> code of the block's G codes (tenths) and M codes, each checked in
     the order written, as LinuxCNC checks them while it reads the line (``M40 G999`` is refused
-    for M40). A block read only up to a refusal (:attr:`BlockError.block`) holds the codes read
-    before it, which LinuxCNC has checked by then."""
+    for M40). A block read only up to a refusal (``block`` of
+    :class:`~cnc_twin.gcode.blocks.BlockError`) holds the codes read before it, which LinuxCNC has
+    checked by then."""
     order = block.codes
     if len(order) != len(block.g) + len(block.m):  # a block made otherwise than read
         order = "g" * len(block.g) + "m" * len(block.m)

@@ -121,12 +121,12 @@ def _check_feed(feed_rate: float | None) -> None:
 
 
 class G52Collector:
-    """LinuxCNC's G5.2 curve, block by block; :meth:`finish` at G5.3.
+    """LinuxCNC's G5.2 curve, block by block; :meth:`~G52Collector.finish` at G5.3.
 
     ``start``: the current point before the first block; ``plane``: 170 / 180 / 190 (kept, not
     used: LinuxCNC 2.9's curve is in XY whatever the plane); ``words``: the block's letters
     (lower case) -> values; ``point``: its resolved end point, of which x and y are used;
-    ``feed_rate``: see :func:`_check_feed`. The interpreter calls :meth:`add` for each later
+    ``feed_rate``: see ``_check_feed``. The interpreter calls :meth:`add` for each later
     block, in G5.2 mode, that holds an axis word or G5.2 itself.
     """
 
@@ -181,7 +181,8 @@ class G52Collector:
 
 
 class G62Collector:
-    """A Fanuc-style G6.2 curve, block by block; :meth:`finish` once :attr:`complete`.
+    """A Fanuc-style G6.2 curve, block by block; :meth:`~G62Collector.finish` once
+    :attr:`~G62Collector.complete`.
 
     Same arguments as :class:`G52Collector`; ``point`` is used whole (x, y, z). The interpreter
     calls :meth:`add` for each later block until :attr:`complete` (control point blocks hold an

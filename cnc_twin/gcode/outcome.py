@@ -1,6 +1,7 @@
-"""What reading a program gives: its calls (:class:`Reading`), or its refusal
-(:class:`ProgramError`), as :func:`~cnc_twin.gcode.interpreter.read_program` returns or raises
-them (and the interpreter module names them too)."""
+"""What reading a program gives: its calls (:class:`~cnc_twin.gcode.outcome.Reading`), or its
+refusal (:class:`~cnc_twin.gcode.outcome.ProgramError`), as
+:func:`~cnc_twin.gcode.interpreter.read_program` returns or raises them (and the interpreter module
+names them too)."""
 
 from __future__ import annotations
 

@@ -93,7 +93,8 @@ class Element:
 
     @property
     def length(self) -> float:
-        """[mm] along the element (a line's exactly; others by :func:`piece_length`'s chords)."""
+        """[mm] along the element (a line's exactly; others by
+        :func:`~cnc_twin.geometry.bezier.piece_length`'s chords)."""
         if self.kind == "line":  # most of a CAM program: no need to sample a straight piece
             return float(np.linalg.norm(self.end - self.start))
         return sum(piece_length(p) for p in self.pieces)
@@ -125,6 +126,9 @@ class LineChain:
 
 @dataclass
 class Traverse:
+    """A coordinated move of all six axes to ``end`` (G0 rapid: ``feed`` None; a G1 that turns A, B
+    or C; G28 / G30 / G53), from program line ``line``."""
+
     end: tuple[float, ...]
     """X, Y, Z [mm] (tip, workpiece frame), A, B, C [deg]"""
     feed: float | None
@@ -136,6 +140,9 @@ class Traverse:
 
 @dataclass
 class FeedPath:
+    """Consecutive feed moves with A, B, C held (``hold``), each element an exact rational Bezier
+    chain (see the module docstring)."""
+
     elements: list[Element]
     feed: float
     """[mm/min]"""
@@ -248,8 +255,8 @@ radius's chord then strays 0.016 um from it)"""
 
 def programmed_geometry(elements: list[Element | LineChain]) -> tuple[np.ndarray, np.ndarray]:
     """The programmed path as a polyline ((k, 3) mm: lines by their ends, arcs and curves sampled
-    every :data:`REFERENCE_STEP`) and its vertices ((m, 3) mm: each element's ends); a path of
-    lines alone gives the same array for both."""
+    every :data:`~cnc_twin.gcode.path_ops.REFERENCE_STEP`) and its vertices ((m, 3) mm: each
+    element's ends); a path of lines alone gives the same array for both."""
     points, vertices = [elements[0].start[None]], [elements[0].start[None]]
     for e in elements:
         if isinstance(e, LineChain):

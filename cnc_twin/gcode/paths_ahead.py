@@ -1,6 +1,6 @@
-"""Feed paths prepared ahead (:class:`PathsAhead`): while the reader reads on, a helper process
-fits and blends the feed paths it has closed, and the operations are handed out in program order
-as they are ready.
+"""Feed paths prepared ahead (:class:`~cnc_twin.gcode.paths_ahead.PathsAhead`): while the reader
+reads on, a helper process fits and blends the feed paths it has closed, and the operations are
+handed out in program order as they are ready.
 
 A long CAM program's load is half reading (Python) and half fitting its runs of lines
 (:mod:`cnc_twin.gcode.line_fit`); on two cores the two overlap when the fits run in a process of
@@ -35,7 +35,7 @@ from cnc_twin.core.helpers import module_command
 from cnc_twin.core.messages import framed, read_message, read_payload
 
 LOOKAHEAD = 8
-"""requests (each up to a feed path's :data:`~cnc_twin.gcode.toolpath.PATH_ELEMENTS` lines) sent
+"""requests (each up to a feed path's ``PATH_ELEMENTS`` lines, :mod:`~cnc_twin.gcode.toolpath`) sent
 to the helper that may wait to be handed out: enough to keep reading while the helper starts"""
 HELPER_LINES = 150_000
 """program lines from which a load prepares its paths in the helper"""
@@ -61,14 +61,16 @@ class _Waiting:
 
 
 class PathsAhead:
-    """Operations in program order: :meth:`add` one made now, :meth:`prepare` those a job makes
-    (a list, in order), in the helper when there is one; :meth:`ready` hands out those at the
-    front that are made, :meth:`drain` all; :meth:`close` ends the helper.
+    """Operations in program order: :meth:`~PathsAhead.add` one made now, :meth:`~PathsAhead.prepare`
+    those a job makes (a list, in order), in the helper when there is one; :meth:`~PathsAhead.ready`
+    hands out those at the front that are made, :meth:`~PathsAhead.drain` all;
+    :meth:`~PathsAhead.close` ends the helper.
 
     ``helper``: prepare in a helper process (else each job at once, here)."""
 
     def __init__(self, helper: bool, lookahead: int = LOOKAHEAD):
         self.lookahead = lookahead
+        """requests that may wait before :meth:`ready` waits for the first of them"""
         self.queue: deque = deque()  # operations, and _Waiting requests in the order sent
         self.waiting = 0  # requests in the queue
         self.failed = False
@@ -83,10 +85,13 @@ class PathsAhead:
         then, asking again hands out nothing: the reader asks only when this is set)"""
 
     def add(self, operation) -> None:
+        """Queue ``operation``, made now."""
         self.queue.append(operation)
         self.fresh = True
 
     def prepare(self, job: str, *args) -> None:
+        """Queue the operations the job ``job`` makes of ``args``: sent to the helper when there
+        is one, else made here, now."""
         self.fresh = True
         if self._helper is not None and self._helper.send(job, args):
             self.queue.append(_Waiting(job, args))

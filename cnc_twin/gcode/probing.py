@@ -94,7 +94,10 @@ def standalone_probe(move: ProbeMove) -> ProbeResult:
 
 def straight_probe(runner: MotionRunner, code: int, block: Block) -> None:
     """The motion step of a G38.2 .. G38.5 block (``code`` in tenths): LinuxCNC's checks in its
-    order, its calls, then the result read back as it reads it before the next line."""
+    order, its calls, then the result read back as it reads it before the next line.
+
+    :type block: ~cnc_twin.gcode.blocks.Block
+    """
     interpreter, s = runner.interpreter, runner.state
     kind = PROBE_CODES[code]
     # cutter radius compensation and feed per revolution are refused before any block runs

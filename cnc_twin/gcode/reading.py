@@ -7,8 +7,9 @@ line's text:
   follows it on the line (``M40 G999`` for M40, ``M40 X1 X2`` for M40 too): a line refused while
   read has the codes read before the refusal checked first (:func:`~cnc_twin.gcode.modal.read_codes`);
 - a bad character is named by its byte in the file: one that is not UTF-8 is U+FFFD in the
-  program's text, so the line is read again as the file holds it (:attr:`Source.escaped`) for
-  LinuxCNC's message (``Bad character '\\351' used`` for a Latin-1 ``é``);
+  program's text, so the line is read again as the file holds it
+  (:attr:`~cnc_twin.gcode.source.Source.escaped`) for LinuxCNC's message (``Bad character '\\351'
+  used`` for a Latin-1 ``é``);
 - a line that starts with M98 or M99 (after ``/`` and an N word) is a Fanuc-style subprogram
   call or return to LinuxCNC: M98 is refused as not supported, an M99 in a subroutine called by
   ``o... call`` with LinuxCNC's message (elsewhere M99 ends the program as M2 does).

@@ -32,7 +32,10 @@ OFFSET_WORDS = "xyzabcrqij"
 
 
 def edit_tool_table(interpreter: Interpreter, block: Block) -> None:
-    """The G10 step of a G10 L0 / L1 / L10 / L11 block (its L and P checked with the block)."""
+    """The G10 step of a G10 L0 / L1 / L10 / L11 block (its L and P checked with the block).
+
+    :type block: ~cnc_twin.gcode.blocks.Block
+    """
     if round(block.words["l"]) == 0:
         _reload(interpreter)
     else:

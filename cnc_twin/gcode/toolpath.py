@@ -15,7 +15,7 @@ pauses, spindle and force changes, probing moves. The feed paths are shaped in
 
 :func:`iter_operations` makes them as the calls come, so a program of any length is held a feed
 path at a time: a run of G1 lines is gathered as one array (a
-:class:`~cnc_twin.gcode.path_ops.LineChain`), and a chain of more than :data:`PATH_ELEMENTS`
+:class:`~cnc_twin.gcode.path_ops.LineChain`), and a chain of more than ``PATH_ELEMENTS``
 elements is cut there, with an exact stop.
 """
 
@@ -205,7 +205,7 @@ def iter_operations(calls: Iterable[Call], *, default_blend: float = DEFAULT_BLE
     deg, as the program was read from: see ``read_program``'s ``start``), or None when not known;
     ``air`` [mm]: every point raised this far along Z (the program proved in the air);
     ``path_elements``: a feed path (or a run of G1 lines turning the head) of more programmed
-    elements is cut there, an exact stop on the programmed vertex (:data:`PATH_ELEMENTS`);
+    elements is cut there, an exact stop on the programmed vertex (``PATH_ELEMENTS``);
     ``helper``: the feed paths fitted and blended in a helper process while the calls are read on
     (:mod:`~cnc_twin.gcode.paths_ahead`: the same operations, bit for bit; a long program's load).
 
