@@ -51,6 +51,7 @@ class Arc:
     clockwise: bool
 
 
+#: one element of a contour: a :class:`Line` or an :class:`Arc`
 Element = Line | Arc
 
 

@@ -13,7 +13,7 @@ site ``tool_site``), and the workpiece frame's origin from site ``workpiece_site
 
 Tool axis: the unit vector from the tip towards the spindle, ``n = Rx(A) Ry(B) (0, 0, 1)
 = (sin B, -sin A cos B, cos A cos B)``, so ``B = asin(n_x)`` and ``A = atan2(-n_y, n_z)``
-(the branch with |B| < 90 deg and the tool pointing down, n_z cos A > 0).
+(the branch with ``|B| < 90`` deg and the tool pointing down, n_z cos A > 0).
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ class HeadGeometry:
         ------
         UnreachablePose
             For the first pose whose tool axis does not point down into the head's branch
-            (z component <= 0: |B| would reach 90 deg) or whose axes leave their travel.
+            (z component <= 0: ``|B|`` would reach 90 deg) or whose axes leave their travel.
         """
         n = np.atleast_2d(np.asarray(axis, dtype=np.float64))
         n = n / np.linalg.norm(n, axis=1, keepdims=True)

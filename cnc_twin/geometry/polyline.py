@@ -7,7 +7,7 @@ vertices is taken never matters). They are found in a uniform grid of cells abou
 spacings wide (:func:`vertex_grid`), searched ring by ring around the point's cell in one compiled
 loop (:func:`grid_distances`) until no vertex outside can be nearer. A point the first
 :data:`RINGS` rings do not settle (far from the polyline, or beside a long segment between sparse
-vertices) is asked of scipy's k-d tree (:func:`_tree_distances`): a CAM program's fits ask for
+vertices) is asked of scipy's k-d tree (``_tree_distances``): a CAM program's fits ask for
 millions of points close to the polyline, where the tree's query costs several times the grid's.
 The segments are measured in one compiled arithmetic (:func:`near_segments`), numpy's term for
 term."""
@@ -30,6 +30,8 @@ CELL_SPACINGS = 2.0
 CELLS_PER_VERTEX = 8
 """the grid's cells at most per vertex (plus :data:`MIN_CELLS`): wider cells beyond it"""
 MIN_CELLS = 1 << 16
+"""the grid's cells a polyline may have however few its vertices (added to
+:data:`CELLS_PER_VERTEX`'s bound)"""
 CHUNK = 1 << 16
 """points asked of the k-d tree at a time (each point's distance is its own)"""
 

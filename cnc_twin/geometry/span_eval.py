@@ -72,7 +72,7 @@ def _homogeneous(starts, blocks, lo, hi, u, ncols, out):
 
 @njit(cache=True)
 def curve_speed(starts, blocks, lo, hi, d, u, h):
-    """``|C'(u)|``, as :meth:`SpanEvaluator.speed`."""
+    """``|C'(u)|``, as :meth:`~cnc_twin.geometry.nurbs.SpanEvaluator.speed`."""
     _homogeneous(starts, blocks, lo, hi, u, 2 * (d + 1), h)
     w, w1 = h[d], h[2 * d + 1]
     inv = 1.0 / w
@@ -85,7 +85,8 @@ def curve_speed(starts, blocks, lo, hi, d, u, h):
 
 @njit(cache=True)
 def evaluate_span(starts, blocks, lo, hi, d, u, h, c, c1, c2):
-    """``C, C', C''`` at ``u`` into ``c, c1, c2``, as :meth:`SpanEvaluator.evaluate`."""
+    """``C, C', C''`` at ``u`` into ``c, c1, c2``, as
+    :meth:`~cnc_twin.geometry.nurbs.SpanEvaluator.evaluate`."""
     n = d + 1
     _homogeneous(starts, blocks, lo, hi, u, 3 * n, h)
     w, w1, w2 = h[d], h[n + d], h[2 * n + d]
@@ -149,7 +150,8 @@ def _first_partials(h, s):
 @njit(cache=True)
 def surface_tangents(starts_u, starts_v, patches, p, q, box, u, v, h, s):
     """``S, S_u, S_v`` at ``(u, v)`` into ``s[0:9]``, as the first three of
-    :meth:`SurfaceSpanEvaluator.evaluate` (the first 12 columns of the block are all they use)."""
+    :meth:`~cnc_twin.geometry.surface.SurfaceSpanEvaluator.evaluate` (the first 12 columns of the
+    block are all they use)."""
     _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, 12, h)
     _first_partials(h, s)
 
@@ -157,7 +159,7 @@ def surface_tangents(starts_u, starts_v, patches, p, q, box, u, v, h, s):
 @njit(cache=True)
 def surface_evaluate(starts_u, starts_v, patches, p, q, box, u, v, h, s):
     """``S, S_u, S_v, S_uu, S_uv, S_vv`` at ``(u, v)`` into ``s[0:18]``, as
-    :meth:`SurfaceSpanEvaluator.evaluate`."""
+    :meth:`~cnc_twin.geometry.surface.SurfaceSpanEvaluator.evaluate`."""
     _patch_homogeneous(starts_u, starts_v, patches, p, q, box, u, v, 24, h)
     inv = _first_partials(h, s)
     wu, wv, wuu, wuv, wvv = h[7], h[11], h[15], h[19], h[23]
@@ -178,8 +180,9 @@ def path_dim(ev):
 @njit(cache=True)
 def path_evaluate(ev, t, w, c, c1, c2, tangents):
     """``C, C', C''`` at ``t`` into ``c, c1, c2`` (``path_dim`` each); on a surface also ``S_u, S_v``
-    into ``tangents[0:6]``. As :meth:`SpanEvaluator.evaluate` or
-    :meth:`SurfacePathEvaluator.evaluate`. ``w``: work space of :data:`WORK`."""
+    into ``tangents[0:6]``. As :meth:`~cnc_twin.geometry.nurbs.SpanEvaluator.evaluate` or
+    :meth:`~cnc_twin.geometry.surface_path.SurfacePathEvaluator.evaluate`. ``w``: work space of
+    :data:`WORK`."""
     starts, blocks, lo, hi, cd, starts_u, starts_v, patches, p, q, box = ev
     if patches.shape[0] == 0:
         evaluate_span(starts, blocks, lo, hi, cd, t, w, c, c1, c2)
@@ -202,7 +205,8 @@ def path_evaluate(ev, t, w, c, c1, c2, tangents):
 
 @njit(cache=True)
 def path_speed(ev, t, w):
-    """``|C'(t)|``, as :meth:`SpanEvaluator.speed` or :meth:`SurfacePathEvaluator.speed`."""
+    """``|C'(t)|``, as :meth:`~cnc_twin.geometry.nurbs.SpanEvaluator.speed` or
+    :meth:`~cnc_twin.geometry.surface_path.SurfacePathEvaluator.speed`."""
     starts, blocks, lo, hi, cd, starts_u, starts_v, patches, p, q, box = ev
     if patches.shape[0] == 0:
         return curve_speed(starts, blocks, lo, hi, cd, t, w)

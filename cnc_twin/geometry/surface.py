@@ -85,11 +85,15 @@ class NurbsSurface:
 
     Parameters
     ----------
-    control_net : shape ``(nu, nv, 3)``, a rectangular grid of points; ``u`` runs along axis 0.
-    weights : shape ``(nu, nv)``, all > 0; None for a non-rational B-spline surface (all 1).
-    knots_u, knots_v : shapes ``(nu + degree_u + 1,)`` and ``(nv + degree_v + 1,)``;
+    control_net
+        shape ``(nu, nv, 3)``, a rectangular grid of points; ``u`` runs along axis 0.
+    weights
+        shape ``(nu, nv)``, all > 0; None for a non-rational B-spline surface (all 1).
+    knots_u, knots_v
+        shapes ``(nu + degree_u + 1,)`` and ``(nv + degree_v + 1,)``;
         non-decreasing, clamped, interior multiplicity <= degree.
-    degree_u, degree_v : >= 1.
+    degree_u, degree_v
+        >= 1.
 
     Raises
     ------
