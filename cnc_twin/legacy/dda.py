@@ -9,7 +9,7 @@ of bit n (overflow) is one pulse on that axis, and the accumulator keeps the n l
 
 Both axes are clocked together, so one iteration may step X, Y, both or neither.
 
-Line to (dx, dy): ``J_vx = |dx|``, ``J_vy = |dy|``, n = bit length of max(|dx|, |dy|) unless
+Line to (dx, dy): ``J_vx = |dx|``, ``J_vy = |dy|``, n = bit length of ``max(|dx|, |dy|)`` unless
 given (2^n must exceed both, so an iteration carries at most once). After ``k`` iterations an
 axis has made ``floor((k |d| + J_r0) / 2^n)`` steps, so after exactly 2^n iterations it has made
 ``|d|`` steps (with ``J_r0 < 2^n``) and the line ends on target; the end-point judgement is the
@@ -19,7 +19,7 @@ within 1/2 pulse per axis. Either way the point is within one pulse of the line.
 
 Arc about the origin (classic DDA circle), split into quadrant pieces like point-by-point
 (:mod:`cnc_twin.legacy.quadrants`: same pieces, directions and end validation). The X axis
-integrates |y| and the Y axis integrates |x| (``dx/dt = -y``, ``dy/dt = x`` for CCW)::
+integrates ``|y|`` and the Y axis integrates ``|x|`` (``dx/dt = -y``, ``dy/dt = x`` for CCW)::
 
     J_vx = |y|,  J_vy = |x|               (loaded at the start of each piece)
     per iteration, for each axis that still owes steps in the piece:
@@ -35,7 +35,7 @@ Three changes to the textbook form, documented because they change accuracy:
   ``GUARD_BITS`` more bits than the radius needs (4x the iterations, a smaller Euler step).
   ``half_load=False, bits=<bit length>`` gives the classic card.
 * The DDA has no deviation to pull it back onto the circle, so a piece starting on an axis
-  point ``(a, 0)``, which is off the circle by ``delta = a - R`` (|delta| < 1), would follow a
+  point ``(a, 0)``, which is off the circle by ``delta = a - R`` (``|delta| < 1``), would follow a
   circle of radius a. The inward axis's accumulator is preloaded with ``delta * 2^n`` more
   (clamped at 0) so the integrated position starts on the circle; it may carry at once.
 * A piece ending on an axis can leave the axis that moves away from the centre a step short
@@ -44,7 +44,7 @@ Three changes to the textbook form, documented because they change accuracy:
   per iteration. (At a piece's start a zero integrand is normal: the other axis is leaving 0.)
 
 With these defaults every lattice point was within one pulse of the circle of radius
-sqrt(x0^2 + y0^2) in an exhaustive check (all starts with |x0|, |y0| <= 12, every valid end,
+sqrt(x0^2 + y0^2) in an exhaustive check (all starts with ``|x0|, |y0| <= 12``, every valid end,
 both directions) and on random arcs up to R = 40000; the closest calls are the axis points
 themselves (a - R < 1 by construction) and ends accepted one pulse off the circle.
 """
@@ -64,7 +64,7 @@ def line(dx: int, dy: int, *, bits: int | None = None, half_load: bool = False) 
     """Per-iteration steps ``(sx, sy)``, each in {-1, 0, +1}, from (0, 0) to ``(dx, dy)`` [pulses].
 
     Yields exactly ``2^bits`` iterations (none for a zero line). Raises ``ValueError`` when
-    ``bits`` is too small to hold max(|dx|, |dy|).
+    ``bits`` is too small to hold ``max(|dx|, |dy|)``.
     """
     dx, dy = int(dx), int(dy)
     vx, vy = abs(dx), abs(dy)

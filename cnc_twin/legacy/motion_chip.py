@@ -171,15 +171,24 @@ class IndexMove:
 
     Parameters
     ----------
-    distance_pulses : signed move length [pulses].
-    v_max : [pulses/s]. a_max : [pulses/s^2] or None (constant speed).
-    j_max : [pulses/s^3] or None (trapezoid). dt : cycle time [s].
+    distance_pulses
+        signed move length [pulses].
+    v_max
+        [pulses/s].
+    a_max
+        [pulses/s^2] or None (constant speed).
+    j_max
+        [pulses/s^3] or None (trapezoid).
+    dt
+        cycle time [s].
 
     Attributes (signed, sampled at the cycle boundaries ``t = k dt``, k = 0..n)
     -----------------------------------------------------------------------------
-    t, position, velocity, acceleration, jerk : the continuous profile [s, pulses, /s, /s^2, /s^3];
-        ``jerk`` is the phase's jerk (acceleration steps of a trapezoid are not in it).
-    pulses : int64 array of n per-cycle pulse counts; ``pulses.sum() == distance_pulses``.
+    t, position, velocity, acceleration, jerk
+        the continuous profile [s, pulses, /s, /s^2, /s^3]; ``jerk`` is the phase's jerk
+        (acceleration steps of a trapezoid are not in it).
+    pulses
+        int64 array of n per-cycle pulse counts; ``pulses.sum() == distance_pulses``.
     """
 
     def __init__(self, distance_pulses: int, v_max: float, a_max: float | None, j_max: float | None,
@@ -213,7 +222,7 @@ class IndexMove:
 
 
 class Jog:
-    """A continuous move at speed ``v`` (signed) [pulses/s] until :meth:`stop`.
+    """A continuous move at speed ``v`` (signed) [pulses/s] until :meth:`~Jog.stop`.
 
     Iterate for the pulses of each cycle; the iteration ends with the cycle in which the axis
     comes to rest after ``stop()``. ``a_max`` None: constant speed (starts and stops at once);
