@@ -36,10 +36,10 @@ compiled with numba and called by :class:`~cnc_twin.machine.plant.Plant` from Py
 compiled servo kernels on the same records. :func:`notch_coefficients` is also what the linear
 analysis (:mod:`cnc_twin.studies.linearize`) builds its notch filters from.
 
-=================  ======================  ==========================================  ===========
-field              unit                    meaning                                     written by
-=================  ======================  ==========================================  ===========
-modelled           -                       the drive's loops run here (else ctrl = V)  set up
+=================  ======================  ===========================================  ======================
+field              unit                    meaning                                      written by
+=================  ======================  ===========================================  ======================
+modelled           -                       the drive's loops run here (else ctrl = V)   set up
 speed_per_volt     m/s/V | rad/s/V         the analog input's scaling                   set up
 kp                 N/(m/s) | N m/(rad/s)   velocity-loop gain                           set up
 ki_dt              N/m | N m/rad           kp dt / tn: the integral's gain per step     set up
@@ -56,10 +56,10 @@ inv_dt             1/s                     1 / the physics step                 
 notch_state        -                       per notch: the biquad's two delays           :func:`amp_force`
 integral           N | N m                 the PI's integral                            :func:`amp_force`
 torque             N | N m                 the torque filter's output                   :func:`amp_force`
-last_count         -                       the feedback's count at the last step         :func:`feedback_speed`
-speed              m/s | rad/s             the filtered actual speed                     :func:`feedback_speed`
-primed             -                       ``last_count`` holds a count                  :func:`feedback_speed`
-=================  ======================  ==========================================  ===========
+last_count         -                       the feedback's count at the last step        :func:`feedback_speed`
+speed              m/s | rad/s             the filtered actual speed                    :func:`feedback_speed`
+primed             -                       ``last_count`` holds a count                 :func:`feedback_speed`
+=================  ======================  ===========================================  ======================
 """
 
 from __future__ import annotations
@@ -101,8 +101,9 @@ def notch_coefficients(frequency: float, width: float, depth: float, dt: float) 
 
 
 def setup_amps(drives: Sequence, taps: np.ndarray, dt: float) -> np.ndarray:
-    """The six amplifiers' records: ``drives`` per axis a :class:`~cnc_twin.core.config.DriveConfig`
-    or None (the MJCF's velocity-mode drive: voltage passed through); ``taps`` each axis's motor
+    """The six amplifiers' records: ``drives`` per axis a
+    :class:`~cnc_twin.core.axis_config.DriveConfig` or None (the MJCF's velocity-mode drive: voltage
+    passed through); ``taps`` each axis's motor
     (:attr:`~cnc_twin.machine.plant.Plant.motor_taps`, :data:`~cnc_twin.machine.plant.ENCODER_TAP`:
     the motor hinge's dof and gear);
     ``dt`` the physics step [s]."""

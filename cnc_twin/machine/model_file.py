@@ -108,8 +108,9 @@ OBSTACLE_PARK = (0.0, 0.0, -50.0)
 def add_obstacles(spec: mujoco.MjSpec, boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]
                   ) -> None:
     """Add one mocap body per obstacle box (``(centre, half sizes)`` [m], world frame) to ``spec``,
-    parked at :data:`OBSTACLE_PARK`; :meth:`Plant.place_obstacle` puts one in place. Their geoms
-    collide with the head and pad as the workpiece does (contype 1, conaffinity 2)."""
+    parked at :data:`OBSTACLE_PARK`; :meth:`~cnc_twin.machine.plant.Plant.place_obstacle` puts one
+    in place. Their geoms collide with the head and pad as the workpiece does (contype 1,
+    conaffinity 2)."""
     for n, (_, size) in enumerate(boxes):
         body = spec.worldbody.add_body(name=f"obstacle_{n}", mocap=True, pos=list(OBSTACLE_PARK))
         body.add_geom(name=f"obstacle_{n}", type=mujoco.mjtGeom.mjGEOM_BOX, size=list(size), contype=1,

@@ -44,14 +44,19 @@ class ModelInfo:
 
     Attributes
     ----------
-    travel : per axis ``(lo, hi)`` [m | rad], or ``None`` for an unlimited (continuous) joint.
-    home : per axis position at the ``home`` keyframe [m | rad], shape ``(6,)``.
-    speed_per_volt : per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``; NaN for a
+    travel
+        per axis ``(lo, hi)`` [m | rad], or ``None`` for an unlimited (continuous) joint.
+    home
+        per axis position at the ``home`` keyframe [m | rad], shape ``(6,)``.
+    speed_per_volt
+        per axis drive scaling [m/s/V | rad/s/V], shape ``(6,)``; NaN for a
         current-mode drive, whose scaling is the amplifier's (the machine's parameter file).
-    current_mode : per axis, whether the MJCF's drive is a current-mode actuator (force from
+    current_mode
+        per axis, whether the MJCF's drive is a current-mode actuator (force from
         ``ctrl``, lagged by the current loop) whose velocity loop the amplifier closes
         (:mod:`cnc_twin.machine.amplifier`), rather than a velocity-mode one.
-    motor_per_axis : per axis, motor hinge rad per axis m | rad (1 / the drive's gear) where the
+    motor_per_axis
+        per axis, motor hinge rad per axis m | rad (1 / the drive's gear) where the
         drive turns a motor hinge; 1 on the axis joint.
     """
 
@@ -156,11 +161,16 @@ class Plant:
 
     Parameters
     ----------
-    model : a model checked by :func:`load_model`; its ``opt.timestep`` is set to ``timestep``.
-    timestep : physics step [s].
-    drives : per axis the amplifier's own loops (:class:`~cnc_twin.core.config.DriveConfig`) for a
+    model
+        a model checked by :func:`~cnc_twin.machine.model_file.load_model`; its ``opt.timestep`` is
+        set to ``timestep``.
+    timestep
+        physics step [s].
+    drives
+        per axis the amplifier's own loops (:class:`~cnc_twin.core.axis_config.DriveConfig`) for a
         current-mode drive of the MJCF, else None (the default: every drive velocity-mode).
-    encoder_mounts : per axis ``motor`` or ``table``: where the card's encoder reads the machine
+    encoder_mounts
+        per axis ``motor`` or ``table``: where the card's encoder reads the machine
         (the default: on the motors, where the model has them).
     """
 
@@ -346,7 +356,8 @@ class Plant:
         self.model.actuator_forcerange[self.actuator_ids[axis]] *= fraction
 
     def place_obstacle(self, index: int, centre: tuple[float, float, float]) -> None:
-        """Move obstacle ``index`` (see :func:`add_obstacles`) to ``centre`` [m], world frame."""
+        """Move obstacle ``index`` (see :func:`~cnc_twin.machine.model_file.add_obstacles`) to
+        ``centre`` [m], world frame."""
         body = self.model.body(f"obstacle_{index}")
         self.data.mocap_pos[body.mocapid[0]] = centre
 
