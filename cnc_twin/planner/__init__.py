@@ -1,7 +1,8 @@
 """The PC side: turns a scenario's program into records and streams them to the card, as its own
 OS process.
 
-- :mod:`~cnc_twin.planner.job`              what the process is asked to do; :func:`plan_for`, one plan per program kind
+- :mod:`~cnc_twin.planner.job`              what the process is asked to do; :func:`~cnc_twin.planner.job.plan_for`, one
+  plan per program kind
 - :mod:`~cnc_twin.planner.ptp`              point-to-point moves on synchronised trapezoids
 - :mod:`~cnc_twin.planner.curve_program`    a NURBS curve: approach, geometry record, S-curve feed blocks
 - :mod:`~cnc_twin.planner.feed`             look-ahead feed planning along a curve, window by window

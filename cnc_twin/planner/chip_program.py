@@ -22,6 +22,7 @@ _PROFILES = {"constant": CHIP_CONSTANT, "trapezoid": CHIP_TRAPEZOID, "s_curve": 
 
 
 def chip_record(step: ChipStep, profile: str) -> ChipCommand:
+    """The ChipCommand record of a program's command ``step``, with the program's ``profile``."""
     return ChipCommand(op=_OPS[step.op], axis=step.axis, profile=_PROFILES[profile], deltas=step.deltas,
                        distance=step.distance, speed=step.speed, creep=step.creep, accel=step.accel,
                        jerk=step.jerk, time=step.time)
@@ -41,6 +42,9 @@ def _estimate(step: ChipStep) -> float:
 
 
 class ChipPlan:
+    """A motion-chip program's records in one chunk: its commands, then the settle dwell and
+    EndOfProgram (see the module docstring)."""
+
     def __init__(self, prog: MotionChipProgram, period: float):
         self.prog, self.period = prog, period
 

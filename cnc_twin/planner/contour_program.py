@@ -8,6 +8,7 @@ Records, for each pass ``i`` (1-based) in the program's method order::
     per element:  nurbs:  CurveGeometry + its CurveBlocks (feed planned window by window)
                   step:   StepContour (the card's point-by-point or DDA, clocked by an S-curve)
     Mark 0        ... to here
+
 then Move Z up to its home position, Move every axis home, Dwell (settle), EndOfProgram.
 
 Every element starts and ends at rest (exact stop), whatever the method, so the passes differ

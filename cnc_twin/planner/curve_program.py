@@ -49,7 +49,8 @@ def curve_setup(prog: NurbsProgram):
 
 class CurvePlan:
     """A curve program: the curve, its kinematics and the approach move set up at once; the feed
-    blocks planned window by window as :meth:`chunks` is asked (``window`` [m] of curve each)."""
+    blocks planned window by window as :meth:`~CurvePlan.chunks` is asked (``window`` [m] of curve
+    each)."""
 
     def __init__(self, prog: NurbsProgram, axes: tuple[AxisConfig, ...], home: tuple[float, ...], period: float,
                  *, window: float):

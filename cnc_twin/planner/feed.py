@@ -53,7 +53,7 @@ from cnc_twin.geometry.nurbs import NurbsCurve
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
 BUDGET_SHARES = (1.0, 0.8, 0.65, 0.5, 0.4, 0.3)
-"""shares of the full tangential acceleration budget a curve is tried with (:func:`_sample`)"""
+"""shares of the full tangential acceleration budget a curve is tried with (``_sample``)"""
 BUDGET_GAIN = 0.002
 """a smaller share is taken only when it saves this share of the curve's estimated time"""
 
@@ -108,7 +108,7 @@ def axis_derivatives(q: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def tangential_budget(limits: PathLimits, axis_q: np.ndarray | None, s: np.ndarray,
                       axis_limits) -> tuple[float, float]:
-    """(A_t, J_t): with the axes given, scaled by each axis's largest |dq/ds| (a rotary axis can
+    """(A_t, J_t): with the axes given, scaled by each axis's largest ``|dq/ds|`` (a rotary axis can
     turn more than one radian per metre of path); else the tool-tip budget of ``limits``."""
     if axis_q is None:
         return limits.tangential_acceleration, limits.tangential_jerk
@@ -377,7 +377,10 @@ def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_
     window (the planner does it before it reports ready, :class:`~cnc_twin.planner.curve_program.CurvePlan`).
     ``key`` (:func:`plan_key`): the samples taken under the same key earlier in this process, if
     kept (the last :data:`SAMPLES_KEPT`), or by an earlier process (the disk cache), as
-    :func:`plan_feed_windows` keeps its plans."""
+    :func:`plan_feed_windows` keeps its plans.
+
+    :rtype: ``_Samples``
+    """
     samples = _kept(_SAMPLES, key, SAMPLES_KIND, SAMPLES_KEPT)
     if samples is None:
         samples = _sample(curve, limits, period, axis_path, axis_limits)
@@ -388,7 +391,10 @@ def sample_limits(curve: NurbsCurve, limits: PathLimits, *, period: float, axis_
 def traverse_time(samples: _Samples) -> float:
     """The curve's time at its feed limit with the tangential acceleration budget, from rest to
     rest [s]: a forward and a backward pass over the samples (no jerk limit, so a lower bound of
-    the planned time; the program's length estimate is taken from it)."""
+    the planned time; the program's length estimate is taken from it).
+
+    :type samples: ``_Samples``
+    """
     return _traverse_time(samples.s, samples.limit, samples.a_t)
 
 
@@ -431,6 +437,8 @@ def plan_feed_windows(curve: NurbsCurve, limits: PathLimits, *, period: float, w
     instead of planned (the same blocks: a pooled planner serving a sweep whose gains change the
     card, not the path; a second run of the same program); a completed plan is kept under it.
     None: plan, keep nothing.
+
+    :type samples: ``_Samples`` or None
     """
     planned = _kept(_PLANS, key, PLANS_KIND, PLANS_KEPT)
     if planned is not None:

@@ -1,6 +1,6 @@
 """The G-code program's plan: its steps in order, records handed out in chunks.
 
-Per step (:class:`~cnc_twin.core.config.GcodeProgram`)::
+Per step (:class:`~cnc_twin.core.gcode_config.GcodeProgram`)::
 
     GcodeMove     Mark line, Move (a synchronised trapezoid, the feed capping X/Y/Z, or A/B/C alone)
     GcodePath     Mark line, CurveGeometry (with the program line of each part of the curve, which
@@ -17,6 +17,7 @@ Per step (:class:`~cnc_twin.core.config.GcodeProgram`)::
                   seeks contact, ramps, then runs the blocks); off (M101): Mark line, ForceControl
                   off (ramp down, retract to ``standoff`` above the last path's end: the next
                   move starts there)
+
 then Dwell (settle), EndOfProgram.
 """
 
@@ -141,8 +142,8 @@ def move_starts(prog: GcodeProgram, home: tuple[float, ...]) -> list[tuple[Gcode
 
 
 class GcodePlan:
-    """A G-code program, planned step by step as :meth:`chunks` is asked (``window`` [m] of curve
-    per feed-planning window)."""
+    """A G-code program, planned step by step as :meth:`~GcodePlan.chunks` is asked (``window`` [m]
+    of curve per feed-planning window)."""
 
     def __init__(self, prog: GcodeProgram, axes: tuple[AxisConfig, ...], home: tuple[float, ...], period: float,
                  *, window: float):

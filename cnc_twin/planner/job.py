@@ -1,4 +1,5 @@
-"""What the planner process is asked to do (:class:`PlannerJob`) and the plan of each program kind.
+"""What the planner process is asked to do (:class:`~cnc_twin.planner.job.PlannerJob`) and the plan
+of each program kind.
 
 :data:`PLANS` is the one place a program kind's planner plugs in: :func:`plan_for` returns an object with
 ``estimated_periods`` (the program's length, announced to the card up front) and ``chunks()``

@@ -6,11 +6,11 @@ modules once, then serves runs one after another: for each it reads ``(shared-me
 from its stdin (a length-prefixed pickle), plans and streams that run, and writes one status
 byte to its stdout when the run is over. EOF on its stdin makes it exit.
 
-A :class:`Twin` without a pool starts one planner per run and closes it afterwards: nothing is
-left running. With a :class:`PlannerPool` (a sweep's worker keeps one) the planner that served
-a clean run is kept for the next: a run then waits a few milliseconds for its planner instead
-of the interpreter start and the imports (0.2 s for point-to-point, 0.6 s once scipy's splines
-are needed for curves), and the CPU those cost is not spent again.
+A :class:`~cnc_twin.run.twin.Twin` without a pool starts one planner per run and closes it
+afterwards: nothing is left running. With a :class:`PlannerPool` (a sweep's worker keeps one) the
+planner that served a clean run is kept for the next: a run then waits a few milliseconds for its
+planner instead of the interpreter start and the imports (0.2 s for point-to-point, 0.6 s once
+scipy's splines are needed for curves), and the CPU those cost is not spent again.
 
 A planner is reused only when its run ended cleanly: a lockstep run (a real-time planner may
 still be planning in its thread) without injected planner faults, reported over within

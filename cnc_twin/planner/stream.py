@@ -1,5 +1,6 @@
-"""Streaming records into the card's FIFO: planned chunks fed in (:class:`Feeder`) and written as
-FIFO space, chunk size and look-ahead allow, with go-back-N on rejects (:class:`Streamer`)."""
+"""Streaming records into the card's FIFO: planned chunks fed in
+(:class:`~cnc_twin.planner.stream.Feeder`) and written as FIFO space, chunk size and look-ahead
+allow, with go-back-N on rejects (:class:`~cnc_twin.planner.stream.Streamer`)."""
 
 from __future__ import annotations
 

@@ -36,16 +36,19 @@ from cnc_twin.whiteboard.records import (
 
 
 def build_surface(prog: SurfaceProgram) -> NurbsSurface:
+    """The program's surface, as a NURBS surface."""
     return NurbsSurface.from_def(prog.surface)
 
 
 def section_paths(prog: SurfaceProgram, surface: NurbsSurface | None = None) -> list[SurfacePath]:
-    """The program's sections as :class:`SurfacePath` objects."""
+    """The program's sections as :class:`~cnc_twin.geometry.surface_path.SurfacePath` objects."""
     surface = build_surface(prog) if surface is None else surface
     return [SurfacePath(surface, NurbsCurve(c.control_points, c.weights, c.knots, c.degree)) for c in prog.sections]
 
 
 def head_of(prog: SurfaceProgram) -> HeadGeometry:
+    """The head's geometry of the program (its pivot's home and tool offset), the workpiece at
+    the origin."""
     return HeadGeometry(pivot_home=prog.pivot_home, tool_offset=prog.tool_offset, workpiece_origin=(0.0, 0.0, 0.0))
 
 
