@@ -1,8 +1,9 @@
 """The removal map's update, compiled: the contact patch, its Preston removal and the pad's
-friction wrench in one call (:func:`removal_step`), and the whole update of
-:class:`~cnc_twin.polishing.polish.RemovalTracker` from MuJoCo's data (:func:`tracker_update`: the
-pad's contact force from its contact sensor, the tip's velocity, the ball of candidates, the
-step, the wrench into ``xfrc_applied``), which the polishing batch calls between periods.
+friction wrench in one call (:func:`~cnc_twin.polishing.removal_kernel.removal_step`), and the
+whole update of :class:`~cnc_twin.polishing.polish.RemovalTracker` from MuJoCo's data
+(:func:`~cnc_twin.polishing.removal_kernel.tracker_update`: the pad's contact force from its
+contact sensor, the tip's velocity, the ball of candidates, the step, the wrench into
+``xfrc_applied``), which the polishing batch calls between periods.
 
 :meth:`~cnc_twin.polishing.removal.PrestonModel.patch`, :meth:`~cnc_twin.polishing.removal.PrestonModel.add`
 and :func:`~cnc_twin.polishing.polish.friction_wrench` are the reference (numpy over the
@@ -169,8 +170,8 @@ def removal_step(ball_idx, ball, tip, a, force, radius, slab, modulus, k_dt, v_t
 @njit(cache=True, error_model="numpy")
 def contact_force(sensordata, ids, ax0, ax1, ax2, totals):
     """The pad's contact normal force along the (not necessarily unit) axis ``ax`` [N], as
-    :meth:`RemovalTracker.contact_force`: slot by slot of the contact sensor, in MuJoCo's contact
-    order; ``totals[MOST_CONTACTS]`` keeps the most contacts seen."""
+    :meth:`~cnc_twin.polishing.polish.RemovalTracker.contact_force`: slot by slot of the contact
+    sensor, in MuJoCo's contact order; ``totals[MOST_CONTACTS]`` keeps the most contacts seen."""
     adr, slots, fields = ids[SENSOR_ADR], ids[SLOTS], ids[FIELDS]
     found = int(sensordata[adr])
     if found > totals[MOST_CONTACTS]:
@@ -228,9 +229,10 @@ if mujoco_c.IMPORT_ERROR is None:
     @njit(cache=True, error_model="numpy")
     def tracker_update(model_ptr, data_ptr, sensordata, xmat, site_xpos, xipos, xfrc, ids, params, packed, boxes,
                        depth, ball_idx, ball, ball_state, velocity, totals):  # pragma: no cover - compiled
-        """One update of the removal map from MuJoCo's data, as :meth:`RemovalTracker.update` on the
-        reference path: ``xfrc[pad body]`` gets the friction wrench (zero without contact), ``depth``
-        the removal, ``totals`` the figures. ``ball_state``: the ball's centre (3) and size;
+        """One update of the removal map from MuJoCo's data, as
+        :meth:`~cnc_twin.polishing.polish.RemovalTracker.update` on the reference path:
+        ``xfrc[pad body]`` gets the friction wrench (zero without contact), ``depth`` the removal,
+        ``totals`` the figures. ``ball_state``: the ball's centre (3) and size;
         ``velocity`` (6,) scratch."""
         site, body = ids[SITE], ids[PAD_BODY]
         ax0, ax1, ax2 = xmat[body, 2], xmat[body, 5], xmat[body, 8]  # the pad's z axis
