@@ -16,6 +16,7 @@ from numba import njit, types
 CLOCK_MONOTONIC = 1
 """Linux's clock id"""
 
+#: whether libc's ``clock_gettime`` was found (else :func:`monotonic_ns` returns 0)
 AVAILABLE = False
 try:
     import llvmlite.binding as _llvm

@@ -63,9 +63,9 @@ MAX_TRACE_TICKS = 100_000_000
 
 
 def check_run_size(sc, planned: int, max_periods: int) -> None:
-    """Refuse (a :class:`ScenarioError`, exit 2, before the clock starts) a run whose periods
-    would take more physics steps or trace rows than the limits: a tiny timestep or a huge dwell
-    is a bad input, not a run that never ends."""
+    """Refuse (a :class:`~cnc_twin.core.errors.ScenarioError`, exit 2, before the clock starts) a
+    run whose periods would take more physics steps or trace rows than the limits: a tiny timestep
+    or a huge dwell is a bad input, not a run that never ends."""
     timing = sc.timing
     steps = max_periods * timing.ticks_per_period * timing.substeps_per_tick
     label = sc.source_file or sc.name

@@ -23,8 +23,8 @@ BEFORE = 2
 
 
 class CurveRun(NamedTuple):
-    """A curve run: periods ``first .. stop - 1`` of the run, and ``window``: the samples of periods
-    ``max(0, first - BEFORE) .. stop - 1`` with ``path_u`` -1 before ``first`` (a copy)."""
+    """A curve run: periods ``first`` to ``stop - 1`` of the run, and ``window``: the samples of
+    periods ``max(0, first - BEFORE)`` to ``stop - 1`` with ``path_u`` -1 before ``first`` (a copy)."""
 
     first: int
     stop: int

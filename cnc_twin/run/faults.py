@@ -35,7 +35,7 @@ _NOISE_BLOCK = 4096
 
 class EncoderNoise:
     """Seeded whole-count noise on one axis's encoder readings, +-``amplitude`` (a block of
-    :data:`_NOISE_BLOCK` draws, cycled): the next draw per servo tick."""
+    ``_NOISE_BLOCK`` draws, cycled): the next draw per servo tick."""
 
     __slots__ = ("axis", "_noise", "_i")
 

@@ -65,9 +65,9 @@ def path_metrics(ends: PeriodSamples, scenario: Scenario, *, interpolator_ns: np
     first, so the chord error, the contour error (tracking) and the axis peaks are the path's;
     the offset's own peaks (``force_offset``: its speed, acceleration and jerk along the axis) are
     reported beside them, without limits (the force loop's correction, not the planned path).
-    ``ends``: the run's signals at its periods' ends (:class:`PeriodSamples`: the whole run's,
-    ``PeriodSamples.whole(trace)``, or a window of it from its period ``first``, which the
-    violations' times count from)."""
+    ``ends``: the run's signals at its periods' ends (:class:`~cnc_twin.trace.trace.PeriodSamples`:
+    the whole run's, ``PeriodSamples.whole(trace)``, or a window of it from its period ``first``,
+    which the violations' times count from)."""
     prog = scenario.program
     curve = tip_curve(prog)
     T = scenario.timing.interpolation_period

@@ -3,9 +3,9 @@ the card's objects, and the objects left as the Python task would leave them.
 
 :func:`cnc_twin.run.period_kernel.run_periods` runs the periods (see that module for what a batch
 does and where it ends); :class:`PeriodBatch` decides per period whether one may start
-(:meth:`PeriodBatch._mode`), hands the kernel the state of the card, the force loop, the spindle,
+(``PeriodBatch._mode``), hands the kernel the state of the card, the force loop, the spindle,
 the path and the removal map, and after the call writes back everything the Python task would
-have changed (:meth:`PeriodBatch._commit`), so the next period, batched or not, starts from the
+have changed (``PeriodBatch._commit``), so the next period, batched or not, starts from the
 same state.
 """
 
@@ -39,12 +39,17 @@ class PeriodBatch:
 
     Parameters
     ----------
-    dsp : the card's period task; its servo must be driven by ``kernel``.
-    kernel : the compiled servo period.
-    recorder : the run's recorder.
-    removal : the run's removal map (:class:`~cnc_twin.polishing.polish.RemovalTracker`, compiled),
+    dsp
+        the card's period task; its servo must be driven by ``kernel``.
+    kernel
+        the compiled servo period.
+    recorder
+        the run's recorder.
+    removal
+        the run's removal map (:class:`~cnc_twin.polishing.polish.RemovalTracker`, compiled),
         updated inside the batch every ``removal.every`` periods; None without one.
-    switches : the plant's switches (:attr:`~cnc_twin.machine.plant.Plant.switches`); None: none.
+    switches
+        the plant's switches (:attr:`~cnc_twin.machine.plant.Plant.switches`); None: none.
     """
 
     def __init__(self, dsp, kernel, recorder, removal=None, *, switches: np.ndarray = None):

@@ -7,10 +7,13 @@ S-curve, the move's trapezoid), the stepper walks the path, the setpoint stays i
 limits, the state stays RUNNING, no record is exchanged (the planner has sent everything:
 ``solo``). :class:`~cnc_twin.run.period_batch.PeriodBatch` then runs up to :data:`MAX_BATCH`
 periods in one call of :func:`run_periods`, which does per period exactly what
-:meth:`DspTask.begin_period` (with :meth:`SegmentInterpolator.next_period`,
-:func:`~cnc_twin.dsp.force.force_update`, :meth:`Supervisor.check` / :meth:`~Supervisor.clamp` and
-:meth:`ServoTask.begin_period`), the clock's period record, :class:`~cnc_twin.run.servo_kernel.CompiledServo`
-and the removal map's update do, in the same order with the same IEEE operations::
+:meth:`~cnc_twin.dsp.task.DspTask.begin_period` (with
+:meth:`~cnc_twin.dsp.interpolator.SegmentInterpolator.next_period`,
+:func:`~cnc_twin.dsp.force.force_update`, :meth:`~cnc_twin.dsp.supervisor.Supervisor.check` /
+:meth:`~cnc_twin.dsp.supervisor.Supervisor.clamp` and
+:meth:`~cnc_twin.dsp.servo.ServoTask.begin_period`), the clock's period record,
+:class:`~cnc_twin.run.servo_kernel.CompiledServo` and the removal map's update do, in the same
+order with the same IEEE operations::
 
     check:   following error, limit switches, DAC saturation run, pad force   (a trip -> stop)
     force:   TRACK: setpoint(path length), PI, feed adaptation                (new feed factor -> stop)

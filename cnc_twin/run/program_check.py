@@ -108,9 +108,9 @@ class _Group:
 
 
 class ProgramCheck:
-    """The run against its program, fed in run order: every period's samples (:meth:`add_periods`,
-    for the coordinated moves), each feed path's periods as its run ends (:meth:`add_path`);
-    :meth:`result` at the end."""
+    """The run against its program, fed in run order: every period's samples
+    (:meth:`~ProgramCheck.add_periods`, for the coordinated moves), each feed path's periods as its
+    run ends (:meth:`~ProgramCheck.add_path`); :meth:`~ProgramCheck.result` at the end."""
 
     def __init__(self, scenario: Scenario):
         prog: GcodeProgram = scenario.program

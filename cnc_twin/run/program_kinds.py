@@ -317,7 +317,8 @@ class GcodeKind(ProgramKind):
         return _workpiece_plant(twin, obstacles, w.surface, w.preston, w.friction, w.tile_size)
 
     def as_run(self, scenario, dsp: DspTask):
-        """A program that probed: read again with the card's answers (:meth:`GcodeProgram.as_run`)."""
+        """A program that probed: read again with the card's answers
+        (:meth:`~cnc_twin.core.gcode_config.GcodeProgram.as_run`)."""
         log = dsp.interpolator.probe.log
         if not log or scenario.program.after_probe is None:
             return scenario

@@ -12,10 +12,14 @@ class ProgressBar:
 
     Parameters
     ----------
-    label : text in front of the bar.
-    period : simulated seconds per unit of ``done`` (shows simulated time).
-    stream : where to draw; defaults to stderr. Nothing is drawn unless it is a TTY.
-    start_line : printed (one line) at the first call when ``stream`` is not a TTY, instead of
+    label
+        text in front of the bar.
+    period
+        simulated seconds per unit of ``done`` (shows simulated time).
+    stream
+        where to draw; defaults to stderr. Nothing is drawn unless it is a TTY.
+    start_line
+        printed (one line) at the first call when ``stream`` is not a TTY, instead of
         the bar: the run has begun (a log, a pipe).
     """
 

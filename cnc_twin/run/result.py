@@ -1,4 +1,5 @@
-"""What a run produced (:class:`RunResult`): the trace, the metrics, and how to write them."""
+"""What a run produced (:class:`~cnc_twin.run.result.RunResult`): the trace, the metrics, and how to
+write them."""
 
 from __future__ import annotations
 
@@ -70,7 +71,8 @@ class RunResult:
         the path of a finished recording of this run to move in (one a
         :class:`~cnc_twin.view.rerun_stream.RecordingProcess` made during it, on the same file
         system), or None to export it now after all. ``claimed``: ``run_dir`` was claimed for this
-        run (:func:`~cnc_twin.run.run_dir.claim_run_dir`), an empty folder the written one replaces."""
+        run (:func:`~cnc_twin.run.run_claim.claim_run_dir`), an empty folder the written one
+        replaces."""
         def extra(folder: Path) -> None:
             from cnc_twin.run.program_kinds import write_run_files
 

@@ -16,8 +16,9 @@ from pathlib import Path
 def claim_run_dir(run_dir: Path) -> Path:
     """Make ``run_dir`` now, empty (its parents too): the name is this run's (FileExistsError if it
     is taken). A claim is marked beside it (``.<name>.claim-<pid>``): an empty folder whose claimer
-    died (SIGKILL, a power cut) is taken over, not refused. :func:`write_run_dir` with ``claimed``
-    replaces the folder whole; :func:`release_run_dir` gives it up."""
+    died (SIGKILL, a power cut) is taken over, not refused.
+    :func:`~cnc_twin.run.run_dir.write_run_dir` with ``claimed`` replaces the folder whole;
+    :func:`release_run_dir` gives it up."""
     run_dir = Path(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
     mine = _claim_mark(run_dir, os.getpid())

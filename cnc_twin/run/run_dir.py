@@ -32,7 +32,8 @@ RECORDING_FILE = "recording.rrd"
 def new_run_dir(parent: str | Path, name: str, *, claim: bool = False) -> Path:
     """``parent/<name>-<UTC time>`` (``-2``, ``-3``, ... added if taken): a run directory's
     default name, the CLI's and :meth:`~cnc_twin.run.result.RunResult.write`'s; with ``claim``,
-    made empty at once (:func:`claim_run_dir`), so two runs started in the same second get two."""
+    made empty at once (:func:`~cnc_twin.run.run_claim.claim_run_dir`), so two runs started in the
+    same second get two."""
     parent = Path(parent)
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     candidate = parent / f"{name}-{stamp}"
@@ -57,9 +58,9 @@ ROOM_SPARE = 4 << 20
 
 
 def check_room(run_dir: Path, twin, planned: int, *, recording: bool) -> None:
-    """Refuse (:class:`ResourceError`) a run whose files would not fit where its run directory is:
-    the estimate from ``planned`` periods (the program's length the planner announced), against
-    the space free there."""
+    """Refuse (:class:`~cnc_twin.core.errors.ResourceError`) a run whose files would not fit where
+    its run directory is: the estimate from ``planned`` periods (the program's length the planner
+    announced), against the space free there."""
     from cnc_twin.trace.layout import raw_bytes
 
     timing = twin.scenario.timing
@@ -110,12 +111,13 @@ def write_run_dir(run_dir: Path, *, scenario: Scenario, trace: Trace, metrics: d
                   extra=None, claimed: bool = False) -> Path:
     """Write the run directory atomically: a hidden temporary folder renamed when complete.
 
-    ``trace``: a :class:`Trace`, written; or a long run's
+    ``trace``: a :class:`~cnc_twin.trace.trace.Trace`, written; or a long run's
     :class:`~cnc_twin.trace.trace_file.TraceFile`, its file moved in (copied if it is already in
     another run directory).
 
     ``extra(folder)`` may add files (the rerun recording) before the rename. ``claimed``: the run
-    claimed ``run_dir`` (:func:`claim_run_dir`): the whole directory replaces that empty one.
+    claimed ``run_dir`` (:func:`~cnc_twin.run.run_claim.claim_run_dir`): the whole directory
+    replaces that empty one.
     """
     run_dir = Path(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)

@@ -183,5 +183,7 @@ class Terminated(KeyboardInterrupt):
 
 
 def terminate(signum, frame):
+    """The SIGTERM handler: further SIGTERMs ignored (the cleanup is not interrupted again), then
+    :class:`Terminated` raised."""
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the cleanup itself is not interrupted again
     raise Terminated

@@ -63,16 +63,20 @@ class Twin:
 
     Parameters
     ----------
-    scenario : a validated scenario (see :func:`cnc_twin.scenario.load.load_scenario`).
-    compiled : run the servo periods in the compiled kernel where it applies and step NURBS
+    scenario
+        a validated scenario (see :func:`cnc_twin.scenario.load.load_scenario`).
+    compiled
+        run the servo periods in the compiled kernel where it applies and step NURBS
         curves with the compiled stepper (the default); ``False`` runs every servo tick as its own
         call from Python (the same block functions, :mod:`cnc_twin.dsp.servo`) and the curve
         stepper interpreted from its source (:mod:`cnc_twin.dsp.curve_stepper`). Traces are the
         same bit for bit.
-    batch : with ``compiled``, run the steady middle of curve blocks, moves and dwells many
+    batch
+        with ``compiled``, run the steady middle of curve blocks, moves and dwells many
         periods per compiled call (:mod:`cnc_twin.run.period_kernel`; the default). The trace is
         the same either way.
-    record : keep the trace (the default). ``False`` writes every tick into a one-period scratch
+    record
+        keep the trace (the default). ``False`` writes every tick into a one-period scratch
         buffer instead, only to measure what recording costs: the result's trace is the last
         period and its metrics are the timing figures alone.
     """

@@ -33,10 +33,12 @@ _BUILT: OrderedDict[bytes, tuple] = OrderedDict()
 
 def workpiece(model_file: Path, surface_def, tile_size: float, obstacles: list, grid_spacing: float
               ) -> tuple[NurbsSurface, mujoco.MjModel, Tiling, tuple]:
-    """``(surface, model, tiling, grid)``: the surface (:class:`NurbsSurface`), the scene compiled
-    with it as the workpiece and the obstacle boxes (a copy of its own), the tiling's figures, and
-    the removal map's ``(scales, grid, uv)`` (:func:`cnc_twin.polishing.polish.removal_grid`) for
-    ``grid_spacing`` [m]. Raises what :func:`build_model` raises (nothing is kept then)."""
+    """``(surface, model, tiling, grid)``: the surface
+    (:class:`~cnc_twin.geometry.surface.NurbsSurface`), the scene compiled with it as the workpiece
+    and the obstacle boxes (a copy of its own), the tiling's figures, and the removal map's
+    ``(scales, grid, uv)`` (:func:`cnc_twin.polishing.polish.removal_grid`) for ``grid_spacing``
+    [m]. Raises what :func:`~cnc_twin.machine.workpiece.build_model` raises (nothing is kept
+    then)."""
     path = Path(model_file)
     key = hashlib.sha256(pickle.dumps((folder_state(path), surface_def, tile_size,
                                        [tuple(map(tuple, box)) for box in obstacles], grid_spacing),
