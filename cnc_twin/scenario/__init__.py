@@ -1,7 +1,8 @@
 """Reading a scenario: YAML in machinist units, validated strictly, converted to SI once
 (:class:`cnc_twin.core.config.Scenario`). Every problem is one :class:`~cnc_twin.core.errors.ScenarioError`.
 
-- :mod:`~cnc_twin.scenario.load`        :func:`load_scenario`: read, merge the machine parameters, validate, convert; one table of program kinds
+- :mod:`~cnc_twin.scenario.load`        :func:`~cnc_twin.scenario.load.load_scenario`: read, merge the machine parameters,
+  validate, convert; one table of program kinds
 - :mod:`~cnc_twin.scenario.machine`     axes, encoders, servo gains, the three rates, planner and whiteboard settings
 - :mod:`~cnc_twin.scenario.points`, :mod:`~cnc_twin.scenario.curve`, :mod:`~cnc_twin.scenario.surface`,
   :mod:`~cnc_twin.scenario.contour`, :mod:`~cnc_twin.scenario.chip`, :mod:`~cnc_twin.scenario.gcode`  one module

@@ -1,5 +1,5 @@
 """An axis's ``compensation`` key: backlash and a pitch-error table in LinuxCNC's ``COMP_FILE``
-format, read into the card's :class:`~cnc_twin.core.config.Compensation`.
+format, read into the card's :class:`~cnc_twin.core.axis_config.Compensation`.
 
 The file (LinuxCNC's ``[JOINT_n] COMP_FILE``): one row per line, three numbers separated by
 blanks, in the axis's units (mm | deg, machine coordinates): the nominal position, then with
@@ -79,7 +79,7 @@ def read_comp_file(path: Path, file_type: int, factor: float, label: Path, key: 
 
 def convert_compensation(spec: CompensationSpec | None, axis: str, rotary: bool, folder: Path | None,
                          label: Path) -> Compensation | None:
-    """The card's :class:`~cnc_twin.core.config.Compensation` of ``axis`` in SI, or None."""
+    """The card's :class:`~cnc_twin.core.axis_config.Compensation` of ``axis`` in SI, or None."""
     if spec is None:
         return None
     factor = units.position_factor(rotary)

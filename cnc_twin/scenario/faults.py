@@ -172,6 +172,7 @@ class SupervisorSpec(_Strict):
 
 
 def convert_supervisor(spec: SupervisorSpec) -> SupervisorConfig:
+    """The ``supervisor:`` section in SI (times in s, the retract in m and m/s)."""
     return SupervisorConfig(
         following_error_stop=spec.following_error_stop,
         dac_saturation_time=spec.dac_saturation_time * units.MS,

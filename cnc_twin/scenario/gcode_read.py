@@ -29,7 +29,8 @@ class Where:
 class ProgramStream:
     """The program at ``path`` opened for reading with its tool table (``tool_table``, None: an
     empty one; lengths in ``tool_units``): the file and the table are read now (a ScenarioError
-    on ``label``'s key when they cannot be), the program when :meth:`operations` is iterated.
+    on ``label``'s key when they cannot be), the program when :meth:`~ProgramStream.operations` is
+    iterated.
 
     ``reader``: :class:`~cnc_twin.gcode.interpreter.Interpreter`'s keywords (``start``,
     ``parameters``, ``subroutine_path``, ``probe``, ``max_calls``); ``shaping``:

@@ -1,7 +1,8 @@
 """A G-code program set up on the machine as a machinist sets it up: where it starts (the
 machine's home, as LinuxCNC's interpreter starts from the machine's position), its work offsets
 (a touch-off, held in LinuxCNC's parameters #5221..), in the air (``program.in_air``), and where
-it goes against where the machine reaches when it does not fit (:func:`with_placement`)."""
+it goes against where the machine reaches when it does not fit
+(:func:`~cnc_twin.scenario.gcode_setup.with_placement`)."""
 
 from __future__ import annotations
 

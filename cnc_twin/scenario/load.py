@@ -1,4 +1,5 @@
-"""Scenario files: YAML in machinist units -> a validated, frozen :class:`Scenario` in SI.
+"""Scenario files: YAML in machinist units -> a validated, frozen
+:class:`~cnc_twin.core.config.Scenario` in SI.
 
 Loading is the only place units are converted (see :mod:`cnc_twin.core.units`). Every problem is a
 :class:`~cnc_twin.core.errors.ScenarioError` naming the file and the key path, e.g.::

@@ -246,6 +246,9 @@ def _whole_multiple(spec: TimingSpec, longer: str, shorter: str, label: Path) ->
 
 
 def convert_timing(spec: TimingSpec, label: Path) -> Timing:
+    """The ``timing:`` section in SI: the three periods [s], the servo ticks per interpolation
+    period and the physics steps per tick (a ScenarioError when a period is no whole multiple of
+    the next shorter one)."""
     ticks = _whole_multiple(spec, "interpolation_period", "servo_period", label)
     substeps = _whole_multiple(spec, "servo_period", "physics_timestep", label)
     return Timing(

@@ -37,6 +37,9 @@ class PointToPointProgram(Strict):
 
 
 def convert(spec: PointToPointProgram, axes: tuple[AxisConfig, ...], info: ModelInfo, label: Path) -> PointToPoint:
+    """The program in SI: each move's targets [m | rad] (None: the axis stays), feed [m/s] and
+    dwell (a ScenarioError on ``program.moves[i].AXIS`` for a target outside the axis's allowed
+    range)."""
     moves = []
     for m_index, move in enumerate(spec.moves):
         targets: list[float | None] = []

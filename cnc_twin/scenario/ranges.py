@@ -27,9 +27,10 @@ def _number(value: float) -> str:
 
 
 def accepted_range(model: type[BaseModel], dotted_key: str) -> str:
-    """The range of ``dotted_key`` (e.g. ``"servo.kp"``) below ``model`` in words, e.g.
-    ``"0 .. 1e5"``, ``"> 0 .. 1e9"``: lower bound (``>`` when exclusive), upper bound, the
-    schema-wide +-:data:`LARGEST_VALUE` where the field names none."""
+    """The range of ``dotted_key`` (e.g. ``"servo.kp"``) below ``model`` in words: lower bound
+    (``>`` when exclusive), upper bound, the schema-wide
+    +-:data:`~cnc_twin.scenario.schema_base.LARGEST_VALUE` where the field names none. For example
+    ``"0 .. 1e5"``, ``"> 0 .. 1e9"``."""
     *path, name = dotted_key.split(".")
     for part in path:
         model = model.model_fields[part].annotation

@@ -33,6 +33,8 @@ _WORDING = (("Input should be less than or equal to", "expected at most"),
 
 
 def validate(model_cls: type[BaseModel], data: Any, label: Path, prefix: tuple = ()) -> Any:
+    """``data`` validated as ``model_cls``; its first problem raised as one ScenarioError
+    (:func:`first_error`, key paths below ``prefix``)."""
     try:
         return model_cls.model_validate(data)
     except ValidationError as exc:
@@ -45,6 +47,8 @@ MORE_NAMED = 3
 
 def first_error(exc: ValidationError, label: Path, prefix: tuple, model_cls: type[BaseModel] | None = None
                 ) -> ScenarioError:
+    """The ScenarioError of pydantic's ``exc``: its first problem's key path (below ``prefix``) and
+    message in the twin's words, and where the next few others are."""
     errors = exc.errors(include_url=False)
     err = errors[0]
     loc = prefix + tuple(part for part in err["loc"] if part not in UNION_TAGS)
