@@ -27,6 +27,8 @@ def install_start_handlers() -> None:
 
 
 def main() -> int:
+    """The ``cnc-twin`` program: its start handlers, then the command, by a warm server if one is
+    there, else here (:func:`cnc_twin.cli.main`); the exit code."""
     install_start_handlers()
     from cnc_twin.core.phases import mark
 

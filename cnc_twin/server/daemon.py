@@ -285,6 +285,8 @@ def _wait_for(pid: int, timeout: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m cnc_twin.server.daemon KEY [--after PID]``: the server of ``KEY``, until it
+    ends; the exit code (0 also when it is not needed: another server, or other code)."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) not in (1, 3) or (len(args) == 3 and args[1] != "--after"):
         print("usage: python -m cnc_twin.server.daemon KEY [--after PID]", file=sys.stderr)

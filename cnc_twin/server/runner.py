@@ -17,7 +17,7 @@ import sys
 
 def become_command(request: dict, fds: list[int], close: list[int],
                    spares: dict[str, tuple[int, int, int, int]]) -> None:  # pragma: no cover - in the fork
-    """Run the command of ``request`` (see :func:`cnc_twin.core.server_link._hand_over`) with the
+    """Run the command of ``request`` (see ``cnc_twin.core.server_link._hand_over``) with the
     descriptors ``fds`` (the client's stdin, stdout, stderr) after closing the server's own
     ``close``, with the helpers the server started ahead (:data:`cnc_twin.core.helpers.SPARES`);
     never returns."""
