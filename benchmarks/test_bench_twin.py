@@ -24,7 +24,8 @@ def scenario():
 def test_bare_mj_step(benchmark, scenario):
     steps = Twin(scenario).run().metrics["physics_steps"]
     benchmark.pedantic(time_bare_steps, args=(scenario.model_file,),
-                       kwargs={"timestep": scenario.timing.physics_timestep, "steps": steps}, rounds=3)
+                       kwargs={"timestep": scenario.timing.physics_timestep, "steps": steps,
+                               "drives": scenario.drives}, rounds=3)
 
 
 def test_full_twin_run(benchmark, scenario):

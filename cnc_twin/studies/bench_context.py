@@ -40,13 +40,16 @@ def measurement_context(command: list[str]) -> dict[str, Any]:
     """The record kept beside a benchmark's figures, measured by ``command`` (the command line,
     e.g. ``["cnc-twin", "bench", "--repeat", "3"]``): ``date_utc`` (ISO 8601, to the second),
     ``command`` (one string), ``machine`` (``cpu``: the processor's name; ``cores``: the logical
-    CPUs this process may use; ``system``: the platform string), ``python`` (its version) and
+    CPUs this process may use; ``system``: the platform string; ``load_1min``: the load average
+    when the figures were written), ``python`` (its version) and
     ``versions`` (distribution -> version, for each of :data:`MEASURED_WITH`)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {
         "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "command": " ".join(command),
-        "machine": {"cpu": _cpu_model(), "cores": cores, "system": platform.platform()},
+        "machine": {"cpu": _cpu_model(), "cores": cores, "system": platform.platform(),
+                    # how busy the machine was (other work beside the benchmark slows it)
+                    "load_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None},
         "python": platform.python_version(),
         "versions": {name: _version(name) for name in MEASURED_WITH},
     }

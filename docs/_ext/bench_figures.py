@@ -64,12 +64,13 @@ def _table(header: list[str], rows: list[list[str]]) -> nodes.table:
 
 def _context(record: dict[str, Any]) -> str:
     """One sentence: when, with what command, on what machine and versions."""
-    if "measured" in record:
+    if "measured" in record:  # cnc-twin's own record (bench --json, the benchmarks' conftest)
         measured = record["measured"]
         versions = ", ".join(f"{name} {version}" for name, version in measured["versions"].items())
         machine = measured["machine"]
+        load = f", load average {machine['load_1min']} at the end" if machine.get("load_1min") is not None else ""
         return (f"Measured {measured['date_utc']} with `{measured['command']}` on {machine['cpu']} "
-                f"({machine['cores']} cores, {machine['system']}), Python {measured['python']}; {versions}.")
+                f"({machine['cores']} cores{load}, {machine['system']}), Python {measured['python']}; {versions}.")
     if "machine_info" in record:
         info = record["machine_info"]
         cpu = info.get("cpu", {}).get("brand_raw", info.get("processor", ""))
@@ -86,9 +87,10 @@ def _rows(record: dict[str, Any], keys: list[str] | None) -> tuple[list[str], li
         rows = []
         for bench in record["benchmarks"]:
             stats = bench["stats"]
+            figures = ", ".join(f"{key} {_number(value)}" for key, value in bench.get("extra_info", {}).items())
             rows.append([bench["fullname"].split("::", 1)[-1], f"{stats['median'] * 1e6:.4g}",
-                         f"{stats['min'] * 1e6:.4g}", str(stats["rounds"])])
-        return ["benchmark", "median [us]", "min [us]", "rounds"], rows
+                         f"{stats['min'] * 1e6:.4g}", str(stats["rounds"]), figures])
+        return ["benchmark", "median [us]", "min [us]", "rounds", "its own figures"], rows
     if "rows" in record:  # benchmarks/bench_long_programs.py: a row per program and step
         rows = []
         for row in record["rows"]:
