@@ -80,8 +80,8 @@ def time_twin_build(scenario_file: Path, *, kept: bool = False, overrides: dict 
 
 def time_twin_run(scenario_file: Path, planners: PlannerPool | None = None, *, overrides: dict | None = None,
                   **options) -> tuple[float, float, Any]:
-    """One twin run (``options`` for :class:`Twin`, the planner from ``planners`` if given):
-    clock wall time [s], whole run() wall time [s], the result."""
+    """One twin run (``options`` for :class:`~cnc_twin.run.twin.Twin`, the planner from ``planners``
+    if given): clock wall time [s], whole run() wall time [s], the result."""
     twin = Twin(load_scenario(scenario_file, overrides=overrides), **options)
     start = time.perf_counter()
     result = twin.run(planners=planners)

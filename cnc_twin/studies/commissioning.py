@@ -13,7 +13,7 @@ The measurement, on the machine with friction, plasticity and limits (the plant 
 H is from force command to motor speed [(m/s)/N | (rad/s)/(N m)], as
 :func:`~cnc_twin.studies.linearize.mechanics` linearises it. A two-mass axis shows the motor-side
 antiresonance (a dip) and the resonance (a peak) on the rigid body's mass line, 1 / (m 2 pi f):
-:func:`resonances` takes that line out (|H| 2 pi f) and finds the pair.
+:func:`resonances` takes that line out (``|H| 2 pi f``) and finds the pair.
 """
 
 from __future__ import annotations
@@ -54,16 +54,22 @@ def measure_mechanics(scenario: Scenario, axis: str, *, seconds: float = 4.0, am
 
     Parameters
     ----------
-    seconds : length of the excitation [s].
-    amplitude : the PRBS's level, a fraction of the drive's force limit. Small, because the
+    seconds
+        length of the excitation [s].
+    amplitude
+        the PRBS's level, a fraction of the drive's force limit. Small, because the
         mechanics are not linear in it: a harmonic drive's elasto-plastic element yields past
         +-9.7 N m and its stiffness falls from K1 + Kp to K1 (A's resonance drops 5 % at 1 %,
         11 % at 2 % of the limit), as a real drive's measured resonance moves with the
         excitation level.
-    speed : the steady speed, a fraction of the drive's full speed (10 V).
-    hold : physics steps each PRBS value is held (its spectrum is flat up to about 1 / (2 hold dt)).
-    segment : Welch segment length [s] (the frequency resolution is its inverse).
-    at : where the measurement is centred [m | rad, the axis's position]: the axis sweeps up through
+    speed
+        the steady speed, a fraction of the drive's full speed (10 V).
+    hold
+        physics steps each PRBS value is held (its spectrum is flat up to about 1 / (2 hold dt)).
+    segment
+        Welch segment length [s] (the frequency resolution is its inverse).
+    at
+        where the measurement is centred [m | rad, the axis's position]: the axis sweeps up through
         it at the steady speed, the excitation's middle there (a screw's stiffness depends on where
         its nut is). None: :func:`sweep_centre` of home.
     """
@@ -214,7 +220,7 @@ class Resonance:
 
 
 def resonances(fr: FrequencyResponse, *, band: tuple[float, float] = (10.0, 500.0)) -> Resonance:
-    """The resonance (the highest peak of |H| 2 pi f, the mass line taken out) within ``band``
+    """The resonance (the highest peak of ``|H| 2 pi f``, the mass line taken out) within ``band``
     [Hz] and the antiresonance (the deepest dip of the same below it)."""
     keep = (fr.frequency >= band[0]) & (fr.frequency <= band[1])
     f = fr.frequency[keep]
@@ -305,7 +311,7 @@ def entered_rigid_body(scenario: Scenario, axis: str) -> RigidBody:
 def format_mechanics(axis: str, mechanics, cfg) -> str:
     """One line per measured position: the resonance and antiresonance measured on the twin beside
     the model's. ``mechanics``: ``(position [m | rad], measured, model)`` each; ``cfg``: the
-    axis's :class:`~cnc_twin.core.config.AxisConfig` (its display unit)."""
+    axis's :class:`~cnc_twin.core.axis_config.AxisConfig` (its display unit)."""
     lines = [f"axis {axis} mechanics (drive force -> motor speed), measured on the twin and the linear model:"]
     for position, measured, model in mechanics:
         got, expected = resonances(measured), resonances(model)
@@ -316,7 +322,7 @@ def format_mechanics(axis: str, mechanics, cfg) -> str:
 
 
 def save_mechanics_plot(axis: str, mechanics, out_dir, unit: tuple[str, float] = ("m", 1.0)):
-    """The measured and the model's mechanics at each measured position (|H| 2 pi f, the mass
+    """The measured and the model's mechanics at each measured position (``|H| 2 pi f``, the mass
     line taken out: the rigid body is a flat line, the antiresonance a dip, the resonance a peak),
     each marked, as PNG. ``mechanics``: ``(position, measured, model)`` each (see
     :func:`format_mechanics`); ``unit``: the position's display unit and factor."""

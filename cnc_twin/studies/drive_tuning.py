@@ -7,7 +7,7 @@ speed, :func:`~cnc_twin.studies.commissioning.measure_mechanics`). The controlle
 exactly (the drive's PI and notches as :func:`~cnc_twin.studies.linearize.amplifier_ss` runs
 them at the physics step; the card's PID at the servo period), so each loop is their product
 with H, and what the machine does decides (its resonances, the current loop's lag, the delays),
-not the linearised model:
+not the linearised model::
 
     velocity loop    L_v = C_v N H F                     (C_v the PI, N the notches, F the drive's
                                                           speed filter on the actual speed)
@@ -362,7 +362,7 @@ rule of thumb in the machine-dynamics reference: position-loop bandwidth < veloc
 def position_candidates(fr: Responses, velocity: VelocityLoop, cfg: AxisConfig, servo_period: float,
                         dt: float, *, phase_margin: float = 40.0, gain_margin: float = 6.0,
                         kp_range: tuple[float, float] = (5.0, 400.0)) -> list[PositionLoop]:
-    """Every card (kp, ki) on the tuner's grid (:func:`~cnc_twin.studies.tuning.gain_grid`) meeting
+    """Every card (kp, ki) on the tuner's grid (``cnc_twin.studies.tuning.gain_grid``) meeting
     both margins on the measured response (on each of several), its (first) crossover below
     :data:`POSITION_LOOP_SHARE` of ``velocity``'s, highest crossover first."""
     highest = POSITION_LOOP_SHARE * velocity.margins.first_crossover_hz

@@ -204,6 +204,8 @@ def markdown(rows: list[Row]) -> str:
 
 
 def main() -> int:
+    """``python -m cnc_twin.studies.fault_catalog``: every case run, the table printed; exit 1 if
+    a case is not as expected."""
     rows = []
     for i, case in enumerate(CASES):
         print(f"[{i + 1}/{len(CASES)}] {case.name}", file=sys.stderr, flush=True)

@@ -275,7 +275,8 @@ def _bandwidth_hz(loop_response: np.ndarray, omega: np.ndarray) -> float:
 def analyse(scenario: Scenario, axis: str, *, plant: control.StateSpace | None = None,
             **gains: float) -> tuple[LoopReport, control.LTI, control.LTI]:
     """Margins, bandwidth and step figures; returns (report, open loop, closed loop). ``plant``:
-    the axis's :func:`axis_plant`, when the caller has it already (it costs about 0.5 s)."""
+    the axis's :func:`~cnc_twin.studies.linearize.axis_plant`, when the caller has it already (it
+    costs about 0.5 s)."""
     if axis not in AXES:
         raise ValueError(f"axis must be one of {' '.join(AXES)}, got {axis!r}")
     cfg = scenario.axis(axis)

@@ -101,6 +101,8 @@ def soak(minutes: float, *, every: float = 5.0, delay_ms: float = 2.0, progress=
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m cnc_twin.studies.soak``: the soak run, its figures printed as JSON; exit 1 if a
+    record was rejected or the run did not finish with every record accepted."""
     from cnc_twin.run.progress import ProgressBar
 
     parser = argparse.ArgumentParser(prog="python -m cnc_twin.studies.soak", description=__doc__.splitlines()[0])

@@ -364,5 +364,6 @@ def best_row(rows: list[dict[str, Any]], minimize: str) -> dict[str, Any] | None
 
 
 def timed(fn, *args, **kwargs) -> tuple[Any, float]:
+    """``fn(*args, **kwargs)`` and its wall time [s]."""
     started = time.perf_counter()
     return fn(*args, **kwargs), time.perf_counter() - started

@@ -57,6 +57,7 @@ class SweepStop:
 
     @property
     def worker_args(self) -> tuple[Any, ...]:
+        """The pool's ``initargs`` for :func:`init_worker`: the write end of the workers' pid pipe."""
         return (self._pids_out,)
 
     def request_stop(self, reason: str) -> None:

@@ -31,7 +31,7 @@ KI_RATIOS = (0.0, 0.05, 0.1, 0.2)
 
 def gain_grid(kp_range: tuple[float, float]):
     """The position-loop search grid: ``(kp [1/s], ki [1/s^2])``, kp on 40 log-spaced values over
-    ``kp_range``, each with ki = ratio kp^2 for the ratios :data:`KI_RATIOS`."""
+    ``kp_range``, each with ki = ratio kp^2 for the ratios ``KI_RATIOS``."""
     for kp in np.logspace(np.log10(kp_range[0]), np.log10(kp_range[1]), 40):
         for ratio in KI_RATIOS:
             yield float(kp), float(ratio * kp * kp)
@@ -101,8 +101,8 @@ class Verdict:
 
 def beats(candidate: dict[str, Any], current: dict[str, Any]) -> bool:
     """Whether twin step figures ``candidate`` are better than ``current``: it settles (within
-    the run), sooner by :data:`SETTLE_MARGIN`, with no more overshoot (within
-    :data:`OVERSHOOT_SLACK_PCT`)."""
+    the run), sooner by ``SETTLE_MARGIN``, with no more overshoot (within
+    ``OVERSHOOT_SLACK_PCT``)."""
     settle, before = candidate["settling_time_s"], current["settling_time_s"]
     if not np.isfinite(settle):
         return False
@@ -130,7 +130,7 @@ def verified_proposal(scenario_file: Path, scenario: Scenario, axis: str, *, pha
 
     ``measured``: candidates whose margins were read from the axis's measured response instead
     (:func:`~cnc_twin.studies.drive_tuning.position_candidates`, highest crossover first); the
-    twin alone judges them then, with at most :data:`OVERSHOOT_MAX_PCT` of the tool's overshoot; and
+    twin alone judges them then, with at most ``OVERSHOOT_MAX_PCT`` of the tool's overshoot; and
     where the current gains overshoot beyond that (plus the slack), a candidate that settles within
     it beats them however long it takes (a machine tool's position loop must not overshoot), and
     every candidate is tried, not ``tries`` of them; the same where ``current_margins`` says how

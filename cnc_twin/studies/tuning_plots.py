@@ -3,8 +3,9 @@ twin (the table's rise, overshoot and settling are read from them) and the open 
 margins the table prints, with each loop's crossover and margins marked.
 
 ``OpenLoop``: one gain set's open loop, ``frequency`` [Hz] and its complex ``responses`` (one per
-place the axis was measured, or the linear model's one), with the :class:`Margins` the table
-shows (the worst over the places; the first crossover).
+place the axis was measured, or the linear model's one), with the
+:class:`~cnc_twin.studies.drive_tuning.Margins` the table shows (the worst over the places; the
+first crossover).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ def _pyplot():
 
 
 def step_time_limit(steps: dict[str, dict[str, Any]]) -> float:
-    """[s] where the step plot's time axis ends: :data:`SETTLED_SPAN` times the latest settling
+    """[s] where the step plot's time axis ends: ``SETTLED_SPAN`` times the latest settling
     time among ``steps`` (twin step figures), within the longest record; the whole record when one
     of them never settles (what it does instead is the point)."""
     record = max((float(t["time_s"][-1]) for t in steps.values() if len(t["time_s"])), default=0.5)
