@@ -34,10 +34,10 @@ class Recorder:
     ----------
     command : (capacity, 6) float64 [counts]; actual : (capacity, 6) int32 [counts]
     dac : (capacity, 6) int16 [code]; pad_force : (capacity,) float64 [N]
-    periods : (capacity / ticks_per_period,) structured array of :data:`PERIOD_DTYPE`
-    tool : (capacity / ticks_per_period, 6) float64 [m]: the tool's true pose at each period's
-    last tick (:data:`~cnc_twin.trace.layout.TOOL_FIELDS`), written by the plant's side
-    count : ticks recorded so far
+    periods : (capacity / ticks_per_period,) structured array of
+    :data:`~cnc_twin.trace.layout.PERIOD_DTYPE` tool : (capacity / ticks_per_period, 6) float64 [m]:
+    the tool's true pose at each period's last tick (:data:`~cnc_twin.trace.layout.TOOL_FIELDS`),
+    written by the plant's side count : ticks recorded so far
 
     first : the run's tick of row 0 (0 until the window moves on)
     servo_period : [s] of a tick (the file's ``time`` column)
@@ -95,7 +95,7 @@ class Recorder:
         return t % self.ticks_per_period if self.scratch else t - self.first
 
     def period_row(self, k: int) -> int:
-        """The row of :attr:`periods` (and :attr:`tool`) of period ``k``."""
+        """The row of ``periods`` (and ``tool``) of period ``k``."""
         return 0 if self.scratch else k - self.first // self.ticks_per_period
 
     def make_room(self, t: int) -> None:
@@ -150,7 +150,7 @@ class Recorder:
         self.pad_force[t] = frame[3 * n]
 
     def tool_row(self, t: int) -> np.ndarray:
-        """The row of :attr:`tool` for the period of tick ``t`` (shape ``(6,)``, a view)."""
+        """The row of ``tool`` for the period of tick ``t`` (shape ``(6,)``, a view)."""
         return self.tool[self.period_row(t // self.ticks_per_period)]
 
     def record_period(self, k: int, frame: list, first: int) -> None:
@@ -158,9 +158,10 @@ class Recorder:
         self.periods[self.period_row(k)] = tuple(frame[first:])
 
     def trace(self, *, servo_period: float, counts_per_unit: np.ndarray, copy: bool) -> Trace:
-        """The ``count`` ticks recorded as a :class:`Trace`: copies (``copy=True``, for a run in
-        progress), else views, or copies when the run used less than :data:`KEEP_FRACTION` of the
-        room (so a trace never holds much more memory than its signals)."""
+        """The ``count`` ticks recorded as a :class:`~cnc_twin.trace.trace.Trace`: copies
+        (``copy=True``, for a run in progress), else views, or copies when the run used less than
+        :data:`KEEP_FRACTION` of the room (so a trace never holds much more memory than its
+        signals)."""
         n = min(self.count - self.first, self.capacity)  # a scratch recorder holds the last period only
         periods = -(-n // self.ticks_per_period)
         # a long run's trace keeps its columns however much room is left: a copy would hold the

@@ -1,4 +1,5 @@
-"""A run's recorded signals as arrays (:class:`Trace`), and the per-period samples an export reads.
+"""A run's recorded signals as arrays (:class:`~cnc_twin.trace.trace.Trace`), and the per-period
+samples an export reads.
 
 Each signal is kept at its natural width and rate (:data:`~cnc_twin.trace.layout.TICK_BYTES`,
 :data:`~cnc_twin.trace.layout.PERIOD_DTYPE`), so a trace's memory is the raw bytes of what was
@@ -53,11 +54,12 @@ class PeriodSignals(Mapping):
 class Trace:
     """The recorded signals as arrays. ``n`` = number of servo ticks.
 
-    Stored (see :data:`TICK_BYTES`, :data:`PERIOD_DTYPE`):
-    command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 codes;
-    pad_force : (n,) [N]; periods : per-period signals, structured, one row per period;
-    counts_per_unit : (6,) counts per m or rad, to convert counts to SI; tool : (periods, 6)
-    float64 [m], the tool's true pose per period (:data:`TOOL_FIELDS`: tip, pivot, world frame).
+    Stored (see :data:`~cnc_twin.trace.layout.TICK_BYTES`,
+    :data:`~cnc_twin.trace.layout.PERIOD_DTYPE`): command : (n, 6) float64 [counts]; actual : (n, 6)
+    int32 [counts]; dac : (n, 6) int16 codes; pad_force : (n,) [N]; periods : per-period signals,
+    structured, one row per period; counts_per_unit : (6,) counts per m or rad, to convert counts to
+    SI; tool : (periods, 6) float64 [m], the tool's true pose per period
+    (:data:`~cnc_twin.trace.layout.TOOL_FIELDS`: tip, pivot, world frame).
 
     Computed on access: ``time`` (n,) [s], ``period`` (n,) int64, ``following_error`` (n, 6)
     [counts], ``period_signals`` (per tick, see :class:`PeriodSignals`).
@@ -141,8 +143,9 @@ class Trace:
         return sum(a.nbytes for a in (self.command, self.actual, self.dac, self.pad_force, self.periods, self.tool))
 
     def raw_nbytes(self) -> int:
-        """The raw bytes of the recorded signals: :data:`TICK_BYTES` per tick, one
-        :data:`PERIOD_DTYPE` and :data:`TOOL_BYTES` per period."""
+        """The raw bytes of the recorded signals: :data:`~cnc_twin.trace.layout.TICK_BYTES` per
+        tick, one :data:`~cnc_twin.trace.layout.PERIOD_DTYPE` and
+        :data:`~cnc_twin.trace.layout.TOOL_BYTES` per period."""
         return raw_bytes(len(self), len(self.periods))
 
     def held_nbytes(self) -> int:
@@ -153,12 +156,13 @@ class Trace:
 
 @dataclass
 class PeriodSamples:
-    """The recorded signals at the last tick of periods ``first .. first + n - 1``: all that an
+    """The recorded signals at the last tick of periods ``first`` to ``first + n - 1``: all that an
     export and the path metrics read of a run (``n`` whole periods).
 
     command : (n, 6) float64 [counts]; actual : (n, 6) int32 [counts]; dac : (n, 6) int16 [code];
-    pad_force : (n,) float64 [N]; periods : (n,) :data:`PERIOD_DTYPE`; tool : (n, 6) float64 [m]
-    (:data:`TOOL_FIELDS`); counts_per_unit : (6,) as the trace's.
+    pad_force : (n,) float64 [N]; periods : (n,) :data:`~cnc_twin.trace.layout.PERIOD_DTYPE`; tool :
+    (n, 6) float64 [m] (:data:`~cnc_twin.trace.layout.TOOL_FIELDS`); counts_per_unit : (6,) as the
+    trace's.
     """
 
     first: int
@@ -172,9 +176,9 @@ class PeriodSamples:
 
     @classmethod
     def take(cls, source, first: int, stop: int) -> "PeriodSamples":
-        """Periods ``first .. stop - 1`` of the run from a :class:`Trace` or a :class:`Recorder`
-        (same column names; either may hold a stretch of the run from its tick ``first``, a whole
-        period), copied."""
+        """Periods ``first .. stop - 1`` of the run from a :class:`Trace` or a
+        :class:`~cnc_twin.trace.recorder.Recorder` (same column names; either may hold a stretch of
+        the run from its tick ``first``, a whole period), copied."""
         if hasattr(source, "period_samples"):  # a trace in its file: read from the row groups concerned
             return source.period_samples(first, stop)
         tpp = source.ticks_per_period

@@ -1,5 +1,6 @@
-"""A run's trace read back from its ``trace.parquet`` (:class:`TraceFile`): a long run's trace,
-which the recorder wrote to the file while the run ran and does not hold in memory.
+"""A run's trace read back from its ``trace.parquet``
+(:class:`~cnc_twin.trace.trace_file.TraceFile`): a long run's trace, which the recorder wrote to the
+file while the run ran and does not hold in memory.
 
 Its pieces (:meth:`TraceFile.chunks`, one per row group) are :class:`~cnc_twin.trace.trace.Trace`
 objects as the recorder held them, bit for bit: the file's per-tick columns of per-period signals
@@ -22,17 +23,18 @@ from cnc_twin.trace.trace import PIECE_PERIODS, PeriodSamples, Trace
 
 WHOLE_ARRAYS = ("command", "actual", "dac", "pad_force", "periods", "tool", "time", "period", "following_error",
                 "period_signals", "columns", "at_period_ends", "nbytes", "held_nbytes")
-"""what a :class:`Trace` has of the whole run: read from the file on first use"""
+"""what a :class:`~cnc_twin.trace.trace.Trace` has of the whole run: read from the file on first
+use"""
 
 
 class TraceFile:
     """The trace in ``path`` (written by :class:`~cnc_twin.trace.parquet.TraceWriter`), with the
     run's ``servo_period`` [s], ``ticks_per_period`` and ``counts_per_unit`` (6,).
 
-    Used as a :class:`Trace`: ``len``, :attr:`whole_periods`, :meth:`chunks` and
-    :meth:`period_samples` read it a row group at a time; the other attributes of a
-    :class:`Trace` (``command``, ``period_signals``, ...) read the whole file once into one
-    (:meth:`load`)."""
+    Used as a :class:`~cnc_twin.trace.trace.Trace`: ``len``, :attr:`whole_periods`, :meth:`chunks`
+    and :meth:`period_samples` read it a row group at a time; the other attributes of a
+    :class:`~cnc_twin.trace.trace.Trace` (``command``, ``period_signals``, ...) read the whole file
+    once into one (:meth:`load`)."""
 
     def __init__(self, path: Path, *, servo_period: float, ticks_per_period: int, counts_per_unit: np.ndarray,
                  temporary_folder: Path | None = None, staged: bool = True):
@@ -71,14 +73,14 @@ class TraceFile:
         return self._rows // self.ticks_per_period
 
     def raw_nbytes(self) -> int:
-        """As :meth:`Trace.raw_nbytes`."""
+        """As :meth:`~cnc_twin.trace.trace.Trace.raw_nbytes`."""
         return raw_bytes(self._rows, -(-self._rows // self.ticks_per_period))
 
     def chunks(self, periods: int = PIECE_PERIODS):
         """The trace in consecutive pieces of ``periods`` whole periods (the last may be shorter),
-        each a :class:`Trace` with its ``first`` tick, as :meth:`Trace.chunks` cuts the trace in
-        memory (so what sums piece by piece sums the same numbers in the same order), read a
-        row group at a time."""
+        each a :class:`~cnc_twin.trace.trace.Trace` with its ``first`` tick, as
+        :meth:`~cnc_twin.trace.trace.Trace.chunks` cuts the trace in memory (so what sums piece by
+        piece sums the same numbers in the same order), read a row group at a time."""
         held: list[Trace] = []
         held_periods = 0
         for piece in self.row_groups():
@@ -93,7 +95,8 @@ class TraceFile:
             yield from (_joined(held) if held else self._empty()).chunks(periods)
 
     def row_groups(self):
-        """The file's row groups in order, each as a :class:`Trace` with its ``first`` tick."""
+        """The file's row groups in order, each as a :class:`~cnc_twin.trace.trace.Trace` with its
+        ``first`` tick."""
         import pyarrow.parquet as pq
 
         source = pq.ParquetFile(self.path)
@@ -128,7 +131,8 @@ class TraceFile:
                      counts_per_unit=self.counts_per_unit, first=first)
 
     def period_samples(self, first: int, stop: int) -> PeriodSamples:
-        """:meth:`PeriodSamples.take` of periods ``first .. stop - 1``, from the row groups they are in."""
+        """:meth:`~cnc_twin.trace.trace.PeriodSamples.take` of periods ``first .. stop - 1``, from
+        the row groups they are in."""
         parts = []
         for piece in self.row_groups():
             p0 = piece.first // self.ticks_per_period
@@ -152,10 +156,11 @@ class TraceFile:
 
 
 SIGNALS = ("command", "actual", "dac", "pad_force", "periods", "tool")
-"""what a :class:`Trace` stores"""
+"""what a :class:`~cnc_twin.trace.trace.Trace` stores"""
 STORED = ([f"{prefix}_{axis}" for prefix in ("command", "actual", "dac") for axis in AXES]
           + ["pad_force", *PERIOD_DTYPE.names, *TOOL_FIELDS])
-"""the file's columns a :class:`Trace` is made of (not those computed from them: time, period, ferr)"""
+"""the file's columns a :class:`~cnc_twin.trace.trace.Trace` is made of (not those computed from
+them: time, period, ferr)"""
 
 
 def _joined(pieces: list[Trace]) -> Trace:
