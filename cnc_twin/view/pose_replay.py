@@ -1,6 +1,6 @@
 """Body poses of many axis positions in one compiled call (numba around ``mj_kinematics``).
 
-Used by :class:`cnc_twin.view.rerun_export._Kinematics` in the twin's own process, where numba is
+Used by ``cnc_twin.view.rerun_export._Kinematics`` in the twin's own process, where numba is
 loaded anyway; the recording process keeps to the Python loop (5.7 us a pose) rather than pay
 numba's import and load (0.3 s of CPU) for a few thousand poses.
 """

@@ -18,8 +18,8 @@ AGAIN = "run the scenario again to record it"
 
 
 def check_recording(path: Path) -> None:
-    """Return if ``path`` is a rerun recording readable to its end; else a :class:`ScenarioError`
-    saying what is wrong (one line)."""
+    """Return if ``path`` is a rerun recording readable to its end; else a
+    :class:`~cnc_twin.core.errors.ScenarioError` saying what is wrong (one line)."""
     with open(path, "rb") as file:
         head = file.read(len(HEADER))
     if head != HEADER:

@@ -306,8 +306,9 @@ def log_latency(rec: rr.RecordingStream, scenario: Scenario, exchange_latency) -
 
 
 class RunExporter:
-    """Sends a run to a recording in stretches: :meth:`start`, :meth:`send` (any number of times,
-    consecutive stretches of :class:`PeriodSamples`), :meth:`finish`. ``export_run`` does all
+    """Sends a run to a recording in stretches: :meth:`~RunExporter.start`, :meth:`~RunExporter.send`
+    (any number of times, consecutive stretches of :class:`~cnc_twin.trace.trace.PeriodSamples`),
+    :meth:`~RunExporter.finish`. ``export_run`` does all
     three at once; :mod:`cnc_twin.view.rerun_stream` feeds one in its own process during the run.
 
     Series are sampled at the last tick of each interpolation period; 3D poses, tool tips, feed
@@ -325,6 +326,7 @@ class RunExporter:
         self.servo_period = timing.servo_period
         self.stride = max(1, round(POSE_INTERVAL / timing.interpolation_period))
         self.sent_periods = 0
+        """the periods sent so far: the next stretch starts at this period"""
         self._states: list[np.ndarray] = []
         self._tips: list[np.ndarray] = []
         self._command_tips: list[np.ndarray] = []
