@@ -2,8 +2,8 @@
 
 :class:`Whiteboard` owns the ``multiprocessing.shared_memory.SharedMemory`` block and exposes
 typed numpy views of it (16-bit words, aligned 32-bit fields, the status record). The creator
-unlinks the segment in :meth:`close` (and as a context manager, on every exit path); a process
-that only attaches never unlinks, and detaches its views before closing.
+unlinks the segment in :meth:`Whiteboard.close` (and as a context manager, on every exit path); a
+process that only attaches never unlinks, and detaches its views before closing.
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ class Whiteboard:
     """Typed views of one whiteboard segment.
 
     Use :meth:`create` (DSP side, owner) or :meth:`attach` (planner side).
+
+    :type shm: ~multiprocessing.shared_memory.SharedMemory
+    :type layout: ~cnc_twin.whiteboard.layout.Layout
 
     Attributes
     ----------

@@ -86,12 +86,14 @@ class PcStream:
 
 
 class StreamCapture:
-    """The card's side: every exchange it took, as it took it (:meth:`take` at each FIFO snapshot)."""
+    """The card's side: every exchange it took, as it took it (:meth:`~StreamCapture.take` at each FIFO
+    snapshot)."""
 
     def __init__(self):
         self.exchanges: list[Exchange] = []
 
     def take(self, period: int, all_sent: int, wake_free: int, words: np.ndarray) -> None:
+        """Keep one exchange as the card took it (an :class:`Exchange` of these values)."""
         self.exchanges.append(Exchange(period, all_sent, wake_free, words))
 
     def stream(self, layout_words: int, program_periods: int) -> PcStream:

@@ -160,10 +160,13 @@ def python_layout() -> str:
 
 
 def files() -> dict[Path, str]:
+    """The generated files: path (under the project's folder) -> text."""
     return {C_HEADER: c_header(), PYTHON_LAYOUT: python_layout()}
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m cnc_twin.whiteboard.client_files [--check] [ROOT]`` (see the module docstring):
+    the exit code."""
     args = sys.argv[1:] if argv is None else argv
     check = "--check" in args
     rest = [a for a in args if a != "--check"]

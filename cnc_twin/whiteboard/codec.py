@@ -113,6 +113,7 @@ class GeometryJoiner:
         return bool(self._parts)
 
     def add(self, part: GeometryPart) -> CurveGeometry | SurfaceGeometry | None:
+        """Join ``part``: the whole record once it is the last, else None (see the class)."""
         if part.kind not in _JOINED:
             raise RecordError(f"geometry part of record type {part.kind}")
         if part.index != len(self._parts) or (self._parts and (part.kind, part.count) != (self._kind, self._count)):

@@ -67,7 +67,8 @@ class Doorbell:
 
 class PipeDoorbells:
     """Both directions as OS pipes, for a planner started as a plain subprocess: the planner's
-    ends (:meth:`pc_fds`) are inherited through ``pass_fds`` and closed here once it started."""
+    ends (:meth:`~PipeDoorbells.pc_fds`) are inherited through ``pass_fds`` and closed here once it
+    started."""
 
     def __init__(self):
         to_pc_r, to_pc_w = os.pipe()
@@ -96,7 +97,7 @@ class PipeDoorbells:
 
 
 class Doorbells:
-    """Both directions, made by the DSP side; :meth:`pc_ends` go to the planner process.
+    """Both directions, made by the DSP side; :meth:`~Doorbells.pc_ends` go to the planner process.
 
     Parameters
     ----------
@@ -110,7 +111,8 @@ class Doorbells:
         self.wait_pc = Doorbell(self._to_dsp[0])
 
     def pc_ends(self) -> tuple[Connection, Connection]:
-        """``(wait_dsp, ring_dsp)`` connection ends for the planner's :class:`PcPort`."""
+        """``(wait_dsp, ring_dsp)`` connection ends for the planner's
+        :class:`~cnc_twin.whiteboard.ports.PcPort`."""
         return self._to_pc[0], self._to_dsp[1]
 
     def close(self) -> None:

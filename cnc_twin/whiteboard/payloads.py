@@ -1,5 +1,6 @@
 """The payload of each command record (:mod:`cnc_twin.whiteboard.records`) on the wire: one entry
-per record type, its code, its encoder and its decoder (:data:`PAYLOADS`). The framing around a
+per record type, its code, its encoder and its decoder
+(:data:`~cnc_twin.whiteboard.payloads.PAYLOADS`). The framing around a
 payload (header, length check, CRC, parts) is :mod:`cnc_twin.whiteboard.codec`'s.
 
 A new record type plugs in here, at one place: its class in ``records``, a :class:`Payload` entry
@@ -8,47 +9,47 @@ below with the next free code (and, on the card's side, the item it becomes:
 
 Payloads (little-endian; positions in m or rad, absolute machine coordinates):
 
-=====  ===============  =========================================================  ======
-type   record           payload                                                    words
-=====  ===============  =========================================================  ======
-1      Move             end position f64 x6; trapezoid t_acc, t_flat [s],         42
+=====  ===============  ===============================================================  =======
+type   record           payload                                                          words
+=====  ===============  ===============================================================  =======
+1      Move             end position f64 x6; trapezoid t_acc, t_flat [s],                42
                         v_peak [1/s], accel [1/s^2] f64 x4; periods u32
-2      Dwell            periods u32                                                2
-3      FeedOverride     fraction f64 (1.0 = programmed feed)                       4
-4      ForceSetpoint    force f64 [N]                                              4
-5      Spindle          on u16, pad u16, speed f64 [rad/s]                         6
-6      EndOfProgram     -                                                          0
-7      DataBlock        opaque program data (u16 words), e.g. a 4 KB block         1..2048
-8      CurveGeometry    degree u16, n u16, degree2 u16, n2 u16; held A, B, C f64 x3; varies
+2      Dwell            periods u32                                                      2
+3      FeedOverride     fraction f64 (1.0 = programmed feed)                             4
+4      ForceSetpoint    force f64 [N]                                                    4
+5      Spindle          on u16, pad u16, speed f64 [rad/s]                               6
+6      EndOfProgram     -                                                                0
+7      DataBlock        opaque program data (u16 words), e.g. a 4 KB block               1..2048
+8      CurveGeometry    degree u16, n u16, degree2 u16, n2 u16; held A, B, C f64 x3;     varies
                         knots f64 x (n + degree + 1); weights f64 x n;
                         control points f64 x 3n (X, Y, Z axis space; or, when n2 > 0,
                         tool-tip positions, world frame); if n2 > 0: pivot f64 x3,
                         tool offset f64 x3, then the tool-axis curve's knots,
                         weights and direction control points; then, optionally, program
                         line marks: (u, line) f64 pairs to the record's end
-9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6      24
-10     SurfaceGeometry  degree_u, degree_v, nu, nv u16 x4; lead, tilt [rad]; pivot,   varies
+9      CurveBlock       S-curve block: length, v0, vp, v1, a_max, j_max f64 x6           24
+10     SurfaceGeometry  degree_u, degree_v, nu, nv u16 x4; lead, tilt [rad]; pivot,      varies
                         tool offset f64 x3 each; knots_u, knots_v, weights (nu nv),
                         control net f64 x 3 nu nv (world frame, m; row-major in u)
-11     SurfaceCurve     degree u16, n u16; knots f64 x (n + degree + 1); weights     varies
+11     SurfaceCurve     degree u16, n u16; knots f64 x (n + degree + 1); weights         varies
                         f64 x n; (u, v) control points f64 x 2n: one path section
                         on the last SurfaceGeometry; its CurveBlocks follow
-12     ForceControl     on u16, n u16 (profile points); setpoint, ramp_time,         varies
+12     ForceControl     on u16, n u16 (profile points); setpoint, ramp_time,             varies
                         seek_speed, standoff, contact_threshold, kp, ki, max_depth,
                         retract_speed, adapt_threshold, adapt_feed, adapt_hold f64
                         x12; profile (path length [m], force [N]) f64 x 2n
-13     StepContour      method, kind, clockwise, pad, dda bits, pad u16 x6; start,   42
+13     StepContour      method, kind, clockwise, pad, dda bits, pad u16 x6; start,       42
                         end, centre (X, Y) i32 x6 [counts from power-on]; the step
                         clock's S-curve: length, v0, vp, v1, a_max, j_max f64 x6
-14     Mark             number u32 (0 = none): a program mark the trace records    2
-15     ChipCommand      op, axis, profile, pad u16 x4; deltas X Y Z, distance i32 x4 32
+14     Mark             number u32 (0 = none): a program mark the trace records          2
+15     ChipCommand      op, axis, profile, pad u16 x4; deltas X Y Z, distance i32 x4     32
                         [counts]; speed, creep [counts/s], accel [counts/s^2],
                         jerk [counts/s^3], time [s] f64 x5
-16     GeometryPart     whole record's type, part index, part count, pad u16 x4;   5..2048
+16     GeometryPart     whole record's type, part index, part count, pad u16 x4;         5..2048
                         the part's payload words
-17     Probe            a Move's payload (end f64 x6, trapezoid f64 x4, periods     48
+17     Probe            a Move's payload (end f64 x6, trapezoid f64 x4, periods          48
                         u32), then trip force f64 [N], kind u16 (2 .. 5), pad u16
-=====  ===============  =========================================================  ======
+=====  ===============  ===============================================================  =======
 
 """
 
@@ -136,7 +137,8 @@ class Payload:
     record -> payload bytes (ValueError when it cannot be sent); ``decode``: ``(payload bytes,
     payload words (uint16 view))`` -> record (RecordError on a malformed payload); ``words``: the
     fixed payload length [words], or None for a variable one (1 .. MAX_BLOCK_WORDS); ``in_parts``:
-    a payload longer than one record may go as GeometryPart records (:func:`codec.split`).
+    a payload longer than one record may go as GeometryPart records
+    (:func:`~cnc_twin.whiteboard.codec.split`).
     """
 
     code: int
@@ -187,6 +189,7 @@ def _encode_curve(record: CurveGeometry) -> bytes:
 
 
 def decode_curve(payload: bytes, _words=None) -> CurveGeometry:
+    """A CurveGeometry record from its payload bytes (RecordError on a malformed one)."""
     degree, n, degree2, n2, *hold = _head(_CURVE_HEAD, payload, "curve")
     n_knots, n_knots2 = n + degree + 1, (n2 + degree2 + 1 if n2 else 0)
     expected = n_knots + 4 * n + (6 + n_knots2 + 4 * n2 if n2 else 0)
@@ -223,6 +226,7 @@ def _encode_surface(record: SurfaceGeometry) -> bytes:
 
 
 def decode_surface(payload: bytes, _words=None) -> SurfaceGeometry:
+    """A SurfaceGeometry record from its payload bytes (RecordError on a malformed one)."""
     du, dv, nu, nv, lead, tilt, *geo = _head(_SURFACE_HEAD, payload, "surface")
     ku, kv = nu + du + 1, nv + dv + 1
     values = _f64s(payload, _SURFACE_HEAD.size, ku + kv + 4 * nu * nv, "surface")

@@ -72,6 +72,7 @@ class PlannerLost(RuntimeError):
 
 
 def mailbox_value(period: int) -> int:
+    """The mailbox word that says ``period``: ``period + 1`` in 16 bits."""
     return (period + 1) & 0xFFFF
 
 

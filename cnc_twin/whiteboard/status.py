@@ -92,16 +92,16 @@ class FaultCode:
     """Fault codes reported in the status block and ``metrics.json``."""
 
     NONE = 0
-    PLANNER_LOST = 1       # planner process died or its heartbeat stopped
-    PLANNER_START = 2      # planner never attached
-    RUN_TIMEOUT = 3        # program did not finish within the scenario's time limit
-    FOLLOWING_ERROR = 4    # an axis's following error beyond its limit
-    SOFT_LIMIT = 5         # a command beyond an axis's soft limit
-    HARD_LIMIT = 6         # a limit switch on
-    DAC_SATURATION = 7     # a DAC channel clamped for longer than allowed
-    FORCE_LIMIT = 8        # pad force above the maximum
-    WATCHDOG = 9           # the card's task stopped running (servo interrupts missed)
-    PROBE = 10             # a probing move that must trip did not, or the probe was tripped at its start
+    PLANNER_LOST = 1       #: planner process died or its heartbeat stopped
+    PLANNER_START = 2      #: planner never attached
+    RUN_TIMEOUT = 3        #: program did not finish within the scenario's time limit
+    FOLLOWING_ERROR = 4    #: an axis's following error beyond its limit
+    SOFT_LIMIT = 5         #: a command beyond an axis's soft limit
+    HARD_LIMIT = 6         #: a limit switch on
+    DAC_SATURATION = 7     #: a DAC channel clamped for longer than allowed
+    FORCE_LIMIT = 8        #: pad force above the maximum
+    WATCHDOG = 9           #: the card's task stopped running (servo interrupts missed)
+    PROBE = 10             #: a probing move that must trip did not, or the probe was tripped at its start
 
     NAMES = {0: "NONE", 1: "PLANNER_LOST", 2: "PLANNER_START", 3: "RUN_TIMEOUT", 4: "FOLLOWING_ERROR",
              5: "SOFT_LIMIT", 6: "HARD_LIMIT", 7: "DAC_SATURATION", 8: "FORCE_LIMIT", 9: "WATCHDOG",
