@@ -102,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     lib = oracle.ROOT / "usr" / "lib"
     rs274_env = dict(os.environ, LD_LIBRARY_PATH=f"{lib}:{lib / 'x86_64-linux-gnu'}")
+    # each command in its own process: a warm server would run it in a fork of its own, whose
+    # memory and time GNU time cannot see (it measures the small client)
+    own_env = dict(os.environ, CNC_TWIN_SERVER="off")
     table = ROOT / "models" / "polisher.tbl"
     rows = []
     measured = measurement_context(["python", "benchmarks/bench_long_programs.py", *(argv or sys.argv[1:])])
@@ -110,13 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         program = folder / f"raster_{passes}.ngc"
         program.write_text(raster_text(passes))
         lines = sum(1 for _ in program.open())
-        steps = [("gcode", [str(CNC_TWIN), "gcode", str(program), "--canon"], None)]
+        steps = [("gcode", [str(CNC_TWIN), "gcode", str(program), "--canon"], own_env)]
         if oracle.available():
             steps.append(("rs274", [str(oracle.RS274), "-t", str(table), "-g", str(program)], rs274_env))
-        steps.append(("validate", [str(CNC_TWIN), "validate", str(program)], None))
+        steps.append(("validate", [str(CNC_TWIN), "validate", str(program)], own_env))
         out = folder / f"run_{passes}"
         steps.append(("run", [str(CNC_TWIN), "run", str(program), "--in-air", "10", "--no-rrd", "--quiet",
-                              "--out", str(out)], None))
+                              "--out", str(out)], own_env))
         for name, command, env in steps:
             row = {"passes": passes, "lines": lines, "step": name, **timed(command, args.timeout, env)}
             if name == "run" and (out / "metrics.json").is_file():

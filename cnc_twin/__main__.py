@@ -2,4 +2,5 @@
 
 from cnc_twin.entry import main
 
-raise SystemExit(main())
+if __name__ == "__main__":  # imported (e.g. by the docs' API reference), it runs nothing
+    raise SystemExit(main())

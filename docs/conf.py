@@ -68,6 +68,24 @@ nitpick_ignore_regex = [
 
 
 
+
+
+def _public_bases(app, name, obj, options, bases):
+    """A class's private base (``_PathKind``) is shown as the public classes it derives from: its
+    page does not exist, and a reader has nothing to look up in it."""
+    shown = []
+    for base in bases:
+        if base.__name__.startswith("_"):
+            shown.extend(b for b in base.__bases__ if b not in shown and b is not object)
+        elif base not in shown:
+            shown.append(base)
+    bases[:] = shown or [object]
+
+
+def setup(app):
+    app.connect("autodoc-process-bases", _public_bases)
+
+
 html_theme = "furo"
 html_title = "cnc-twin"
 html_static_path: list[str] = []

@@ -343,4 +343,5 @@ def step_figures(response: np.ndarray, time: np.ndarray, final: float) -> dict[s
     return figures
 
 
-__all__ = ["Proposal", "Verdict", "analyse", "beats", "format_verdict", "propose_gains", "twin_step", "verified_proposal"]
+__all__ = ["Proposal", "Verdict", "analyse", "beats", "candidates", "check_margins", "format_verdict", "gain_grid",
+           "propose_gains", "step_direction", "step_figures", "twin_step", "verified_proposal"]
