@@ -123,3 +123,13 @@ def test_quoted_run_commands_run(command, tmp_path, monkeypatch):
     code, _, err = run_cli(*shlex.split(command)[1:], "--out", "run", "--quiet", "--no-rrd")
     assert code == 0, err
     assert json.loads((tmp_path / "run" / "metrics.json").read_text())["status"] == "complete"
+
+
+def test_the_readme_is_a_front_page_that_does_not_go_stale():
+    """README: at most 200 lines, no dated measurement, no issue number; its reference is in docs/."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 200
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", readme), "a dated note in README"
+    assert not re.search(r"(?i)\bissue\s*#?\d+", readme), "an issue number in README"
+    for target in re.findall(r"\]\(((?:docs/)?[\w./-]+\.(?:md|png))(?:#[\w-]+)?\)", readme):
+        assert (ROOT / target).is_file(), f"README links {target}, which does not exist"
