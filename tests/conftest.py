@@ -131,12 +131,51 @@ HEAVIEST_FIRST = ("test_signals.py", "test_view_web.py", "test_polish_batch.py",
 suite's 1200 worker-seconds), costliest first."""
 
 
-def pytest_collection_modifyitems(config, items):
+def _order_costliest_first(items):
     """The costliest modules first, the rest in their own order after them: xdist's loadscope hands
     out modules in this order, and a long module handed out last keeps one worker busy after the
     others ran dry (longest-first scheduling)."""
     rank = {name: place for place, name in enumerate(HEAVIEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+SLOW_MODULES = frozenset({
+    "test_bench_replay.py", "test_bench_startup.py", "test_compensation.py", "test_gcode_force.py", "test_trace_pieces.py",
+    "test_gcode_expressions.py", "test_heap.py",
+    "test_ballbar.py", "test_cam_raster.py", "test_commissioning.py", "test_compliant_model.py",
+    "test_contour_twin.py", "test_docs.py", "test_docs_site.py", "test_drive_tuning.py",
+    "test_environment_faults.py", "test_examples.py", "test_fault_catalog.py", "test_fit.py",
+    "test_fuzz_scenarios.py", "test_gcode_arcs.py", "test_gcode_corpus.py", "test_gcode_cycles.py",
+    "test_gcode_interpreter.py", "test_gcode_line_fit.py", "test_gcode_modal.py", "test_gcode_nurbs.py",
+    "test_gcode_probe.py", "test_gcode_setup.py", "test_gcode_speed_paths.py", "test_gcode_twin.py",
+    "test_getting_started.py", "test_hostile_inputs.py", "test_linearize.py", "test_machines.py",
+    "test_motion_chip_twin.py", "test_nurbs.py", "test_nurbs_twin.py", "test_outside_corpus.py",
+    "test_outside_runs.py", "test_paths_ahead.py", "test_plan_cache.py", "test_planner_pool.py",
+    "test_polish_batch.py", "test_polish_twin.py", "test_probing_twin.py", "test_program_cache.py",
+    "test_program_streaming.py", "test_published_curves.py", "test_removal_kernel.py", "test_rerun.py",
+    "test_rerun_stream.py", "test_runaway_programs.py", "test_scenario.py", "test_serve.py",
+    "test_servo_kernel.py", "test_signals.py", "test_soak.py", "test_sweep.py", "test_sweep_interrupt.py",
+    "test_trace_streaming.py", "test_twin.py", "test_view_web.py", "test_warm_server.py",
+    "test_whiteboard.py"
+})
+"""Modules marked ``slow`` whole: each took over 8 worker-seconds in a ``--durations=0`` run of the
+whole suite (3 workers on 2 cores; ``test_layout.py``, 16 s of quick rules, kept in the loop), or
+runs a whole twin, LinuxCNC or a whole program in a test of a few seconds (the first two lines). They
+run whole twins, start ``cnc-twin`` processes, read the G-code corpora or build pages; what is left
+(``python -m pytest -m "not slow"``) is the edit-test loop of the blocks, the geometry, the reader,
+the whiteboard and the layout rules, under a minute on 2 cores. A new module of whole runs joins
+this list (or marks its slow tests ``@pytest.mark.slow``)."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(session, config, items):
+    """Marks the tests of :data:`SLOW_MODULES` ``slow`` before ``-m`` selects (tryfirst: the mark
+    plugin's own hook deselects after this one)."""
+    for item in items:
+        if item.path.name in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+    _order_costliest_first(items)
+
 
 
 def pytest_configure(config):

@@ -160,6 +160,7 @@ def test_the_scenario_key_and_the_run_directory_keep_the_files(tmp_path):
     assert code == 2 and "EOF in file:part.ngc seeking o-word: o<side>" in err
 
 
+@pytest.mark.slow  # a whole Sphinx build / a whole run: left out of -m "not slow"
 def test_run_takes_a_subroutine_path_and_the_run_directory_runs_again(tmp_path):
     folder = _folder(tmp_path)
     code, _, err = run_cli("run", folder / "part.ngc", "--subroutine-path", folder / "subs", "--out",

@@ -115,6 +115,7 @@ def test_an_unwritable_out_is_one_line_and_exit_2(tmp_path, where):
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow  # a whole Sphinx build / a whole run: left out of -m "not slow"
 def test_the_docs_scenario_reference_builds_without_warnings_and_names_every_key(tmp_path):
     """docs/_ext/scenario_reference.py in a site of its own, its directive in a Markdown page and an
     rST one, built as the docs are (warnings are errors, every reference checked): each page lists
