@@ -123,7 +123,8 @@ def pytest_xdist_auto_num_workers(config):
     return len(os.sched_getaffinity(0)) + 1
 
 
-HEAVIEST_FIRST = ("test_signals.py", "test_view_web.py", "test_getting_started.py", "test_polish_batch.py", "test_examples.py", "test_rerun_stream.py",
+HEAVIEST_FIRST = ("test_signals.py", "test_view_web.py", "test_getting_started.py", "test_polish_batch.py",
+                  "test_examples.py", "test_rerun_stream.py",
                   "test_sweep.py", "test_polish_twin.py", "test_sweep_interrupt.py", "test_linearize.py",
                   "test_docs.py", "test_cam_raster.py", "test_twin.py", "test_hostile_inputs.py",
                   "test_scenario.py", "test_whiteboard.py", "test_gcode_twin.py", "test_fault_catalog.py")
