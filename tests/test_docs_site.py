@@ -1,9 +1,9 @@
-"""The docs site's own machinery: the performance page's tables come from the benchmarks' files.
-
-docs/_ext/bench_figures.py in a site of its own, built as the docs are (warnings are errors):
-each committed file of docs/data/ renders with what it was measured on and its figures as the file
-holds them; a file that is missing, or says nothing of its machine, fails the build. The whole
-site (every page, the API reference of every module) is built by CI (scripts/build_docs.py).
+"""The docs site's own machinery, each extension of docs/_ext/ in a small site of its own built as
+the docs are (warnings are errors, every reference checked): the performance page's tables come
+from the benchmarks' files (bench_figures: each committed file of docs/data/ renders with what it
+was measured on; a file that is missing, or says nothing of its machine, fails the build), and the
+scenario keys from the JSON Schema (scenario_reference). The whole site (every page, the API
+reference of every module) is built by CI (scripts/build_docs.py).
 """
 
 from __future__ import annotations
@@ -20,16 +20,19 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = sorted((ROOT / "docs" / "data").glob("*.json"))
 
 
-def _build(tmp_path: Path, pages: dict[str, str]) -> subprocess.CompletedProcess:
+def _build(tmp_path: Path, pages: dict[str, str], extension: str = "bench_figures") -> subprocess.CompletedProcess:
+    """A site of ``pages`` (name -> Markdown, or rST where the name ends in ``.rst``) and an index
+    listing them, with myst-parser and ``extension``, built to text in ``tmp_path / "built"``."""
     source, built = tmp_path / "site", tmp_path / "built"
     source.mkdir()
     (source / "conf.py").write_text(
-        f"import sys\nsys.path[:0] = [{str(ROOT / 'docs' / '_ext')!r}]\n"
-        "extensions = ['myst_parser', 'bench_figures']\nnitpicky = True\n", encoding="utf-8")
-    names = "\n".join(name for name in pages if name != "index")
+        f"import sys\nsys.path[:0] = [{str(ROOT / 'docs' / '_ext')!r}, {str(ROOT)!r}]\n"
+        f"extensions = ['myst_parser', {extension!r}]\n"
+        "source_suffix = {'.md': 'markdown', '.rst': 'restructuredtext'}\nnitpicky = True\n", encoding="utf-8")
+    names = "\n".join(name.removesuffix(".rst") for name in pages)
     (source / "index.md").write_text(f"# Figures\n\n```{{toctree}}\n{names}\n```\n", encoding="utf-8")
     for name, text in pages.items():
-        (source / f"{name}.md").write_text(text, encoding="utf-8")
+        (source / (name if name.endswith(".rst") else f"{name}.md")).write_text(text, encoding="utf-8")
     return subprocess.run([sys.executable, "-m", "sphinx", "-W", "-n", "-q", "-b", "text", str(source), str(built)],
                           capture_output=True, text=True, timeout=300)
 
@@ -79,3 +82,20 @@ def test_a_file_it_cannot_show_fails_the_build(tmp_path, content):
         path.write_text(json.dumps(content), encoding="utf-8")
     done = _build(tmp_path, {"p": f"# P\n\n```{{bench-figures}} {path}\n```\n"})
     assert done.returncode != 0
+
+
+def test_the_scenario_reference_builds_without_warnings_and_names_every_key(tmp_path):
+    """docs/_ext/scenario_reference.py's directive in a Markdown page and an rST one: each page lists
+    a path for every key of every model in the schema."""
+    from cnc_twin.scenario.json_schema import scenario_schema
+
+    done = _build(tmp_path, {"keys": "# Keys\n\n```{scenario-reference}\n```\n",
+                             "again.rst": "Again\n=====\n\n.. scenario-reference::\n"}, extension="scenario_reference")
+    assert done.returncode == 0, done.stderr
+    schema = scenario_schema()
+    keys = set(schema["properties"]) | {key for model in schema["$defs"].values() for key in model.get("properties", {})}
+    for page in ("keys.txt", "again.txt"):
+        paths = re.findall(r'^"([^"]+)" : ', (tmp_path / "built" / page).read_text(encoding="utf-8"), flags=re.M)
+        named = {part for path in paths for part in re.split(r"[.{},\[\]]+", path) if part}
+        assert keys - named == set(), page
+        assert {"program.moves[].feed", "axes.{X,Y,Z,A,B,C}.servo.kp", "faults[].duration", "whiteboard.words"} <= set(paths)

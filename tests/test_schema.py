@@ -5,9 +5,6 @@ refuses them, committed beside the scenarios as the command writes it now."""
 from __future__ import annotations
 
 import json
-import re
-import subprocess
-import sys
 from pathlib import Path
 
 import jsonschema
@@ -113,28 +110,3 @@ def test_an_unwritable_out_is_one_line_and_exit_2(tmp_path, where):
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
-
-
-@pytest.mark.slow  # a whole Sphinx build / a whole run: left out of -m "not slow"
-def test_the_docs_scenario_reference_builds_without_warnings_and_names_every_key(tmp_path):
-    """docs/_ext/scenario_reference.py in a site of its own, its directive in a Markdown page and an
-    rST one, built as the docs are (warnings are errors, every reference checked): each page lists
-    a path for every key of every model in the schema."""
-    source, built = tmp_path / "site", tmp_path / "built"
-    source.mkdir()
-    (source / "conf.py").write_text(
-        f"import sys\nsys.path[:0] = [{str(ROOT / 'docs' / '_ext')!r}, {str(ROOT)!r}]\n"
-        "extensions = ['myst_parser', 'scenario_reference']\n"
-        "source_suffix = {'.md': 'markdown', '.rst': 'restructuredtext'}\nnitpicky = True\n", encoding="utf-8")
-    (source / "index.md").write_text("# Keys\n\n```{toctree}\nagain\n```\n\n```{scenario-reference}\n```\n", encoding="utf-8")
-    (source / "again.rst").write_text("Again\n=====\n\n.. scenario-reference::\n", encoding="utf-8")
-    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-n", "-q", "-b", "text", str(source), str(built)],
-                          capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    schema = scenario_schema()
-    keys = set(schema["properties"]) | {key for model in schema["$defs"].values() for key in model.get("properties", {})}
-    for page in ("index.txt", "again.txt"):
-        paths = re.findall(r'^"([^"]+)" : ', (built / page).read_text(encoding="utf-8"), flags=re.M)
-        named = {part for path in paths for part in re.split(r"[.{},\[\]]+", path) if part}
-        assert keys - named == set(), page
-        assert {"program.moves[].feed", "axes.{X,Y,Z,A,B,C}.servo.kp", "faults[].duration", "whiteboard.words"} <= set(paths)
