@@ -44,6 +44,13 @@ def test_the_performance_page_names_only_files_that_are_committed():
     assert {ROOT / "docs" / name for name in named} <= set(DATA)
 
 
+def test_the_figures_the_performance_page_picks_are_in_its_files():
+    page = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
+    for name, keys in re.findall(r"^```\{bench-figures\} (\S+)\n:keys: (.+)$", page, flags=re.M):
+        record = json.loads((ROOT / "docs" / name).read_text(encoding="utf-8"))
+        assert set(keys.split()) <= set(record), (name, set(keys.split()) - set(record))
+
+
 def test_every_committed_figures_file_renders_with_its_machine(tmp_path):
     assert DATA, "docs/data/ holds no benchmark's figures"
     pages = {f"page{i}": f"# {path.name}\n\n```{{bench-figures}} {path}\n```\n" for i, path in enumerate(DATA)}
