@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -96,7 +95,8 @@ def bench_startup(scenarios: tuple[str, ...] = SCENARIOS, *, repeat: int = 3,
     ``run jog_axes (server)``...),
     ``wall_s`` (the fastest), ``first_s``, ``run_clock_s`` (the run's own clock, from its
     metrics), ``outside_s`` (wall less the clock), ``above_floor_s`` (outside less the floor) and
-    ``phases`` (the fastest repeat's), with the machine and the versions measured on."""
+    ``phases`` (the fastest repeat's). What they were measured on is kept beside them by
+    ``cnc-twin bench --json`` (:mod:`cnc_twin.studies.bench_context`)."""
     from cnc_twin.scenario.resources import scenarios_dir
 
     folder = Path(tempfile.mkdtemp(prefix="cnc-twin-startup-"))
@@ -133,7 +133,7 @@ def bench_startup(scenarios: tuple[str, ...] = SCENARIOS, *, repeat: int = 3,
 
 def _figures(times: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
     floor = min(t["wall_s"] for t in times.pop("floor"))
-    figures: dict[str, Any] = {"machine": _machine(), "floor_s": floor, "commands": {}}
+    figures: dict[str, Any] = {"floor_s": floor, "commands": {}}
     for key, runs in times.items():
         failed = [t for t in runs if t["code"] != 0]
         if failed:
@@ -148,14 +148,6 @@ def _figures(times: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         }
     return figures
 
-
-def _machine() -> dict[str, Any]:
-    """Where and with what the figures were measured."""
-    from importlib.metadata import version
-
-    return {"date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "host": platform.node(),
-            "cpus": os.cpu_count(), "python": platform.python_version(),
-            **{name: version(name) for name in ("numpy", "mujoco", "numba", "scipy", "rerun-sdk")}}
 
 
 def format_startup(figures: dict[str, Any]) -> str:
