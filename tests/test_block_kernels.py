@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnc_twin.dsp import adc, dac, encoder, pid, servo
+from cnc_twin.dsp import adc, dac, encoder, pid, reversal, servo
 
 SEEDS = range(20)
 
@@ -33,6 +33,11 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
                       speed_per_volt=rng.uniform(0.01, 0.1), counts_per_unit=channel["qep"]["counts_per_unit"],
                       dt=2.5e-4, output_limit=10.0, integrator_limit=rng.uniform(0.1, 10))
         dac.setup_dac(channel["dac"])
+        reversal.setup_reversal(channel["reversal"], amplitude=rng.choice([0.0, rng.uniform(0, 0.01)]),
+                                time=rng.uniform(1e-3, 0.1), lead=rng.uniform(0, 0.02),
+                                speed_per_volt=rng.uniform(0.01, 0.1), dt=2.5e-4)
+        channel["reversal"]["direction"] = rng.choice([-1.0, 0.0, 1.0])
+        channel["reversal"]["pulse"] = rng.uniform(-0.1, 0.1)
         channel["qep"]["counter16"] = rng.integers(0, 1 << 16)
         channel["qep"]["position32"] = rng.integers(-(1 << 31), 1 << 31)
         channel["pid"]["integrator"] = rng.uniform(-1, 1)
@@ -75,6 +80,14 @@ def test_pid_update_and_reset(seed):
     _walk(pid.pid_update, loops, rng, lambda r: (r.uniform(-1e6, 1e6), float(r.integers(-10**6, 10**6)),
                                                 r.uniform(-1e6, 1e6), r.uniform(-1e9, 1e9)), 50)
     _walk(pid.pid_reset, loops, rng, lambda r: (), 3)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_reversal_pulse(seed):
+    rng = np.random.default_rng(seed)
+    # velocities often 0 (a stop) and of either sign, as a reversal needs
+    _walk(reversal.reversal_pulse, _axes(rng)["reversal"], rng,
+          lambda r: (float(r.choice([0.0, r.uniform(-1e4, 1e4)])), r.uniform(-1e6, 1e6)), 60)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -117,6 +117,14 @@ class AxisConfig:
     """friction feed-forward [V] with the sign of the commanded speed; 0 = off"""
     friction_ff_band: float = 1e-3
     """commanded speed over which the friction feed-forward ramps from 0 to full [m/s | rad/s]"""
+    reversal_amplitude: float = 0.0
+    """reversal compensation: the speed pulse added when the commanded velocity changes sign
+    [m/s | rad/s]; 0 = off (:mod:`cnc_twin.dsp.reversal`)"""
+    reversal_time: float = 0.0
+    """reversal compensation: the pulse's decay time constant [s]; 0 = off"""
+    reversal_lead: float = 0.0
+    """reversal compensation: how long before the commanded velocity's zero (predicted from the
+    commanded acceleration) the pulse starts [s]"""
     index_period: float = 0.0
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0

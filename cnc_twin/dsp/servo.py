@@ -11,6 +11,7 @@ Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
     actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
     volts    = pid_update(pid, command, actual, v, a)        # PID+FF
+    volts   += reversal_pulse(reversal, v)                   # quadrant error compensation
     volts    = dac_write(dac, volts)                         # 12-bit, saturation counted
     force    = adc_convert(load cell + fault) - tare         # [N], tare taken on the first tick
 
@@ -45,21 +46,23 @@ from numba import njit
 
 from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import adc, compensation, dac, encoder, pid
+from cnc_twin.dsp import adc, compensation, dac, encoder, pid, reversal
 from cnc_twin.dsp.adc import ADC, adc_convert, setup_adc
 from cnc_twin.dsp.compensation import COMP, MAX_POINTS, TABLE_ROWS, comp_correction, setup_comp
 from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
 from cnc_twin.dsp.frame import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
 from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
+from cnc_twin.dsp.reversal import REVERSAL, reversal_pulse, setup_reversal
 from cnc_twin.dsp.step_output import StepGenerator
 
 # the functions below call the blocks' functions: recompile them when those change
-purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__])
+purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__,
+                       reversal.__file__])
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
                  ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64),
-                 ("comp", COMP)])
+                 ("comp", COMP), ("reversal", REVERSAL)])
 """One axis's servo channel, the record the servo functions work on:
 
 =============  ==============  ===========================================  =========================
@@ -74,6 +77,7 @@ velocity       counts/s        chord velocity, feed-forward                 :fun
 acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
 encoder_fault  counts          added to the reading by injected faults      the fault injector
 comp           :data:`.COMP`   backlash and the pitch-error table's state   :func:`.comp_correction`
+reversal       :data:`.REVERSAL`  the reversal compensation's pulse         :func:`.reversal_pulse`
 =============  ==============  ===========================================  =========================
 """
 
@@ -120,14 +124,15 @@ def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, posi
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
     with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
     correction added to the command (:func:`~cnc_twin.dsp.compensation.comp_correction`),
-    PID+FF, DAC. Writes the command [counts] (without the correction), the reading [counts], the
+    PID+FF, the reversal compensation's pulse (:func:`~cnc_twin.dsp.reversal.reversal_pulse`), DAC. Writes the command [counts] (without the correction), the reading [counts], the
     DAC code and the output voltage [V] per axis into the ``*_out`` arrays (shape ``(n,)`` each)."""
     for i in range(axes.shape[0]):
         a = axes[i]
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
         corrected = command + comp_correction(a.comp, comp_tables[i], command, a.velocity)
-        volts_out[i] = dac_write(a.dac, pid_update(a.pid, corrected, actual, a.velocity, a.acceleration))
+        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration) + reversal_pulse(a.reversal, a.velocity, a.acceleration)
+        volts_out[i] = dac_write(a.dac, volts)
         command_out[i] = command
         actual_out[i] = actual
         code_out[i] = a.dac.code
@@ -144,11 +149,13 @@ def read_encoders(axes, positions, actual_out):
 
 @njit(cache=True)
 def disable_axes(axes):
-    """Drives off: every DAC writes 0 V (code 0) and every position loop forgets its state."""
+    """Drives off: every DAC writes 0 V (code 0), every position loop forgets its state and
+    every reversal pulse ends."""
     for i in range(axes.shape[0]):
         a = axes[i]
         dac_write(a.dac, 0.0)
         pid_reset(a.pid)
+        a.reversal.pulse = 0.0
 
 
 @njit(cache=True)
@@ -213,6 +220,8 @@ class ServoTask:
                       speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
+            setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude, time=cfg.reversal_time,
+                           speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead)
             comp = cfg.compensation
             if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
                 cpu = cfg.counts_per_unit

@@ -45,7 +45,8 @@ import numpy as np
 from numba import njit
 
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import adc, compensation, curve_stepper, dac, encoder, feed_slew, force, pid, servo, spindle, supervisor
+from cnc_twin.dsp import adc, compensation, curve_stepper, dac, encoder, feed_slew, force, pid, reversal, servo, spindle, \
+    supervisor
 from cnc_twin.geometry import kinematics, span_eval, surface_path
 from cnc_twin.machine import amplifier, plant, screw
 from cnc_twin.motion import scurve, trapezoid
@@ -60,7 +61,7 @@ purge_stale(__file__, [curve_stepper.__file__, span_eval.__file__, force.__file_
                        c_clock.__file__, feed_slew.__file__, kinematics.__file__, surface_path.__file__,
                        spindle.__file__, scurve.__file__, trapezoid.__file__, amplifier.__file__,
                        encoder.__file__, pid.__file__, dac.__file__, adc.__file__, compensation.__file__,
-                       screw.__file__])
+                       reversal.__file__, screw.__file__])
 _latch_setpoint = servo.latch_setpoint
 _force_update = force.force_update
 _supervise_checks = supervisor.supervise

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from cnc_twin.core.kernel_cache import purge_stale
-from cnc_twin.dsp import adc, compensation, dac, encoder, pid, servo
+from cnc_twin.dsp import adc, compensation, dac, encoder, pid, reversal, servo
 from cnc_twin.machine import amplifier, model_file, mujoco_c, plant, screw
 
 
@@ -37,7 +37,7 @@ def available() -> bool:
 
 # the kernel calls MuJoCo through mujoco_c's bindings and the servo's blocks: recompile when they change
 purge_stale(__file__, [mujoco_c.__file__, servo.__file__, encoder.__file__, pid.__file__, dac.__file__,
-                       adc.__file__, compensation.__file__, plant.__file__, amplifier.__file__, screw.__file__,
+                       adc.__file__, compensation.__file__, reversal.__file__, plant.__file__, amplifier.__file__, screw.__file__,
                        model_file.__file__])
 
 if mujoco_c.IMPORT_ERROR is None:

@@ -57,6 +57,14 @@ class ServoSpec(Strict):
                                "commanded speed to cancel the axis's Coulomb friction; 0 = off")
     friction_ff_band: float = Field(1.0, gt=0, description="commanded speed over which the friction feed-forward "
                                     "ramps from 0 to full [mm/s | deg/s]")
+    reversal_amplitude: float = Field(0.0, ge=0, le=6000.0, description="reversal (quadrant error) compensation: "
+                                      "the speed pulse added to the drive command when the commanded velocity "
+                                      "changes sign [mm/min | deg/min]; 0 = off")
+    reversal_time: float = Field(0.0, ge=0, le=1000.0, description="reversal compensation: the pulse's decay time "
+                                 "constant [ms]; 0 = off")
+    reversal_lead: float = Field(0.0, ge=0, le=100.0, description="reversal compensation: how long before the "
+                                 "commanded velocity's zero, predicted from the commanded acceleration, the pulse "
+                                 "starts [ms]")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
     integrator_limit: float = Field(3.0, ge=0, le=10.0, description="clamp on the integrator's contribution [V]")
 
@@ -299,6 +307,9 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | No
                 kaff=a.servo.kaff,
                 friction_ff=a.servo.friction_ff,
                 friction_ff_band=a.servo.friction_ff_band * units.position_factor(rotary),
+                reversal_amplitude=a.servo.reversal_amplitude * units.velocity_factor(rotary),
+                reversal_time=a.servo.reversal_time * units.MS,
+                reversal_lead=a.servo.reversal_lead * units.MS,
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],
