@@ -101,6 +101,14 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--machine", choices=list(BUNDLED_MACHINES), default=None,
                       help="tune on this bundled machine instead of the one the scenario names")
 
+    commission = sub.add_parser("commission", help="commission a machine parameter file on the circular tests: "
+                                                   "matched position loops, reversal compensation, a report")
+    commission.add_argument("parameters", nargs="?", type=Path, default=None,
+                            help="machine parameter file (default: the bundled polisher_uncommissioned.yaml)")
+    commission.add_argument("--out", type=Path, default=None,
+                            help="folder for the commissioned file, report.md and the polar plots "
+                                 "(default runs/commission-<UTC time>)")
+
     view = sub.add_parser("view", help="open a run directory's recording in the rerun viewer")
     view.add_argument("run_dir", type=Path, help="a run directory, or a .rrd recording")
     view.add_argument("--web", action="store_true",
@@ -171,6 +179,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     handlers = {"run": _run, "serve": _run, "validate": _validate, "bench": _bench, "view": _view, "sweep": _sweep, "tune": _tune,
+                "commission": _commission,
                 "gcode": _gcode, "list": _list, "schema": _schema, "server": _server}
     if args.whole_process and args.command not in ("run", "serve", "sweep"):
         # The start handlers (cnc_twin/entry.py) end the program at once; from here Ctrl-C is a KeyboardInterrupt
@@ -258,6 +267,12 @@ def _tune(args: argparse.Namespace) -> int:
               phase_margin=args.phase_margin, gain_margin=args.gain_margin, step=args.step, out=args.out,
               overrides=overrides)
     return EXIT_OK
+
+
+def _commission(args: argparse.Namespace) -> int:
+    from cnc_twin.studies.commission_command import commission_command
+
+    return commission_command(args.parameters, args.out)
 
 
 def _view(args: argparse.Namespace) -> int:

@@ -125,6 +125,9 @@ class AxisConfig:
     reversal_lead: float = 0.0
     """reversal compensation: how long before the commanded velocity's zero (predicted from the
     commanded acceleration) the pulse starts [s]"""
+    reversal_rise: float = 0.0
+    """reversal compensation: the pulse's rise time constant [s] (a first-order low-pass on it);
+    0 = a step"""
     index_period: float = 0.0
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0

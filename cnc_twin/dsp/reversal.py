@@ -30,8 +30,8 @@ import math
 import numpy as np
 from numba import njit
 
-REVERSAL = np.dtype([("amplitude", np.float64), ("decay", np.float64), ("lead", np.float64), ("direction", np.float64),
-                     ("pulse", np.float64), ("count", np.int64)])
+REVERSAL = np.dtype([("amplitude", np.float64), ("decay", np.float64), ("lead", np.float64), ("rise", np.float64),
+                     ("direction", np.float64), ("pulse", np.float64), ("output", np.float64), ("count", np.int64)])
 """One axis's reversal compensation:
 
 =========  ======  ======================================================  ==================
@@ -46,7 +46,8 @@ count      -       reversals seen since set up (state)                     :func
 """
 
 
-def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, dt: float, lead: float = 0.0) -> None:
+def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, dt: float, lead: float = 0.0,
+                   rise: float = 0.0) -> None:
     """Fill ``r`` (a :data:`REVERSAL` record) and clear its state.
 
     Parameters
@@ -68,6 +69,7 @@ def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, d
     r["amplitude"] = amplitude / speed_per_volt if on else 0.0
     r["decay"] = math.exp(-dt / time) if on else 0.0
     r["lead"] = lead
+    r["rise"] = 1.0 - math.exp(-dt / rise) if rise > 0 else 1.0
     reset_reversal(r)
 
 
@@ -75,6 +77,7 @@ def reset_reversal(r) -> None:
     """The state at power-on: no direction known, no pulse."""
     r["direction"] = 0.0
     r["pulse"] = 0.0
+    r["output"] = 0.0
     r["count"] = 0
 
 
@@ -95,4 +98,5 @@ def reversal_pulse(r, velocity, acceleration):
     else:
         r.pulse *= r.decay
     r.direction = sign
-    return r.pulse
+    r.output += r.rise * (r.pulse - r.output)
+    return r.output

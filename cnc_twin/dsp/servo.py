@@ -156,6 +156,7 @@ def disable_axes(axes):
         dac_write(a.dac, 0.0)
         pid_reset(a.pid)
         a.reversal.pulse = 0.0
+        a.reversal.output = 0.0
 
 
 @njit(cache=True)
@@ -221,7 +222,8 @@ class ServoTask:
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
             setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude, time=cfg.reversal_time,
-                           speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead)
+                           speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,
+                           rise=cfg.reversal_rise)
             comp = cfg.compensation
             if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
                 cpu = cfg.counts_per_unit

@@ -30,8 +30,9 @@ from cnc_twin.scenario.yaml_input import read_text
 class CompensationSpec(Strict):
     """The card's leadscrew compensation of one axis (LinuxCNC's BACKLASH, COMP_FILE, COMP_FILE_TYPE)."""
 
-    backlash: float = Field(0.0, ge=0.0, le=10.0, description="[mm | deg] added half each way, by the direction "
-                                                               "of motion")
+    backlash: float = Field(0.0, ge=-10.0, le=10.0, description="[mm | deg] added half each way, by the direction "
+                                                                "of motion; negative where the tool leads the motor's "
+                                                                "encoder (Siemens' negative backlash)")
     comp_file: str | None = Field(None, description="pitch-error table in LinuxCNC's COMP_FILE format, next to the "
                                                     "scenario or the bundled models")
     comp_file_type: Literal[0, 1] = Field(0, description="0: the file gives the positions reached forward and in "
@@ -40,7 +41,7 @@ class CompensationSpec(Strict):
 
     @model_validator(mode="after")
     def _one_source_of_backlash(self) -> "CompensationSpec":
-        if self.backlash > 0.0 and self.comp_file is not None:
+        if self.backlash != 0.0 and self.comp_file is not None:
             raise KeyedValueError(("backlash",), "give the backlash in the comp file's forward and reverse columns "
                                                  "or here, not both")
         return self

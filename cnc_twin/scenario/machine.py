@@ -65,6 +65,9 @@ class ServoSpec(Strict):
     reversal_lead: float = Field(0.0, ge=0, le=100.0, description="reversal compensation: how long before the "
                                  "commanded velocity's zero, predicted from the commanded acceleration, the pulse "
                                  "starts [ms]")
+    reversal_rise: float = Field(0.0, ge=0, le=100.0, description="reversal compensation: the pulse's rise time "
+                                 "constant [ms] (a first-order low-pass on it, so that it excites the axis's modes "
+                                 "less); 0 = a step")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
     integrator_limit: float = Field(3.0, ge=0, le=10.0, description="clamp on the integrator's contribution [V]")
 
@@ -310,6 +313,7 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | No
                 reversal_amplitude=a.servo.reversal_amplitude * units.velocity_factor(rotary),
                 reversal_time=a.servo.reversal_time * units.MS,
                 reversal_lead=a.servo.reversal_lead * units.MS,
+                reversal_rise=a.servo.reversal_rise * units.MS,
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],

@@ -13,11 +13,15 @@ _PACKAGE_DIR = Path(__file__).resolve().parent.parent  # cnc_twin/
 BUNDLED_MACHINES = {
     "rigid": {"machine.model": "scene_rigid.xml", "machine.parameters": "polisher_rigid.yaml"},
     "compliant": {"machine.model": "scene.xml", "machine.parameters": "polisher.yaml"},
+    "uncommissioned": {"machine.model": "scene.xml", "machine.parameters": "polisher_uncommissioned.yaml"},
 }
 """The bundled machines by name, each as the scenario overrides that select it: ``rigid`` (every axis
 one rigid joint, the drives ideal velocity sources) and ``compliant`` (two-mass feed axes, harmonic
-drives, the bridge's rocking mode, drives with their own loops; models/polisher.xml).
-``cnc-twin run --machine NAME`` runs a scenario on either, so the two can be compared."""
+drives, the bridge's rocking mode, drives with their own loops; models/polisher.xml), commissioned
+(polisher.yaml: what ``cnc-twin commission`` wrote from polisher_uncommissioned.yaml, matched
+position loops and reversal and backlash compensation), and ``uncommissioned``: the same machine
+before commissioning. ``cnc-twin run --machine NAME`` runs a scenario on any of them, so they can be
+compared."""
 
 
 def bundled_machine_names(text: str) -> list[str]:

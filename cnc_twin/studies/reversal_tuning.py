@@ -13,12 +13,13 @@ gives the proportional path ``kp A`` at once and the integrator ``kp A T / tn`` 
 ``c`` from :func:`~cnc_twin.studies.commissioning.identify_rigid_body` (the drive's own signals),
 ``kp`` and ``tn`` from the drive's parameters.
 
-The refinement: a coordinate search on the circular test (ISO 230-4, the bundled ``ballbar_*``
-scenarios), each axis judged by its own quadrants' reversal spikes (the first axis of a plane
-reverses at 0 / 180 deg, the second at 90 / 270), both directions: the objective is the largest
-spike's size in um. Both axes of a plane are searched in the same runs (their quadrants apart).
-The steps, each keeping the best so far: the lead (what MuJoCo's friction, a soft constraint,
-lets creep on before the zero), the amplitude, the decay time, the lead again finer.
+The refinement: a coordinate search on the circular tests (ISO 230-4, the bundled ``ballbar_*``
+scenarios in XY, XZ and YZ), each axis judged by its own quadrants' reversal spikes (the first
+axis of a plane reverses at 0 / 180 deg, the second at 90 / 270) in both directions and every
+plane it is in: the objective is the largest spike's size in um. All axes are varied in the same
+runs (their quadrants apart). The steps, each keeping the best so far: the lead (what MuJoCo's
+friction, a soft constraint, lets creep on before the zero), the amplitude, the decay time, the
+lead and the amplitude again finer.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cnc_twin.core import units
 from cnc_twin.core.axes import AXES
 from cnc_twin.core.config import Scenario
@@ -36,8 +39,10 @@ PLANES = ("XY", "XZ", "YZ")
 """the circular tests, in the order the search runs them"""
 QUADRANTS_OF = {0: ("0", "180"), 1: ("90", "270")}
 """a plane's first / second axis -> the quadrants (metrics' keys) where it reverses"""
-LEAD_STEPS = (0.0, 5e-3, 10e-3, 15e-3, 20e-3)
+LEAD_STEPS = (0.0, 5e-3, 10e-3, 15e-3, 20e-3, 25e-3)
 """[s] the lead's first search"""
+RISE_STEPS = ((3e-3, 0.0), (3e-3, 3e-3), (6e-3, 3e-3), (6e-3, 6e-3), (10e-3, 6e-3), (10e-3, 10e-3))
+"""[s] (rise time, added lead) pairs: a slower rise starts later, so it is tried with more lead"""
 AMPLITUDE_FACTORS = (0.8, 0.9, 1.1, 1.2)
 TIME_FACTORS = (0.75, 1.5)
 LEAD_REFINE = (-2.5e-3, 2.5e-3)
@@ -54,14 +59,24 @@ class ReversalSetting:
     amplitude: float
     time: float
     lead: float = 0.0
+    rise: float = 0.0
+    backlash: float = 0.0
+    """the card's backlash compensation [m | rad] (:mod:`cnc_twin.dsp.compensation`); negative
+    where the tool leads the motor"""
     spike: float | None = None
+    """the largest reversal spike [um] the circular tests measured with it (None: not yet)"""
+    circular: float | None = None
+    """the largest circular deviation G [um] of the planes of its axis, measured with it"""
 
     def overrides(self) -> dict[str, float]:
-        """The scenario overrides that set it, in the scenario's units (mm/min | deg/min, ms)."""
+        """The scenario overrides that set it, in the scenario's units (mm/min | deg/min, ms, mm | deg)."""
         rotary = AXES.index(self.axis) >= 3
-        return {f"servo.{self.axis}.reversal_amplitude": round(self.amplitude / units.velocity_factor(rotary), 3),
-                f"servo.{self.axis}.reversal_time": round(self.time / units.MS, 3),
-                f"servo.{self.axis}.reversal_lead": round(self.lead / units.MS, 3)}
+        a = self.axis
+        return {f"servo.{a}.reversal_amplitude": round(self.amplitude / units.velocity_factor(rotary), 3),
+                f"servo.{a}.reversal_time": round(self.time / units.MS, 3),
+                f"servo.{a}.reversal_lead": round(self.lead / units.MS, 3),
+                f"servo.{a}.reversal_rise": round(self.rise / units.MS, 3),
+                f"axes.{a}.compensation.backlash": round(self.backlash / units.position_factor(rotary), 5)}
 
 
 @dataclass
@@ -95,64 +110,140 @@ def plane_spikes(metrics: Mapping[str, Any], plane: str) -> dict[str, float]:
     return out
 
 
-def circular_test(plane: str, overrides: Mapping[str, Any], *, scenarios: Path) -> dict[str, Any]:
-    """Run the bundled circular test of ``plane`` with ``overrides``; its metrics."""
+def circular_run(plane: str, overrides: Mapping[str, Any], *, scenarios: Path):
+    """Run the bundled circular test of ``plane`` with ``overrides``: its scenario and
+    :class:`~cnc_twin.run.result.RunResult`."""
     from cnc_twin.run.twin import run_scenario
     from cnc_twin.scenario.load import load_scenario
 
     scenario = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml", overrides=dict(overrides))
-    return run_scenario(scenario).metrics
+    return scenario, run_scenario(scenario)
 
 
-def search_plane(plane: str, settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scenarios: Path,
-                 tune: Sequence[str] | None = None, log: SearchLog | None = None,
-                 report: Callable[[str], None] = lambda line: None) -> dict[str, float]:
-    """Refine the ``settings`` of ``tune`` (default: both of ``plane``'s axes) in place (module
-    docstring) on the circular test of ``plane`` with ``base`` overrides and every setting's;
-    each axis is judged in this plane only (its spike measured again here first). Returns the
-    plane's spikes [um] per axis with the settings kept."""
-    axes = tuple(tune if tune is not None else plane)
+def circular_test(plane: str, overrides: Mapping[str, Any], *, scenarios: Path) -> dict[str, Any]:
+    """Run the bundled circular test of ``plane`` with ``overrides``; its metrics."""
+    return circular_run(plane, overrides, scenarios=scenarios)[1].metrics
 
-    def trial(candidate: dict[str, ReversalSetting]) -> dict[str, float]:
-        overrides = dict(base)
-        for s in settings.values():
-            overrides.update(s.overrides())
-        for s in candidate.values():
-            overrides.update(s.overrides())
-        spikes = plane_spikes(circular_test(plane, overrides, scenarios=scenarios), plane)
-        if log is not None:
-            log.runs.append((overrides, spikes))
-        return spikes
 
-    def keep(candidates: Sequence[dict[str, ReversalSetting]]) -> None:
+@dataclass(frozen=True)
+class AxisFigures:
+    """What the circular tests say of one axis over the planes it is in: ``spike`` the largest
+    reversal spike's size [um], ``lost_motion`` the mean step of the radial deviation across its
+    reversals [um] (:func:`reversal_steps`; outward positive)."""
+
+    spike: float
+    lost_motion: float
+    circular: float
+    """the largest circular deviation G [um] of the planes it is in"""
+
+
+def reversal_steps(passes, plane: str) -> dict[str, float]:
+    """Each axis of ``plane``'s lost motion [um]: the median radial deviation 5 - 15 deg after its
+    reversals less 5 - 15 deg before, in the direction of travel, over its two quadrants and the
+    passes (``passes``: :class:`~cnc_twin.run.ballbar.BallbarPass`). A tip that lags its motor by
+    L/2 in the direction of motion (friction through the screw's and the structure's compliance,
+    which the motor's encoder does not see) steps outward by L at every reversal: backlash, as the
+    ballbar's analysis names it, and what the card's backlash compensation takes off."""
+    out = {}
+    for k, axis in enumerate(plane):
+        steps = []
+        for p in passes:
+            sign = 1.0 if p.direction == "ccw" else -1.0
+            for quadrant in (0.0, 180.0) if k == 0 else (90.0, 270.0):
+                rel = np.degrees(np.angle(np.exp(1j * (p.angle - np.radians(quadrant))))) * sign
+                after = p.deviation[(rel > 5.0) & (rel < 15.0)]
+                before = p.deviation[(rel < -5.0) & (rel > -15.0)]
+                if len(after) and len(before):
+                    steps.append(float(np.median(after) - np.median(before)) * 1e6)
+        out[axis] = float(np.mean(steps)) if steps else 0.0
+    return out
+
+
+def axis_figures(overrides: Mapping[str, Any], *, scenarios: Path,
+                 planes: Sequence[str] = PLANES) -> dict[str, AxisFigures]:
+    """Each axis's :class:`AxisFigures` over the circular tests of ``planes`` it is in (the spike
+    the largest, the lost motion the mean)."""
+    from cnc_twin.run.ballbar import ballbar_passes
+
+    spikes: dict[str, float] = {}
+    steps: dict[str, list[float]] = {}
+    circular: dict[str, float] = {}
+    for plane in planes:
+        scenario, result = circular_run(plane, overrides, scenarios=scenarios)
+        ballbar = result.metrics["ballbar"]
+        g = max(ballbar[d]["circular_deviation_um"] for d in ("ccw", "cw"))
+        for axis, spike in plane_spikes(result.metrics, plane).items():
+            spikes[axis] = max(spikes.get(axis, 0.0), spike)
+            circular[axis] = max(circular.get(axis, 0.0), g)
+        passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
+        for axis, step in reversal_steps(passes, plane).items():
+            steps.setdefault(axis, []).append(step)
+    return {axis: AxisFigures(spikes[axis], float(np.mean(steps[axis])), circular[axis]) for axis in spikes}
+
+
+def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scenarios: Path,
+           planes: Sequence[str] = PLANES, log: SearchLog | None = None,
+           report: Callable[[str], None] = lambda line: None) -> dict[str, AxisFigures]:
+    """Refine ``settings`` (per axis) in place (module docstring) on the circular tests of
+    ``planes`` with ``base`` overrides: every trial runs them all and judges each axis by its
+    largest spike over the planes it is in, so a setting good in one plane and bad in another is
+    not kept. Returns each axis's figures with the settings kept."""
+    axes = tuple(settings)
+    kept: dict[str, AxisFigures] = {}
+
+    def keep(candidates: Sequence[dict[str, ReversalSetting]], step: str, by: str = "spike") -> None:
+        """Run each candidate; per axis keep it where it beats the best so far ``by`` its
+        largest spike or (``circular``) the largest G of its planes."""
         for candidate in candidates:
-            spikes = trial(candidate)
+            overrides = dict(base)
+            for s in candidate.values():
+                overrides.update(s.overrides())
+            figures = axis_figures(overrides, scenarios=scenarios, planes=planes)
+            if log is not None:
+                log.runs.append((overrides, {a: f.spike for a, f in figures.items()}))
             for axis in axes:
-                best = settings[axis]
-                if best.spike is None or spikes[axis] < best.spike:
-                    chosen = candidate[axis]
-                    chosen.spike = spikes[axis]
-                    settings[axis] = chosen
-        report(f"{plane}: " + ", ".join(f"{a} {_describe(settings[a])}" for a in axes))
+                best, new = settings[axis], figures[axis]
+                better = (best.spike is None or new.spike < best.spike) if by == "spike" else \
+                    (best.circular is None or new.circular < best.circular)
+                if better:
+                    candidate[axis].spike, candidate[axis].circular = new.spike, new.circular
+                    settings[axis] = candidate[axis]
+                    kept[axis] = new
+        report(f"{step}: " + ", ".join(f"{a} {describe(settings[a])}" for a in axes))
 
     def varied(change: Callable[[ReversalSetting], ReversalSetting]) -> dict[str, ReversalSetting]:
-        return {a: change(settings[a]) for a in axes}
+        return {a: replace(change(settings[a]), spike=None, circular=None) for a in axes}
+
+    def lost_motion() -> None:
+        """Backlash compensation from the tip's step across the reversals (and half of it),
+        judged by the circular deviation G: the spikes do not show it."""
+        measured = {a: kept[a].lost_motion * 1e-6 for a in axes}
+        keep([varied(lambda s, f=f: replace(s, backlash=s.backlash + f * measured[s.axis])) for f in (0.5, 1.0)],
+             "backlash from the lost motion", by="circular")
 
     for axis in axes:
-        settings[axis].spike = None
-    if not axes:  # a plane only checked
-        return trial({})
-    keep([varied(lambda s: replace(s, spike=None))])
-    keep([varied(lambda s, lead=lead: replace(s, lead=lead, spike=None)) for lead in LEAD_STEPS])
-    keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f, spike=None)) for f in AMPLITUDE_FACTORS])
-    keep([varied(lambda s, f=f: replace(s, time=s.time * f, spike=None)) for f in TIME_FACTORS])
-    keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d), spike=None)) for d in LEAD_REFINE])
-    keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f, spike=None)) for f in AMPLITUDE_REFINE])
-    return {axis: settings[axis].spike for axis in axes}
+        settings[axis].spike = settings[axis].circular = None
+    keep([varied(lambda s: s)], "first setting")
+    keep([varied(lambda s, lead=lead: replace(s, lead=lead)) for lead in LEAD_STEPS], "lead")
+    keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_FACTORS], "amplitude")
+    keep([varied(lambda s, r=r, d=d: replace(s, rise=r, lead=s.lead + d)) for r, d in RISE_STEPS], "rise")
+    keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d))) for d in LEAD_REFINE], "lead, finer")
+    keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_REFINE], "amplitude, finer")
+    keep([varied(lambda s, f=f: replace(s, time=s.time * f)) for f in TIME_FACTORS], "decay time")
+    for axis in axes:  # the circular deviation with the settings kept, to judge the backlash by
+        settings[axis].circular = kept[axis].circular
+    lost_motion()
+    keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d))) for d in LEAD_REFINE], "lead, finer")
+    keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_REFINE], "amplitude, finer")
+    return kept
 
 
-def _describe(s: ReversalSetting) -> str:
+def describe(s: ReversalSetting) -> str:
+    """One line: the setting in the scenario's units and, once measured, its spike."""
     o = s.overrides()
-    a, t, lead = (o[f"servo.{s.axis}.reversal_{k}"] for k in ("amplitude", "time", "lead"))
+    a, t, lead, rise = (o[f"servo.{s.axis}.reversal_{k}"] for k in ("amplitude", "time", "lead", "rise"))
+    backlash = o[f"axes.{s.axis}.compensation.backlash"] * 1e3
     unit = "deg/min" if AXES.index(s.axis) >= 3 else "mm/min"
-    return f"{a:.0f} {unit} / {t:.1f} ms / lead {lead:.1f} ms: spike {s.spike:.1f} um"
+    measured = "" if s.spike is None else f": spike {s.spike:.1f} um"
+    return (f"{a:.0f} {unit} / {t:.1f} ms / lead {lead:.1f} ms / rise {rise:.1f} ms, "
+            f"backlash {backlash:.1f} um{measured}")

@@ -1,0 +1,148 @@
+"""Commissioning on the circular test (cnc_twin.studies.commission, reversal_tuning,
+``cnc-twin commission``), checked against outside references and the twin's own trace:
+
+- two axes with different position-loop gains and no feed-forward draw the 45 deg ellipse whose
+  radial amplitude is v (1/kv_x - 1/kv_y) / 2 (the servo-mismatch formula of the ballbar's
+  literature, shared/data/commissioning.md); matched gains draw none;
+- the bundled default machine (models/polisher.yaml, what ``cnc-twin commission`` wrote from
+  polisher_uncommissioned.yaml) keeps its circular-test figures, and turning its reversal
+  compensation off brings the spikes back;
+- the first reversal setting is the drive's (A = 2 c / kp, T = tn); the parameter file is written
+  with its comments and every value as set; bad input is refused with exit 2 and one line.
+
+The figures the bundled commissioned machine reaches are not yet the issue's acceptance (G <= 10,
+spikes <= 5, H <= 5 um); the bounds here hold what it measures now (docs/tuning.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from cnc_twin import load_scenario, run_scenario
+from cnc_twin.run.ballbar import ballbar_passes
+from cnc_twin.scenario.resources import BUNDLED_MACHINES, models_dir, scenarios_dir
+from cnc_twin.studies import commission, reversal_tuning
+from tests.conftest import run_cli
+
+pytestmark = pytest.mark.slow
+COMMISSIONED = dict(BUNDLED_MACHINES["compliant"])  # the default
+
+
+def _passes(overrides, plane="xy"):
+    scenario = load_scenario(scenarios_dir() / f"ballbar_{plane}.yaml", overrides=overrides)
+    result = run_scenario(scenario)
+    return result, ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
+
+
+def _ellipse_45(p) -> float:
+    """The sin(2 theta) term of a pass's radial deviation [um] (least squares with the offset,
+    the centre's and the cos(2 theta) terms)."""
+    theta = p.angle
+    basis = np.column_stack([np.ones_like(theta), np.cos(theta), np.sin(theta), np.cos(2 * theta), np.sin(2 * theta)])
+    coefficients, *_ = np.linalg.lstsq(basis, p.deviation * 1e6, rcond=None)
+    return float(coefficients[4])
+
+
+@pytest.mark.parametrize("kv_y", [42.28, 33.77])
+def test_mismatched_gains_without_feed_forward_draw_the_45_degree_ellipse_of_the_formula(kv_y):
+    kv_x = 33.77
+    no_ff = {"servo.X.kvff": 0, "servo.Y.kvff": 0, "servo.X.kaff": 0, "servo.Y.kaff": 0,
+             "servo.X.kp": kv_x, "servo.Y.kp": kv_y,
+             # the rapids lag v / kv without feed-forward: 12 mm at 24 m/min
+             "axes.X.following_error_limit": 20, "axes.Y.following_error_limit": 20}
+    _, passes = _passes(no_ff)
+    assert {p.direction for p in passes} == {"ccw", "cw"}
+    for p in passes:
+        expected = p.feed * (1 / kv_x - 1 / kv_y) / 2 * 1e6  # um; 149 um at 3 m/min for 33.77 / 42.28
+        measured = _ellipse_45(p)
+        if expected:
+            assert abs(measured) == pytest.approx(expected, rel=0.2), (p.direction, measured, expected)
+        else:  # matched: no ellipse beyond a tenth of the mismatched one's
+            assert abs(measured) < 15.0, (p.direction, measured)
+
+
+def _spikes(figures):
+    return [abs(v) for d in ("ccw", "cw") for v in figures[d]["reversal_spikes_um"].values()]
+
+
+# [um] G, the largest spike, H: what the bundled default measured when commissioned (docs/tuning.md:
+# XY 9.1 / 4.7 / 5.8, XZ 5.6 / 4.8 / 2.5, YZ 13.6 / 7.1 / 7.8), with about 10 % to spare; the
+# acceptance asked for is G <= 10, spikes <= 5, H <= 5 in every plane (XZ meets it, XY but for H)
+HELD = {"xy": (10.0, 5.2, 6.4), "xz": (6.2, 5.3, 2.8), "yz": (15.0, 7.8, 8.6)}
+
+
+@pytest.mark.parametrize("plane", sorted(HELD))
+def test_the_default_machine_holds_its_commissioned_circular_test(plane):
+    f = _passes(COMMISSIONED, plane)[0].metrics["ballbar"]
+    g, spike, h = HELD[plane]
+    assert max(f[d]["circular_deviation_um"] for d in ("ccw", "cw")) <= g
+    assert max(_spikes(f)) <= spike
+    assert f["hysteresis_um"] <= h
+    before = _passes(dict(BUNDLED_MACHINES["uncommissioned"]), plane)[0].metrics["ballbar"]
+    assert max(_spikes(before)) >= 3 * max(_spikes(f))  # what commissioning bought
+
+
+def test_the_reversal_compensation_is_what_holds_the_spikes():
+    off = {**COMMISSIONED, **{f"servo.{a}.reversal_amplitude": 0 for a in "XY"}}
+    with_comp = _spikes(_passes(COMMISSIONED)[0].metrics["ballbar"])
+    without = _spikes(_passes(off)[0].metrics["ballbar"])
+    assert max(without) >= 25.0 and max(without) >= 3 * max(with_comp), (with_comp, without)
+
+
+def test_the_first_setting_is_twice_the_friction_through_the_drive_gain_for_its_integral_time():
+    scenario = load_scenario(scenarios_dir() / "ballbar_xy.yaml")
+    drive = scenario.axis("X").drive
+    s = reversal_tuning.first_setting(scenario, "X", coulomb=248.5)
+    assert s.amplitude == pytest.approx(2 * 248.5 / drive.kp) and s.time == drive.tn and s.lead == 0.0
+    # identified on the twin's own signals: the MJCF's 60 N guides + 0.3 N m motor through the 10 mm screw
+    identified = reversal_tuning.first_setting(scenario, "X")
+    assert identified.amplitude == pytest.approx(s.amplitude, rel=0.05)
+
+
+def test_the_commissioned_file_is_the_source_with_the_settings_and_its_comments(tmp_path):
+    source = models_dir() / "polisher_uncommissioned.yaml"
+    settings = {"servo.Y.kp": 33.77, "servo.Z.reversal_amplitude": 219.5, "servo.Z.reversal_lead": 7.5,
+                "axes.Z.compensation.backlash": 0.00196, "axes.X.compensation.backlash": 0.0}
+    out = commission.write_parameters(source, settings, tmp_path / "p.yaml")
+    text = out.read_text()
+    comments = [line for line in source.read_text().splitlines() if line.lstrip().startswith("#")]
+    assert all(line in text.splitlines() for line in comments)  # the comments kept
+    before, after = yaml.safe_load(source.read_text()), yaml.safe_load(text)
+    assert after["axes"]["Y"]["servo"]["kp"] == 33.77
+    assert after["axes"]["Z"]["servo"]["reversal_amplitude"] == 219.5
+    assert after["axes"]["Z"]["servo"]["reversal_lead"] == 7.5
+    assert after["axes"]["Z"]["compensation"] == {"backlash": 0.00196}  # added, in decimals YAML reads back
+    assert "compensation" not in after["axes"]["X"]  # a zero adds nothing
+    for axis in "XYZABC":  # nothing else changed
+        assert set(after["axes"][axis]) - set(before["axes"][axis]) <= {"compensation"}
+        for key, value in before["axes"][axis]["servo"].items():
+            if f"servo.{axis}.{key}" not in settings:
+                assert after["axes"][axis]["servo"][key] == value, (axis, key)
+    assert {k: v for k, v in after.items() if k != "axes"} == {k: v for k, v in before.items() if k != "axes"}
+
+
+def test_the_bundled_default_differs_from_the_uncommissioned_file_only_in_the_commissioned_keys():
+    default = yaml.safe_load((models_dir() / "polisher_uncommissioned.yaml").read_text())
+    done = yaml.safe_load((models_dir() / "polisher.yaml").read_text())
+    kv = {done["axes"][a]["servo"]["kp"] for a in commission.INTERPOLATING}
+    assert len(kv) == 1 and kv == {min(default["axes"][a]["servo"]["kp"] for a in commission.INTERPOLATING)}
+    for axis in commission.COMPENSATED:
+        assert done["axes"][axis]["servo"]["reversal_amplitude"] > 0
+    for axis in "XYZABC":
+        for key in set(default["axes"][axis]) | set(done["axes"][axis]):
+            if key not in ("servo", "compensation"):
+                assert done["axes"][axis][key] == default["axes"][axis][key], (axis, key)
+
+
+def test_bad_input_is_refused_with_exit_2_and_one_line(tmp_path):
+    code, out, err = run_cli("commission", tmp_path / "missing.yaml", "--out", tmp_path / "o")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("")
+    code, out, err = run_cli("commission", "--out", tmp_path / "full")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    (tmp_path / "bad.yaml").write_text("axes: [1, 2]\n")
+    code, out, err = run_cli("commission", tmp_path / "bad.yaml", "--out", tmp_path / "o2")
+    assert code == 2 and len(err.strip().splitlines()) == 1
