@@ -89,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", type=Path, default=None, help="folder for sweep.parquet and sweep.csv")
     sweep.add_argument("--yes", action="store_true", help="run a sweep of more than 1000 cases without asking")
     sweep.add_argument("--minimize", default=None,
-                       help="column to pick the best row by (default contour_rms_um for curves, else ferr_rms_xyz_mm)")
+                       help="column to pick the best row by (default ballbar_G_um for a circular test, contour_rms_um "
+                            "for curves, else ferr_rms_xyz_mm)")
 
     tune = sub.add_parser("tune", help="propose an axis's PID gains from its linear loop and check them")
     tune.add_argument("scenario", type=input_path, help="scenario: a path, or a bundled one by name")

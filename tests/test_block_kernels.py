@@ -34,7 +34,7 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
                       dt=2.5e-4, output_limit=10.0, integrator_limit=rng.uniform(0.1, 10))
         dac.setup_dac(channel["dac"])
         reversal.setup_reversal(channel["reversal"], amplitude=rng.choice([0.0, rng.uniform(0, 0.01)]),
-                                time=rng.uniform(1e-3, 0.1), lead=rng.uniform(0, 0.02),
+                                time=rng.uniform(1e-3, 0.1), lead=rng.uniform(0, 0.02), rise=rng.uniform(0, 0.01),
                                 speed_per_volt=rng.uniform(0.01, 0.1), dt=2.5e-4)
         channel["reversal"]["direction"] = rng.choice([-1.0, 0.0, 1.0])
         channel["reversal"]["pulse"] = rng.uniform(-0.1, 0.1)
@@ -46,6 +46,7 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         channel["dac"]["stuck_code"] = rng.integers(-2048, 2048)
         channel["p_prev"], channel["p_next"] = rng.uniform(-1e6, 1e6, size=2)
         channel["velocity"], channel["acceleration"] = rng.uniform(-1e6, 1e6), rng.uniform(-1e8, 1e8)
+        channel["jerk"] = rng.uniform(-1e10, 1e10)
         channel["encoder_fault"] = rng.integers(-20, 21)
     return axes
 
@@ -87,7 +88,7 @@ def test_reversal_pulse(seed):
     rng = np.random.default_rng(seed)
     # velocities often 0 (a stop) and of either sign, as a reversal needs
     _walk(reversal.reversal_pulse, _axes(rng)["reversal"], rng,
-          lambda r: (float(r.choice([0.0, r.uniform(-1e4, 1e4)])), r.uniform(-1e6, 1e6)), 60)
+          lambda r: (float(r.choice([0.0, r.uniform(-1e4, 1e4)])), r.uniform(-1e6, 1e6), r.uniform(-1e8, 1e8)), 60)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

@@ -68,9 +68,9 @@ def _spikes(figures):
 
 
 # [um] G, the largest spike, H: what the bundled default measured when commissioned (docs/tuning.md:
-# XY 9.1 / 4.7 / 5.8, XZ 5.6 / 4.8 / 2.5, YZ 13.6 / 7.1 / 7.8), with about 10 % to spare; the
+# XY 9.5 / 4.8 / 5.6, XZ 5.4 / 4.8 / 2.5, YZ 13.6 / 7.1 / 7.8), with about 10 % to spare; the
 # acceptance asked for is G <= 10, spikes <= 5, H <= 5 in every plane (XZ meets it, XY but for H)
-HELD = {"xy": (10.0, 5.2, 6.4), "xz": (6.2, 5.3, 2.8), "yz": (15.0, 7.8, 8.6)}
+HELD = {"xy": (10.4, 5.3, 6.2), "xz": (6.0, 5.3, 2.8), "yz": (15.0, 7.8, 8.6)}
 
 
 @pytest.mark.parametrize("plane", sorted(HELD))
@@ -146,3 +146,38 @@ def test_bad_input_is_refused_with_exit_2_and_one_line(tmp_path):
     (tmp_path / "bad.yaml").write_text("axes: [1, 2]\n")
     code, out, err = run_cli("commission", tmp_path / "bad.yaml", "--out", tmp_path / "o2")
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_a_sweep_of_a_compensation_tabulates_the_circular_test_per_direction(tmp_path):
+    y = yaml.safe_load((models_dir() / "polisher.yaml").read_text())["axes"]["Y"]["servo"]["reversal_amplitude"]
+    code, out, err = run_cli("sweep", "ballbar_xy", "--param", f"servo.Y.reversal_amplitude=0,{y}",
+                             "--workers", "1", "--out", tmp_path / "sweep")
+    assert code == 0, err
+    import pandas as pd
+
+    rows = pd.read_csv(tmp_path / "sweep" / "sweep.csv").set_index("servo.Y.reversal_amplitude")
+    for column in ("ballbar_G_ccw_um", "ballbar_G_cw_um", "ballbar_G_um", "ballbar_spike_ccw_um",
+                   "ballbar_spike_cw_um", "ballbar_H_um"):
+        assert rows[column].notna().all(), column
+    off, on = rows.loc[0.0], rows.loc[y]
+    assert off["ballbar_spike_ccw_um"] >= 3 * abs(on["ballbar_spike_ccw_um"])  # Y's spike, outward, is back
+    assert off["ballbar_G_um"] == max(off["ballbar_G_ccw_um"], off["ballbar_G_cw_um"]) > on["ballbar_G_um"]
+    assert "best by ballbar_G_um" in out
+
+
+@pytest.mark.parametrize("axis", ["Y", "Z", "A", "B"])
+def test_the_matched_gain_keeps_the_margins_on_each_axis_s_measured_response(axis):
+    """The common gain is each lowered axis's own lowered: on its mechanics as measured on the twin
+    (mid-way, clear of the work) with its drive's velocity loop, the card's position loop keeps
+    45 deg / 6 dB, as the tuner's own gain did."""
+    from cnc_twin.studies import drive_tuning
+    from cnc_twin.studies.commissioning import commissioning_positions, measure_mechanics
+
+    scenario = load_scenario(scenarios_dir() / "jog_axes.yaml")
+    cfg, dt = scenario.axis(axis), scenario.timing.physics_timestep
+    positions = commissioning_positions(scenario, axis)
+    measured = measure_mechanics(scenario, axis, at=positions[len(positions) // 2])
+    velocity = drive_tuning.current_velocity_loop(measured, cfg.drive, dt)
+    m = drive_tuning.position_margins(measured, velocity, cfg, scenario.timing.servo_period, dt)
+    assert cfg.kp == pytest.approx(33.77)
+    assert m.phase_margin_deg >= 45.0 and m.gain_margin_db >= 6.0, m

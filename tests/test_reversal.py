@@ -1,7 +1,8 @@
 """The card's reversal (quadrant error) compensation block (cnc_twin.dsp.reversal) against its
 definition: a pulse of the set amplitude with the new direction's sign at a reversal of the
-commanded velocity, decaying by exp(-dt / T) a tick; none at the first move from rest or at a
-stop; the lead starts it that long before the velocity's zero, predicted from the acceleration."""
+commanded velocity, decaying by exp(-dt / T) a tick, through its rise time's low-pass; none at the
+first move from rest, at a stop (jerk-limited or not) or on a standing axis's rounding noise; the
+lead starts it that long before the velocity's zero, predicted to second order."""
 
 from __future__ import annotations
 
@@ -16,15 +17,16 @@ DT = 2.5e-4  # s, the servo period
 SPV = 0.05  # m/s per V
 
 
-def _block(amplitude=0.004, time=0.02, lead=0.0):
+def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0):
     r = np.zeros(1, REVERSAL)
-    setup_reversal(r[0], amplitude=amplitude, time=time, lead=lead, speed_per_volt=SPV, dt=DT)
+    setup_reversal(r[0], amplitude=amplitude, time=time, lead=lead, rise=rise, speed_per_volt=SPV, dt=DT)
     return r
 
 
-def _run(r, velocities, accelerations=None):
+def _run(r, velocities, accelerations=None, jerks=None):
     accelerations = np.zeros(len(velocities)) if accelerations is None else accelerations
-    return np.array([reversal_pulse(r[0], v, a) for v, a in zip(velocities, accelerations)])
+    jerks = np.zeros(len(velocities)) if jerks is None else jerks
+    return np.array([reversal_pulse(r[0], v, a, j) for v, a, j in zip(velocities, accelerations, jerks)])
 
 
 def test_a_reversal_gives_the_pulse_in_volts_with_the_new_sign_decaying_with_the_time_constant():
@@ -68,3 +70,64 @@ def test_zero_amplitude_or_time_is_off(amplitude, time):
 def test_a_negative_setting_is_refused():
     with pytest.raises(ValueError):
         _block(amplitude=-1.0)
+
+
+def test_the_rise_time_low_passes_the_pulse():
+    out = _run(_block(rise=0.005), [100.0] + [-100.0] * 400)
+    decay, rise = math.exp(-DT / 0.02), 1 - math.exp(-DT / 0.005)
+    pulse, shaped = 0.0, []
+    for k in range(401):  # the definition, tick by tick
+        pulse = -0.004 / SPV if k == 1 else pulse * decay
+        shaped.append((shaped[-1] if shaped else 0.0) + rise * (pulse - (shaped[-1] if shaped else 0.0)))
+    assert out == pytest.approx(np.array(shaped), rel=1e-12, abs=1e-15)
+    assert abs(out).max() < 0.004 / SPV  # a rise takes off the step's height
+
+
+def test_a_stop_jerk_limited_or_with_the_circle_s_tangent_is_no_reversal_but_a_circle_s_reversal_is():
+    lead, jerk = 0.02, 5e6  # s, counts/s^3
+    t_left = np.arange(0.2, 0.0, -DT)  # the time left to the stop
+    v = jerk * t_left ** 2 / 2  # an S-curve's last phase: v, a, j of (T - t)^2
+    assert np.all(_run(_block(lead=lead), v, -jerk * t_left, np.full(len(v), jerk)) == 0.0)
+    c = 1e7  # counts/s^4: v ~ (T - t)^3, the circle's end (feed and tangent both going to zero)
+    assert np.all(_run(_block(lead=lead), c * t_left ** 3, -3 * c * t_left ** 2, 6 * c * t_left) == 0.0)
+    omega, speed = 2.0, 50000.0  # rad/s, counts/s: a circle's axis, reversing at t = 0
+    t = np.arange(-0.2, 0.2, DT)
+    out = _run(_block(lead=lead), speed * np.cos(omega * t + np.pi / 2) * -1, speed * omega * np.sin(omega * t + np.pi / 2),
+               speed * omega ** 2 * np.cos(omega * t + np.pi / 2))
+    first = int(np.flatnonzero(out)[0])
+    assert t[first] == pytest.approx(-lead, abs=2 * DT)
+
+
+def test_a_standing_axis_s_rounding_noise_is_no_reversal():
+    rng = np.random.default_rng(0)
+    r = _block()
+    _run(r, [100.0] * 4)  # it moved up, then stands with noise of a floating-point command
+    noise = rng.normal(0.0, 1e-8, 4000)
+    assert np.all(_run(r, noise, rng.normal(0.0, 1e-5, 4000), rng.normal(0.0, 1e-2, 4000)) == 0.0)
+    assert r[0]["count"] == 0
+
+
+def test_a_start_the_other_way_after_a_standstill_longer_than_twice_the_decay_time_is_no_reversal():
+    r = _block(time=0.02)  # patience: 2 x 20 ms = 160 ticks
+    assert r[0]["patience"] == 160
+    out = _run(r, [30.0] * 10 + [0.0] * 161 + [-30.0] * 10)
+    assert np.all(out == 0.0) and r[0]["count"] == 0
+    out = _run(r, [0.0] * 160 + [30.0])  # within it: a reversal
+    assert out[-1] > 0.0 and r[0]["count"] == 1
+
+
+def test_a_pulse_fired_ahead_of_a_trapezoid_s_stop_ends_at_the_stop_and_the_direction_stays():
+    lead, decel = 0.02, 2e5  # s, counts/s^2: a trapezoid's constant deceleration to rest
+    v = np.maximum(decel * np.arange(0.1, 0.0, -DT), 0.0)
+    velocities = np.concatenate([v, np.zeros(100)])  # 100 ticks at rest: within the patience (160)
+    accelerations = np.concatenate([np.full(len(v), -decel), np.zeros(100)])
+    r = _block(lead=lead, rise=0.01)
+    out = _run(r, velocities, accelerations)
+    fired = int(np.flatnonzero(out)[0])
+    assert velocities[fired] == pytest.approx(decel * lead, rel=0.02)  # predicted like a reversal ...
+    assert r[0]["count"] == 0 and r[0]["direction"] == 1.0 and r[0]["pending"] == 0.0  # ... and withdrawn
+    stop = len(v)
+    assert abs(out[stop + 1]) < abs(out[stop - 1])  # at the stop it falls away, with the rise's time constant
+    assert abs(out[-1]) < 0.1 * abs(out[stop - 1])  # 25 ms on: e^-2.5 of it
+    back = _run(r, [-30.0] * 3)  # the next move the other way, soon after: a reversal from the old direction
+    assert back[-1] < 0.0 and r[0]["count"] == 1

@@ -4,7 +4,8 @@ motion controller applies its ``[JOINT_n]`` ``COMP_FILE`` / ``COMP_FILE_TYPE`` a
 Each servo tick the position loop is told the fine command plus a correction [counts]::
 
     direction   +1 while the period's command moves up, -1 while it moves down, held while it
-                stands (0 before the first move)
+                stands: |velocity| <= REST_SPEED (cnc_twin.dsp.reversal's: a standing axis's
+                rounding noise is no motion); 0 before the first move
     target      the table's trim at the command, its forward column going up, its reverse
                 column going down (their mean before the first move), linearly interpolated
                 between the table's nominal positions and held beyond its ends;
@@ -28,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from cnc_twin.core.axis_config import COMP_MAX_POINTS as MAX_POINTS
+from cnc_twin.dsp.reversal import REST_SPEED
 
 COMP = np.dtype([("points", np.int64), ("backlash", np.float64), ("step", np.float64),
                  ("direction", np.float64), ("correction", np.float64)])
@@ -103,9 +105,9 @@ def comp_correction(c, table, command, velocity):
     n = c.points
     if n == 0 and c.backlash == 0.0:
         return 0.0
-    if velocity > 0.0:
+    if velocity > REST_SPEED:
         c.direction = 1.0
-    elif velocity < 0.0:
+    elif velocity < -REST_SPEED:
         c.direction = -1.0
     target = 0.5 * c.backlash * c.direction
     if n > 0:

@@ -9,15 +9,37 @@ sticks, and the circular test shows the sticking axis as an outward spike at the
 pulse adds to the speed command what the drive's proportional gain turns into that swing at
 once, and fades as the integrator takes it over.
 
-Per servo tick, with ``velocity`` the period's commanded velocity [counts/s]::
+Per servo tick, with ``velocity`` the period's commanded velocity [counts/s], ``acceleration``
+and ``jerk`` its changes [counts/s^2, counts/s^3]::
 
-    sign       +1 / -1 with velocity; held while it is 0 (0 before the first move)
-    if sign flips between +1 and -1:  pulse = amplitude x sign           # a reversal
+    v          velocity + lead acceleration + lead^2 / 2 jerk    # the velocity `lead` seconds ahead
+    sign       +1 / -1 with v; held while |v| <= REST_SPEED (0 before the first move)
+    still      ticks since |velocity| > REST_SPEED (before this tick's velocity counts)
+    if sign flips between +1 and -1 and still <= patience:
+                                      pulse = amplitude x sign           # a reversal
     else:                             pulse = pulse x decay               # decay = exp(-dt / T)
-    output: pulse [V], added to the position loop's output before the DAC
+    a pulse fired ahead of the turn is cancelled (pulse = 0, the old direction kept) if the
+    velocity comes to rest instead of turning: a stop at constant deceleration (a trapezoid's)
+    predicts like a reversal
+    output += rise x (pulse - output)                                     # rise = 1 - exp(-dt / T_rise)
+    output [V], added to the position loop's output before the DAC
 
-The first move from rest is no reversal (the integrator holds no friction yet), and a pause at
-rest does not re-arm it: the direction is held across standstill, as the friction is.
+The prediction is of second order so that a stop is no reversal: a jerk-limited stop's velocity
+touches zero without crossing it (quadratic or cubic in the time left), and so does its
+prediction, where a first-order one crosses ``2 lead`` before the stop and pulled a stopping
+axis back (27 um at the end of the bundled circle). A circle's reversal crosses with a finite
+acceleration, and the prediction with it.
+
+:data:`REST_SPEED` keeps an axis that stands from reversing on the rounding of its command: a
+standing axis's chord velocity is the difference of two floating-point setpoints, +-1e-8
+counts/s of noise on a path whose other axes move, which flipped the sign a thousand times in a
+circle.
+
+The first move from rest is no reversal (the integrator holds no friction yet), nor is a start
+the other way after a standstill longer than ``patience`` (twice the decay time): the pulse is
+for a contour's quadrant, where the axis turns without stopping; a position loop at rest has let
+its drive's integrator settle anywhere within the friction, and a full pulse there pushed the
+bundled circle's start 28 um off. The direction is held across standstill, as the friction is.
 
 :data:`REVERSAL` is one axis's record; :func:`reversal_pulse` the block (plain, compiled with
 numba from this source for every path that runs the servo).
@@ -30,8 +52,13 @@ import math
 import numpy as np
 from numba import njit
 
+REST_SPEED = 0.01
+"""[counts/s] at or below this the commanded velocity counts as standstill (the direction is held):
+far above a standing axis's rounding noise, far below any motion (one count in 100 s)"""
+
 REVERSAL = np.dtype([("amplitude", np.float64), ("decay", np.float64), ("lead", np.float64), ("rise", np.float64),
-                     ("direction", np.float64), ("pulse", np.float64), ("output", np.float64), ("count", np.int64)])
+                     ("patience", np.int64), ("direction", np.float64), ("pulse", np.float64), ("output", np.float64),
+                     ("still", np.int64), ("pending", np.float64), ("count", np.int64)])
 """One axis's reversal compensation:
 
 =========  ======  ======================================================  ==================
@@ -39,8 +66,16 @@ field      unit    meaning                                                 writt
 =========  ======  ======================================================  ==================
 amplitude  V       the pulse's height at the reversal (0: off)             :func:`setup_reversal`
 decay      -       the pulse's factor per tick, ``exp(-dt / T)``            :func:`setup_reversal`
+lead       s       how far ahead the velocity is predicted                 :func:`setup_reversal`
+rise       -       the output's step towards the pulse per tick,           :func:`setup_reversal`
+                   ``1 - exp(-dt / T_rise)`` (1: no low-pass)
+patience   ticks   the longest standstill a reversal may follow            :func:`setup_reversal`
 direction  -       +1 / -1 / 0, the last commanded direction (state)       :func:`reversal_pulse`
-pulse      V       the pulse this tick (state)                             :func:`reversal_pulse`
+pulse      V       the pulse before its low-pass (state)                   :func:`reversal_pulse`
+output     V       the pulse after it, this tick's (state)                 :func:`reversal_pulse`
+still      ticks   since the commanded velocity last exceeded REST_SPEED   :func:`reversal_pulse`
+pending    -       the new direction of a pulse the prediction fired,      :func:`reversal_pulse`
+                   until the velocity itself turns (0: none)
 count      -       reversals seen since set up (state)                     :func:`reversal_pulse`
 =========  ======  ======================================================  ==================
 """
@@ -70,6 +105,7 @@ def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, d
     r["decay"] = math.exp(-dt / time) if on else 0.0
     r["lead"] = lead
     r["rise"] = 1.0 - math.exp(-dt / rise) if rise > 0 else 1.0
+    r["patience"] = int(round(2.0 * time / dt)) if on else 0
     reset_reversal(r)
 
 
@@ -78,23 +114,46 @@ def reset_reversal(r) -> None:
     r["direction"] = 0.0
     r["pulse"] = 0.0
     r["output"] = 0.0
+    r["still"] = 0
+    r["pending"] = 0.0
     r["count"] = 0
 
 
 @njit(cache=True)
-def reversal_pulse(r, velocity, acceleration):
+def reversal_pulse(r, velocity, acceleration, jerk):
     """The pulse [V] to add to this tick's drive command, ``velocity`` the period's commanded
-    velocity [counts/s]; advances ``r`` (a :data:`REVERSAL` record)."""
-    velocity = velocity + r.lead * acceleration
-    if velocity > 0.0:
+    velocity [counts/s], ``acceleration`` and ``jerk`` its changes [counts/s^2, counts/s^3];
+    advances ``r`` (a :data:`REVERSAL` record)."""
+    waited = r.still  # the standstill before this tick
+    moving = velocity > REST_SPEED or velocity < -REST_SPEED
+    if moving:
+        r.still = 0
+    elif r.still <= r.patience:  # counted no further than needed: no overflow in a day at rest
+        r.still += 1
+    cancelled = False
+    if r.pending != 0.0:
+        if velocity * r.pending > 0.0 and moving:  # it turned: the pulse was for a reversal
+            r.pending = 0.0
+        elif not moving:  # it stopped instead: no reversal, the pulse ends and the direction stays
+            r.pulse = 0.0
+            r.direction = -r.pending
+            r.pending = 0.0
+            r.count -= 1
+            cancelled = True
+    predicted = velocity + r.lead * (acceleration + 0.5 * r.lead * jerk)
+    if predicted > REST_SPEED:
         sign = 1.0
-    elif velocity < 0.0:
+    elif predicted < -REST_SPEED:
         sign = -1.0
     else:
         sign = r.direction
-    if sign != r.direction and r.direction != 0.0:
+    if cancelled:  # the stop's own tick: its deceleration still predicts the turn that did not come
+        sign = r.direction
+    if sign != r.direction and r.direction != 0.0 and waited <= r.patience and r.pending == 0.0:
         r.pulse = r.amplitude * sign
         r.count += 1
+        if velocity * sign <= 0.0:  # fired ahead of the turn: to be confirmed
+            r.pending = sign
     else:
         r.pulse *= r.decay
     r.direction = sign

@@ -5,13 +5,14 @@ Per interpolation period (``begin_period``), from the coarse interpolator's setp
 
     v = (p_next - p_prev) / T_ipo          # chord velocity [counts/s], feed-forward
     a = (v - v_prev) / T_ipo               # [counts/s^2], feed-forward
+    j = (a - a_prev) / T_ipo               # [counts/s^3], the reversal compensation's prediction
 
 Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for each axis::
 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
     actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
     volts    = pid_update(pid, command, actual, v, a)        # PID+FF
-    volts   += reversal_pulse(reversal, v)                   # quadrant error compensation
+    volts   += reversal_pulse(reversal, v, a, j)             # quadrant error compensation
     volts    = dac_write(dac, volts)                         # 12-bit, saturation counted
     force    = adc_convert(load cell + fault) - tare         # [N], tare taken on the first tick
 
@@ -61,7 +62,8 @@ purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file_
                        reversal.__file__])
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
-                 ("velocity", np.float64), ("acceleration", np.float64), ("encoder_fault", np.int64),
+                 ("velocity", np.float64), ("acceleration", np.float64), ("jerk", np.float64),
+                 ("encoder_fault", np.int64),
                  ("comp", COMP), ("reversal", REVERSAL)])
 """One axis's servo channel, the record the servo functions work on:
 
@@ -75,6 +77,7 @@ p_prev         counts          the setpoint at the period's start           :fun
 p_next         counts          the setpoint at the period's end             :func:`latch_setpoint`
 velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
+jerk           counts/s^3      the acceleration's change                    :func:`latch_setpoint`
 encoder_fault  counts          added to the reading by injected faults      the fault injector
 comp           :data:`.COMP`   backlash and the pitch-error table's state   :func:`.comp_correction`
 reversal       :data:`.REVERSAL`  the reversal compensation's pulse         :func:`.reversal_pulse`
@@ -96,7 +99,9 @@ def latch_setpoint(axes, setpoint, inv_period):
         a.p_prev = a.p_next
         a.p_next = setpoint[i]
         velocity = (a.p_next - a.p_prev) * inv_period
-        a.acceleration = (velocity - a.velocity) * inv_period
+        acceleration = (velocity - a.velocity) * inv_period
+        a.jerk = (acceleration - a.acceleration) * inv_period
+        a.acceleration = acceleration
         a.velocity = velocity
 
 
@@ -131,7 +136,7 @@ def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, posi
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
         corrected = command + comp_correction(a.comp, comp_tables[i], command, a.velocity)
-        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration) + reversal_pulse(a.reversal, a.velocity, a.acceleration)
+        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration) + reversal_pulse(a.reversal, a.velocity, a.acceleration, a.jerk)
         volts_out[i] = dac_write(a.dac, volts)
         command_out[i] = command
         actual_out[i] = actual

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cnc_twin.studies.commission import Commissioning, CircularTest
+from cnc_twin.studies.commission import CircularTest, Commissioning, yaml_number
 
 DIRECTIONS = ("ccw", "cw")
 
@@ -38,7 +38,7 @@ def report_markdown(result: Commissioning) -> str:
     lines += ["", "G: circular deviation (least-squares circle); spike: the largest reversal spike's size at 0 / "
               "90 / 180 / 270 deg; H: hysteresis between the directions.", ""]
     lines += ["## Settings", "", "| override | value |", "|---|---|"]
-    lines += [f"| `{k}` | {v:g} |" for k, v in result.overrides.items()]
+    lines += [f"| `{k}` | {yaml_number(v)} |" for k, v in result.overrides.items()]
     return "\n".join(lines) + "\n"
 
 

@@ -122,7 +122,9 @@ def cases(params: Sequence[Param], *, random: int | None = None, seed: int = 0) 
 def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
     """One flat row of a run's metrics, each figure's unit at the end of its name (:func:`column_unit`):
     following errors in mm or deg as the CLI prints them, path figures in um, force tracking in %
-    of the setpoint and the removal map's figures for a polishing run."""
+    of the setpoint and the removal map's figures for a polishing run, the circular test's G per
+    direction and the larger (``ballbar_G_um``), the largest reversal spike per direction (signed:
+    outward positive) and H for a circular test."""
     row: dict[str, Any] = {k: metrics.get(k) for k in ("status", "final_state", "sim_time_s", *WALL_CLOCK_COLUMNS)}
     linear_squares = 0.0
     for axis, fe in metrics["following_error"].items():
@@ -139,6 +141,16 @@ def flatten_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
         row["contour_max_um"] = path["contour_error_um"]["max"]
         row["contour_rms_um"] = path["contour_error_um"]["rms"]
         row["feed_fluctuation_max"] = path["feed_fluctuation"]["max"]
+    ballbar = metrics.get("ballbar")
+    if ballbar:  # the circular test's figures, so a sweep over gains or compensations shows the trade-off
+        directions = [d for d in ("ccw", "cw") if d in ballbar]
+        for d in directions:
+            f = ballbar[d]
+            row[f"ballbar_G_{d}_um"] = f["circular_deviation_um"]
+            row[f"ballbar_spike_{d}_um"] = max(f["reversal_spikes_um"].values(), key=abs)
+        if directions:
+            row["ballbar_G_um"] = max(ballbar[d]["circular_deviation_um"] for d in directions)
+        row["ballbar_H_um"] = ballbar.get("hysteresis_um")
     polish = metrics.get("polish")
     if polish:
         force = polish.get("force") or {}  # None: a G-code program with a workpiece but no M100

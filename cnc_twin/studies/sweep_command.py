@@ -60,7 +60,8 @@ def sweep_command(args) -> int:
         print(f"{newline}interrupted ({stop.reason}) after {finished} of {len(rows)} runs; "
               f"partial table, the other runs marked {INTERRUPTED}: {parquet}, {csv}", file=sys.stderr)
         return 143 if stop.reason == "SIGTERM" else 130
-    minimize = args.minimize or ("contour_rms_um" if any("contour_rms_um" in r for r in rows) else "ferr_rms_xyz_mm")
+    minimize = args.minimize or next((c for c in ("ballbar_G_um", "contour_rms_um") if any(c in r for r in rows)),
+                                     "ferr_rms_xyz_mm")
     best = best_row(rows, minimize)
     lost = [r for r in rows if r.get("status") == "lost"]
     print(f"{len(rows)} runs in {seconds:.1f} s ({len(rows) / seconds * 60:.1f} runs/min); table: {parquet}, {csv}")
