@@ -16,17 +16,12 @@ from cnc_twin.run.ballbar import BallbarPass
 DIRECTION_STYLE = {"ccw": ("tab:blue", "counter-clockwise"), "cw": ("tab:red", "clockwise")}
 
 
-def polar_plot_png(passes: list[BallbarPass], figures: dict[str, Any], test: BallbarTest) -> bytes:
-    """The plot of ``passes`` (from :func:`~cnc_twin.run.ballbar.ballbar_passes`) with
-    ``figures`` (metrics.json's ``ballbar``) as PNG bytes."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(9.6, 6.2))
-    FigureCanvasAgg(fig)  # a figure of its own: no pyplot state
-    ax = fig.add_axes((0.04, 0.08, 0.52, 0.8), projection="polar")
-    deviations = [p.deviation * 1e6 for p in passes]
-    span = max(5.0, 1.2 * max((float(np.abs(d).max()) for d in deviations), default=0.0))
+def polar_axes(fig, rect: tuple[float, float, float, float], passes: list[BallbarPass], plane: str):
+    """Polar axes on ``fig`` at ``rect`` for ``passes``' radial deviations [um]: zero (the nominal
+    circle, dashed) well off the centre, rings on round micrometres spanning the largest
+    deviation, the plane's axes at the quadrants. Returns the axes and the span [um]."""
+    ax = fig.add_axes(rect, projection="polar")
+    span = max(5.0, 1.2 * max((float(np.abs(p.deviation).max()) * 1e6 for p in passes), default=0.0))
     span = float(np.ceil(span / 10.0) * 10.0)  # rings on round micrometres
     ax.set_rorigin(-3 * span)  # zero deviation (the nominal circle) well off the centre
     ax.set_ylim(-span, span)
@@ -35,13 +30,26 @@ def polar_plot_png(passes: list[BallbarPass], figures: dict[str, Any], test: Bal
     ax.tick_params(labelsize=8)
     full = np.linspace(0, 2 * np.pi, 361)
     ax.plot(full, np.zeros_like(full), color="0.3", lw=0.8, ls="--", label="nominal radius")
+    first, second = plane
+    ax.set_xticks(np.radians([0, 90, 180, 270]), [f"+{first}", f"+{second}", f"-{first}", f"-{second}"])
+    return ax, span
+
+
+def polar_plot_png(passes: list[BallbarPass], figures: dict[str, Any], test: BallbarTest) -> bytes:
+    """The plot of ``passes`` (from :func:`~cnc_twin.run.ballbar.ballbar_passes`) with
+    ``figures`` (metrics.json's ``ballbar``) as PNG bytes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9.6, 6.2))
+    FigureCanvasAgg(fig)  # a figure of its own: no pyplot state
+    ax, span = polar_axes(fig, (0.04, 0.08, 0.52, 0.8), passes, test.plane)
+    deviations = [p.deviation * 1e6 for p in passes]
     seen = set()
     for p, d in zip(passes, deviations):
         colour, name = DIRECTION_STYLE[p.direction]
         ax.plot(p.angle, d, color=colour, lw=1.1, label=None if p.direction in seen else name)
         seen.add(p.direction)
-    first, second = test.plane
-    ax.set_xticks(np.radians([0, 90, 180, 270]), [f"+{first}", f"+{second}", f"-{first}", f"-{second}"])
     ax.legend(loc="lower left", bbox_to_anchor=(-0.05, -0.12), fontsize=8, frameon=False)
     feed = next((figures[d]["feed_mm_min"] for d in ("ccw", "cw") if d in figures), float("nan"))
     ax.set_title(f"circular test (ISO 230-4), {test.plane} plane: R {test.radius * 1e3:g} mm, "

@@ -6,8 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
+from cnc_twin.run.ballbar_plot import DIRECTION_STYLE, polar_axes
 from cnc_twin.studies.commission import CircularTest, Commissioning, yaml_number
 
 DIRECTIONS = ("ccw", "cw")
@@ -52,24 +51,12 @@ def overlay_png(before: CircularTest, after: CircularTest, plane: str) -> bytes:
 
     fig = Figure(figsize=(7.0, 6.4))
     FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.08, 0.1, 0.84, 0.76), projection="polar")
     curves = [(p, "before") for p in before.passes] + [(p, "after") for p in after.passes]
-    span = max(5.0, 1.2 * max(float(np.abs(p.deviation).max()) * 1e6 for p, _ in curves))
-    span = float(np.ceil(span / 10.0) * 10.0)
-    ax.set_rorigin(-3 * span)
-    ax.set_ylim(-span, span)
-    ax.set_rticks(np.linspace(-span, span, 5))
-    ax.set_rlabel_position(22.5)
-    ax.tick_params(labelsize=8)
-    full = np.linspace(0, 2 * np.pi, 361)
-    ax.plot(full, np.zeros_like(full), color="0.3", lw=0.8, ls="--", label="nominal radius")
-    colours = {"ccw": "tab:blue", "cw": "tab:red"}
+    ax, span = polar_axes(fig, (0.08, 0.1, 0.84, 0.76), before.passes + after.passes, plane)
     for p, when in curves:
         bold = when == "after"
-        ax.plot(p.angle, p.deviation * 1e6, color=colours[p.direction], lw=1.4 if bold else 0.8,
+        ax.plot(p.angle, p.deviation * 1e6, color=DIRECTION_STYLE[p.direction][0], lw=1.4 if bold else 0.8,
                 alpha=1.0 if bold else 0.35, label=f"{p.direction} {when}")
-    first, second = plane
-    ax.set_xticks(np.radians([0, 90, 180, 270]), [f"+{first}", f"+{second}", f"-{first}", f"-{second}"])
     ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.14), fontsize=7, frameon=False, ncol=3)
     b, a = figure_row(before), figure_row(after)
     ax.set_title(f"circular test {plane}, before (pale) and after (bold) commissioning\n"

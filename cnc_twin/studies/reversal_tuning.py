@@ -16,10 +16,12 @@ gives the proportional path ``kp A`` at once and the integrator ``kp A T / tn`` 
 The refinement: a coordinate search on the circular tests (ISO 230-4, the bundled ``ballbar_*``
 scenarios in XY, XZ and YZ), each axis judged by its own quadrants' reversal spikes (the first
 axis of a plane reverses at 0 / 180 deg, the second at 90 / 270) in both directions and every
-plane it is in: the objective is the largest spike's size in um. All axes are varied in the same
-runs (their quadrants apart). The steps, each keeping the best so far: the lead (what MuJoCo's
-friction, a soft constraint, lets creep on before the zero), the amplitude, the decay time, the
-lead and the amplitude again finer.
+plane it is in: the objective is the largest spike's size in um; between spikes within
+:data:`SPIKE_TIE` of the smallest seen, the smaller circular deviation G of its planes. All
+axes are varied in the same runs (their quadrants apart). The steps, each keeping the best so
+far: the lead (what MuJoCo's friction, a soft constraint, lets creep on before the zero), the
+amplitude, the rise time (with more lead), the lead and the amplitude finer, the decay time,
+backlash from the lost motion (:func:`reversal_steps`), the lead and the amplitude finer again.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ class ReversalSetting:
     spike: float | None = None
     """the largest reversal spike [um] the circular tests measured with it (None: not yet)"""
     circular: float | None = None
-    """the largest circular deviation G [um] of the planes of its axis, measured with it"""
+    """the largest circular deviation G [um] of its axis's planes, measured with it"""
 
     def overrides(self) -> dict[str, float]:
         """The scenario overrides that set it, in the scenario's units (mm/min | deg/min, ms, mm | deg)."""
@@ -137,6 +139,10 @@ class AxisFigures:
     """the largest circular deviation G [um] of the planes it is in"""
 
 
+SPIKE_TIE = 0.3
+"""[um] spikes within this of the smallest an axis has shown count as equal; G decides between them"""
+
+
 def reversal_steps(passes, plane: str) -> dict[str, float]:
     """Each axis of ``plane``'s lost motion [um]: the median radial deviation 5 - 15 deg after its
     reversals less 5 - 15 deg before, in the direction of travel, over its two quadrants and the
@@ -191,9 +197,12 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
     axes = tuple(settings)
     kept: dict[str, AxisFigures] = {}
 
-    def keep(candidates: Sequence[dict[str, ReversalSetting]], step: str, by: str = "spike") -> None:
-        """Run each candidate; per axis keep it where it beats the best so far ``by`` its
-        largest spike or (``circular``) the largest G of its planes."""
+    floor: dict[str, float] = {}  # the smallest spike each axis has shown
+
+    def keep(candidates: Sequence[dict[str, ReversalSetting]], step: str) -> None:
+        """Run each candidate; per axis keep it where its spike is smaller by more than
+        :data:`SPIKE_TIE`, or no larger than that above the smallest seen and its planes' G is
+        smaller."""
         for candidate in candidates:
             overrides = dict(base)
             for s in candidate.values():
@@ -203,8 +212,13 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
                 log.runs.append((overrides, {a: f.spike for a, f in figures.items()}))
             for axis in axes:
                 best, new = settings[axis], figures[axis]
-                better = (best.spike is None or new.spike < best.spike) if by == "spike" else \
-                    (best.circular is None or new.circular < best.circular)
+                if best.spike is None:
+                    better = True
+                elif new.spike < best.spike - SPIKE_TIE:
+                    better = True
+                else:
+                    better = new.spike <= floor[axis] + SPIKE_TIE and new.circular < best.circular
+                floor[axis] = min(floor.get(axis, np.inf), new.spike)
                 if better:
                     candidate[axis].spike, candidate[axis].circular = new.spike, new.circular
                     settings[axis] = candidate[axis]
@@ -215,11 +229,10 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
         return {a: replace(change(settings[a]), spike=None, circular=None) for a in axes}
 
     def lost_motion() -> None:
-        """Backlash compensation from the tip's step across the reversals (and half of it),
-        judged by the circular deviation G: the spikes do not show it."""
+        """Backlash compensation from the tip's step across the reversals (and half of it)."""
         measured = {a: kept[a].lost_motion * 1e-6 for a in axes}
         keep([varied(lambda s, f=f: replace(s, backlash=s.backlash + f * measured[s.axis])) for f in (0.5, 1.0)],
-             "backlash from the lost motion", by="circular")
+             "backlash from the lost motion")
 
     for axis in axes:
         settings[axis].spike = settings[axis].circular = None
@@ -230,8 +243,6 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
     keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d))) for d in LEAD_REFINE], "lead, finer")
     keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_REFINE], "amplitude, finer")
     keep([varied(lambda s, f=f: replace(s, time=s.time * f)) for f in TIME_FACTORS], "decay time")
-    for axis in axes:  # the circular deviation with the settings kept, to judge the backlash by
-        settings[axis].circular = kept[axis].circular
     lost_motion()
     keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d))) for d in LEAD_REFINE], "lead, finer")
     keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_REFINE], "amplitude, finer")
@@ -244,6 +255,6 @@ def describe(s: ReversalSetting) -> str:
     a, t, lead, rise = (o[f"servo.{s.axis}.reversal_{k}"] for k in ("amplitude", "time", "lead", "rise"))
     backlash = o[f"axes.{s.axis}.compensation.backlash"] * 1e3
     unit = "deg/min" if AXES.index(s.axis) >= 3 else "mm/min"
-    measured = "" if s.spike is None else f": spike {s.spike:.1f} um"
+    measured = "" if s.spike is None else f": spike {s.spike:.1f} um, G {s.circular:.1f} um"
     return (f"{a:.0f} {unit} / {t:.1f} ms / lead {lead:.1f} ms / rise {rise:.1f} ms, "
             f"backlash {backlash:.1f} um{measured}")
