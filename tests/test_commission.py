@@ -3,7 +3,8 @@
 
 - two axes with different position-loop gains and no feed-forward draw the 45 deg ellipse whose
   radial amplitude is v (1/kv_x - 1/kv_y) / 2 (the servo-mismatch formula of the ballbar's
-  literature, shared/data/commissioning.md); matched gains draw none;
+  literature, shared/data/commissioning.md), and commissioning reads the lag difference from it;
+  matched gains draw none;
 - the bundled default machine (models/polisher.yaml, what ``cnc-twin commission`` wrote from
   polisher_uncommissioned.yaml) keeps its circular-test figures, and turning its reversal
   compensation off brings the spikes back;
@@ -16,7 +17,6 @@ spikes <= 5, H <= 5 um); the bounds here hold what it measures now (docs/tuning.
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import yaml
 
@@ -36,15 +36,6 @@ def _passes(overrides, plane="xy"):
     return result, ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
 
 
-def _ellipse_45(p) -> float:
-    """The sin(2 theta) term of a pass's radial deviation [um] (least squares with the offset,
-    the centre's and the cos(2 theta) terms)."""
-    theta = p.angle
-    basis = np.column_stack([np.ones_like(theta), np.cos(theta), np.sin(theta), np.cos(2 * theta), np.sin(2 * theta)])
-    coefficients, *_ = np.linalg.lstsq(basis, p.deviation * 1e6, rcond=None)
-    return float(coefficients[4])
-
-
 @pytest.mark.parametrize("kv_y", [42.28, 33.77])
 def test_mismatched_gains_without_feed_forward_draw_the_45_degree_ellipse_of_the_formula(kv_y):
     kv_x = 33.77
@@ -52,15 +43,21 @@ def test_mismatched_gains_without_feed_forward_draw_the_45_degree_ellipse_of_the
              "servo.X.kp": kv_x, "servo.Y.kp": kv_y,
              # the rapids lag v / kv without feed-forward: 12 mm at 24 m/min
              "axes.X.following_error_limit": 20, "axes.Y.following_error_limit": 20}
-    _, passes = _passes(no_ff)
+    result, passes = _passes(no_ff)
     assert {p.direction for p in passes} == {"ccw", "cw"}
     for p in passes:
         expected = p.feed * (1 / kv_x - 1 / kv_y) / 2 * 1e6  # um; 149 um at 3 m/min for 33.77 / 42.28
-        measured = _ellipse_45(p)
+        measured = commission.ellipse_45(p)
         if expected:
             assert abs(measured) == pytest.approx(expected, rel=0.2), (p.direction, measured, expected)
         else:  # matched: no ellipse beyond a tenth of the mismatched one's
             assert abs(measured) < 15.0, (p.direction, measured)
+    test = commission.CircularTest(result.metrics["ballbar"], passes, None)
+    difference = commission.equivalent_time_difference(test)  # what commissioning reads of it
+    if kv_y != kv_x:
+        assert difference == pytest.approx(1 / kv_x - 1 / kv_y, rel=0.2)  # 5.96 ms: X lags longer
+    else:
+        assert abs(difference) < commission.MISMATCH_LIMIT
 
 
 def _spikes(figures):
@@ -68,9 +65,10 @@ def _spikes(figures):
 
 
 # [um] G, the largest spike, H: what the bundled default measured when commissioned (docs/tuning.md:
-# XY 9.5 / 4.8 / 5.7, XZ 6.4 / 4.0 / 3.1, YZ 14.2 / 7.2 / 8.0), with about 10 % to spare; the
-# acceptance asked for is G <= 10, spikes <= 5, H <= 5 in every plane (XZ meets it, XY but for H)
-HELD = {"xy": (10.4, 5.3, 6.3), "xz": (7.0, 4.4, 3.4), "yz": (15.6, 7.9, 8.8)}
+# XY 7.6 / 3.9 / 2.5, XZ 3.9 / 2.4 / 2.5, YZ 9.8 / 6.3 / 6.2); the acceptance asked for is G <= 10,
+# spikes <= 5, H <= 5 in every plane: XY and XZ meet it and are held to it, YZ is held to what it
+# measured with about 10 % to spare
+HELD = {"xy": (10.0, 5.0, 5.0), "xz": (10.0, 5.0, 5.0), "yz": (10.0, 7.0, 6.8)}
 
 
 @pytest.mark.parametrize("plane", sorted(HELD))
@@ -126,8 +124,10 @@ def test_the_commissioned_file_is_the_source_with_the_settings_and_its_comments(
 def test_the_bundled_default_differs_from_the_uncommissioned_file_only_in_the_commissioned_keys():
     default = yaml.safe_load((models_dir() / "polisher_uncommissioned.yaml").read_text())
     done = yaml.safe_load((models_dir() / "polisher.yaml").read_text())
-    kv = {done["axes"][a]["servo"]["kp"] for a in commission.INTERPOLATING}
-    assert len(kv) == 1 and kv == {min(default["axes"][a]["servo"]["kp"] for a in commission.INTERPOLATING)}
+    # the dynamics matched already (equivalent times within 0.06 ms with the feed-forward): each
+    # axis kept the gain its margins allow
+    for axis in commission.INTERPOLATING:
+        assert done["axes"][axis]["servo"]["kp"] == default["axes"][axis]["servo"]["kp"]
     for axis in commission.COMPENSATED:
         assert done["axes"][axis]["servo"]["reversal_amplitude"] > 0
     for axis in "XYZABC":
@@ -165,11 +165,10 @@ def test_a_sweep_of_a_compensation_tabulates_the_circular_test_per_direction(tmp
     assert "best by ballbar_G_um" in out
 
 
-@pytest.mark.parametrize("axis", ["Y", "Z", "A", "B"])
-def test_the_matched_gain_keeps_the_margins_on_each_axis_s_measured_response(axis):
-    """The common gain is each lowered axis's own lowered: on its mechanics as measured on the twin
-    (mid-way, clear of the work) with its drive's velocity loop, the card's position loop keeps
-    45 deg / 6 dB, as the tuner's own gain did."""
+@pytest.mark.parametrize("axis", ["X", "Y", "Z", "A", "B"])
+def test_the_default_gains_keep_the_margins_on_each_axis_s_measured_response(axis):
+    """On each axis's mechanics as measured on the twin (mid-way, clear of the work) with its
+    drive's velocity loop, the default machine's position loop keeps 45 deg / 6 dB."""
     from cnc_twin.studies import drive_tuning
     from cnc_twin.studies.commissioning import commissioning_positions, measure_mechanics
 
@@ -179,5 +178,4 @@ def test_the_matched_gain_keeps_the_margins_on_each_axis_s_measured_response(axi
     measured = measure_mechanics(scenario, axis, at=positions[len(positions) // 2])
     velocity = drive_tuning.current_velocity_loop(measured, cfg.drive, dt)
     m = drive_tuning.position_margins(measured, velocity, cfg, scenario.timing.servo_period, dt)
-    assert cfg.kp == pytest.approx(33.77)
     assert m.phase_margin_deg >= 45.0 and m.gain_margin_db >= 6.0, m

@@ -18,8 +18,8 @@ BUNDLED_MACHINES = {
 """The bundled machines by name, each as the scenario overrides that select it: ``rigid`` (every axis
 one rigid joint, the drives ideal velocity sources) and ``compliant`` (two-mass feed axes, harmonic
 drives, the bridge's rocking mode, drives with their own loops; models/polisher.xml), commissioned
-(polisher.yaml: what ``cnc-twin commission`` wrote from polisher_uncommissioned.yaml, matched
-position loops and reversal and backlash compensation), and ``uncommissioned``: the same machine
+(polisher.yaml: what ``cnc-twin commission`` wrote from polisher_uncommissioned.yaml, the axes'
+dynamics matched and reversal and backlash compensation set), and ``uncommissioned``: the same machine
 before commissioning. ``cnc-twin run --machine NAME`` runs a scenario on any of them, so they can be
 compared."""
 

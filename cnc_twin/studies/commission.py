@@ -1,14 +1,15 @@
 """Commissioning a machine's parameter file to acceptance on the circular test, as a machine-tool
-builder does after the drives: matched position loops, then the reversal compensation, each
+builder does after the drives: matched dynamics, then the reversal compensation, each
 step's effect measured on the circular tests XY, XZ, YZ (ISO 230-4, the bundled ``ballbar_*``).
 
 Steps (each callable on its own)::
 
     before     the three circular tests with the file as it is
-    matched    the axes that interpolate together (X Y Z, and A B with them in 5-axis work) get one
-               position-loop gain: the lowest of theirs, since each axis's own is the highest its
-               margins allow (Siemens and Heidenhain both ask for one kv on interpolating axes: a
-               difference draws a 45 deg ellipse of v (1/kv_1 - 1/kv_2) / 2 without feed-forward)
+    matched    the axes that interpolate together (X Y Z, and A B with them in 5-axis work) follow
+               their commands alike: with full velocity feed-forward and equivalent times within
+               MISMATCH_LIMIT on the circular tests each keeps its own gain, else all get the
+               lowest (:func:`matched_dynamics`; a difference draws a 45 deg ellipse of
+               v (1/kv_1 - 1/kv_2) / 2 without feed-forward)
     reversal   X Y Z's reversal compensation (:mod:`cnc_twin.studies.reversal_tuning`)
     after      the three circular tests with the commissioned settings
 
@@ -23,6 +24,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from cnc_twin.studies import reversal_tuning
 from cnc_twin.studies.reversal_tuning import PLANES, ReversalSetting
@@ -75,17 +78,59 @@ def circular_tests(base: Mapping[str, Any], *, scenarios: Path) -> dict[str, Cir
     return out
 
 
-def matched_gain(parameters: Path, *, scenarios: Path) -> tuple[float, str]:
-    """The common position-loop gain of :data:`INTERPOLATING` [1/s] and a line saying why."""
+MISMATCH_LIMIT = 0.2e-3
+"""[s] the largest difference of equivalent time between two interpolating axes left as it is:
+0.2 ms draws a 45 deg ellipse of +-5 um at 3 m/min (v dT / 2), half the acceptance's G"""
+
+
+def ellipse_45(p) -> float:
+    """The 45 deg ellipse of one pass [um]: the sin(2 theta) term of its radial deviation, fitted by
+    least squares with the offset, the centre's cos / sin theta and the cos(2 theta) terms (a
+    scale difference between the axes). ``p``: a :class:`~cnc_twin.run.ballbar.BallbarPass`."""
+    theta = p.angle
+    basis = np.column_stack([np.ones_like(theta), np.cos(theta), np.sin(theta), np.cos(2 * theta), np.sin(2 * theta)])
+    coefficients, *_ = np.linalg.lstsq(basis, p.deviation * 1e6, rcond=None)
+    return float(coefficients[4])
+
+
+def equivalent_time_difference(test: CircularTest) -> float:
+    """How much longer the plane's first axis lags than its second [s], from the circular test's
+    servo-mismatch ellipse: the sin(2 theta) term of amplitude v (T_1 - T_2) / 2, whose sign
+    turns with the direction of travel (Renishaw's servo mismatch; shared/data/commissioning.md)."""
+    terms = [(1.0 if p.direction == "ccw" else -1.0) * ellipse_45(p) * 1e-6 / p.feed for p in test.passes]
+    return float(2.0 * np.mean(terms)) if terms else 0.0
+
+
+def matched_dynamics(parameters: Path, before: Mapping[str, CircularTest], *,
+                     scenarios: Path) -> tuple[dict[str, float], str]:
+    """The position-loop gains of :data:`INTERPOLATING` commissioning sets (an empty mapping: each
+    keeps its own) and a line saying which and why.
+
+    Axes that interpolate together must follow their commands alike: the same gain, or the same
+    equivalent time (Siemens' dynamic response adaptation). With full velocity feed-forward (kvff
+    1 on all of them) an axis follows its command with its drive's equivalent time, not 1 / kv:
+    the circular tests measure the difference directly (:func:`equivalent_time_difference`), and
+    where every pair is within :data:`MISMATCH_LIMIT` each axis keeps its own gain, the highest its
+    margins allow, for the disturbances (friction, the other axes' forces, the process) that the
+    feed-forward does not see. Otherwise, or without full feed-forward, every one gets the lowest
+    of their gains."""
     from cnc_twin.scenario.load import load_scenario
 
     scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=machine_overrides(parameters))
     gains = {axis: scenario.axis(axis).kp for axis in INTERPOLATING}
+    full_ff = all(scenario.axis(axis).kvff == 1.0 for axis in INTERPOLATING)
+    differences = {plane: equivalent_time_difference(test) for plane, test in before.items()}
+    measured = ", ".join(f"{plane} {dt * 1e3:+.3f} ms" for plane, dt in differences.items())
+    worst = max(abs(dt) for dt in differences.values())
+    if full_ff and worst <= MISMATCH_LIMIT:
+        return {}, (f"matched dynamics: equivalent time differences on the circular tests {measured} (the 45 deg "
+                    f"ellipse, v dT / 2), within {MISMATCH_LIMIT * 1e3:g} ms with full velocity feed-forward: each "
+                    f"axis keeps its own position-loop gain ({' '.join(f'{a} {g:g}' for a, g in gains.items())} 1/s)")
     slowest = min(gains, key=gains.get)
-    line = (f"matched position loops: {' '.join(f'{a} {g:g}' for a, g in gains.items())} 1/s -> "
-            f"{gains[slowest]:g} 1/s on {' '.join(INTERPOLATING)} ({slowest}'s, the lowest: each axis's own is "
-            "the highest its margins allow, and axes that interpolate together need one gain)")
-    return gains[slowest], line
+    why = "without full velocity feed-forward" if not full_ff else f"{worst * 1e3:.3f} ms apart on the circular tests"
+    return ({axis: gains[slowest] for axis in INTERPOLATING},
+            f"matched position loops ({why}: {measured}): {' '.join(f'{a} {g:g}' for a, g in gains.items())} "
+            f"1/s -> {gains[slowest]:g} 1/s on {' '.join(INTERPOLATING)}, {slowest}'s, the lowest")
 
 
 def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], None] = lambda line: None,
@@ -98,10 +143,10 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     machine = machine_overrides(parameters)
     report("circular tests before commissioning ...")
     result.before = circular_tests(machine, scenarios=scenarios)
-    kv, line = matched_gain(parameters, scenarios=scenarios)
+    gains, line = matched_dynamics(parameters, result.before, scenarios=scenarios)
     result.steps.append(line)
     report(line)
-    result.overrides.update({f"servo.{axis}.kp": kv for axis in INTERPOLATING})
+    result.overrides.update({f"servo.{axis}.kp": kv for axis, kv in gains.items()})
     base = {**machine, **result.overrides}
     scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=base)
     for axis in COMPENSATED:

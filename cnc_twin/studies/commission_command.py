@@ -47,9 +47,9 @@ def commission_command(parameters: Path | None, out: Path | None) -> int:
         print(f"[{time.monotonic() - started:5.0f} s] {line}", file=sys.stderr, flush=True)
 
     result = commission(source, scenarios=scenarios_dir(), report=say)
-    header = (f"# Commissioned by `cnc-twin commission` from {source.name}: one position-loop gain on the axes that\n"
-              "# interpolate together, reversal compensation (servo.reversal_*) and backlash compensation\n"
-              "# (compensation.backlash) set on the circular tests XY, XZ, YZ; the figures: docs/tuning.md.\n"
+    header = (f"# Commissioned by `cnc-twin commission` from {source.name}: the interpolating axes' dynamics\n"
+              "# matched (report.md's first step says how), reversal compensation (servo.reversal_*) and backlash\n"
+              "# compensation (compensation.backlash) set on the circular tests XY, XZ, YZ; the figures: docs/tuning.md.\n"
               "# Below: the source's own comments, which describe it before commissioning.\n")
     name = source.name.replace(SUFFIX, "") if SUFFIX in source.stem else f"{source.stem}_commissioned{source.suffix}"
     written = write_parameters(source, result.overrides, out / name, header=header)

@@ -19,8 +19,8 @@ axis of a plane reverses at 0 / 180 deg, the second at 90 / 270) in both directi
 plane it is in: the objective is the largest spike's size in um; between spikes within
 :data:`SPIKE_TIE` of the smallest seen, the smaller circular deviation G of its planes. All
 axes are varied in the same runs (their quadrants apart). The steps, each keeping the best so
-far: the lead (what MuJoCo's friction, a soft constraint, lets creep on before the zero), the
-amplitude, the rise time (with more lead), the lead and the amplitude finer, the decay time,
+far: the lead (what MuJoCo's friction, a soft constraint, lets creep on before the zero) and the
+rise time together, the amplitude, the lead and the amplitude finer, the decay time,
 backlash from the lost motion (:func:`reversal_steps`), the lead and the amplitude finer again.
 """
 
@@ -43,8 +43,8 @@ QUADRANTS_OF = {0: ("0", "180"), 1: ("90", "270")}
 """a plane's first / second axis -> the quadrants (metrics' keys) where it reverses"""
 LEAD_STEPS = (0.0, 5e-3, 10e-3, 15e-3, 20e-3, 25e-3)
 """[s] the lead's first search"""
-RISE_STEPS = ((3e-3, 0.0), (3e-3, 3e-3), (6e-3, 3e-3), (6e-3, 6e-3), (10e-3, 6e-3), (10e-3, 10e-3))
-"""[s] (rise time, added lead) pairs: a slower rise starts later, so it is tried with more lead"""
+RISE_STEPS = (0.0, 5e-3, 10e-3)
+"""[s] the rise times searched, each with every lead of LEAD_STEPS (a slower rise wants more lead)"""
 AMPLITUDE_FACTORS = (0.8, 0.9, 1.1, 1.2)
 TIME_FACTORS = (0.75, 1.5)
 LEAD_REFINE = (-2.5e-3, 2.5e-3)
@@ -237,9 +237,9 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
     for axis in axes:
         settings[axis].spike = settings[axis].circular = None
     keep([varied(lambda s: s)], "first setting")
-    keep([varied(lambda s, lead=lead: replace(s, lead=lead)) for lead in LEAD_STEPS], "lead")
+    keep([varied(lambda s, lead=lead, rise=rise: replace(s, lead=lead, rise=rise)) for rise in RISE_STEPS
+          for lead in LEAD_STEPS], "lead and rise")
     keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_FACTORS], "amplitude")
-    keep([varied(lambda s, r=r, d=d: replace(s, rise=r, lead=s.lead + d)) for r, d in RISE_STEPS], "rise")
     keep([varied(lambda s, d=d: replace(s, lead=max(0.0, s.lead + d))) for d in LEAD_REFINE], "lead, finer")
     keep([varied(lambda s, f=f: replace(s, amplitude=s.amplitude * f)) for f in AMPLITUDE_REFINE], "amplitude, finer")
     keep([varied(lambda s, f=f: replace(s, time=s.time * f)) for f in TIME_FACTORS], "decay time")
