@@ -35,6 +35,7 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         dac.setup_dac(channel["dac"])
         reversal.setup_reversal(channel["reversal"], amplitude=rng.choice([0.0, rng.uniform(0, 0.01)]),
                                 time=rng.uniform(1e-3, 0.1), lead=rng.uniform(0, 0.02), rise=rng.uniform(0, 0.01),
+                                arm_speed=rng.choice([0.0, rng.uniform(0, 0.01)]), counts_per_unit=1e6,
                                 speed_per_volt=rng.uniform(0.01, 0.1), dt=2.5e-4)
         channel["reversal"]["direction"] = rng.choice([-1.0, 0.0, 1.0])
         channel["reversal"]["pulse"] = rng.uniform(-0.1, 0.1)

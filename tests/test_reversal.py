@@ -17,9 +17,10 @@ DT = 2.5e-4  # s, the servo period
 SPV = 0.05  # m/s per V
 
 
-def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0):
+def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0, arm_speed=0.0):
     r = np.zeros(1, REVERSAL)
-    setup_reversal(r[0], amplitude=amplitude, time=time, lead=lead, rise=rise, speed_per_volt=SPV, dt=DT)
+    setup_reversal(r[0], amplitude=amplitude, time=time, lead=lead, rise=rise, arm_speed=arm_speed,
+                   counts_per_unit=1e6, speed_per_volt=SPV, dt=DT)
     return r
 
 
@@ -131,3 +132,13 @@ def test_a_pulse_fired_ahead_of_a_trapezoid_s_stop_ends_at_the_stop_and_the_dire
     assert abs(out[-1]) < 0.1 * abs(out[stop - 1])  # 25 ms on: e^-2.5 of it
     back = _run(r, [-30.0] * 3)  # the next move the other way, soon after: a reversal from the old direction
     assert back[-1] < 0.0 and r[0]["count"] == 1
+
+
+def test_a_reversal_counts_only_after_a_move_of_the_arming_speed():
+    r = _block(arm_speed=0.005)  # 5 mm/s: 5000 counts/s at 1e6 counts/m
+    dither = np.tile(np.concatenate([np.full(40, 900.0), np.full(40, -900.0)]), 20)  # a force loop's turns
+    assert np.all(_run(r, dither) == 0.0) and r[0]["count"] == 0
+    out = _run(r, [6000.0] * 10 + [-900.0])  # a move at speed, then its turn: a reversal
+    assert out[-1] < 0.0 and r[0]["count"] == 1
+    _run(r, [900.0] * 10 + [-900.0] * 10)  # slow turns after it: none
+    assert r[0]["count"] == 1

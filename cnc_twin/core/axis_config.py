@@ -128,6 +128,9 @@ class AxisConfig:
     reversal_rise: float = 0.0
     """reversal compensation: the pulse's rise time constant [s] (a first-order low-pass on it);
     0 = a step"""
+    reversal_min_speed: float = 0.0
+    """reversal compensation: the commanded speed a move must reach for its reversal to count
+    [m/s | rad/s]; 0 = any"""
     index_period: float = 0.0
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0

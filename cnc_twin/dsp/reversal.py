@@ -15,7 +15,8 @@ and ``jerk`` its changes [counts/s^2, counts/s^3]::
     v          velocity + lead acceleration + lead^2 / 2 jerk    # the velocity `lead` seconds ahead
     sign       +1 / -1 with v; held while |v| <= REST_SPEED (0 before the first move)
     still      ticks since |velocity| > REST_SPEED (before this tick's velocity counts)
-    if sign flips between +1 and -1 and still <= patience:
+    armed      |velocity| has exceeded arm_speed since the last reversal
+    if sign flips between +1 and -1 and still <= patience and armed:
                                       pulse = amplitude x sign           # a reversal
     else:                             pulse = pulse x decay               # decay = exp(-dt / T)
     a pulse fired ahead of the turn is cancelled (pulse = 0, the old direction kept) if the
@@ -34,6 +35,10 @@ acceleration, and the prediction with it.
 standing axis's chord velocity is the difference of two floating-point setpoints, +-1e-8
 counts/s of noise on a path whose other axes move, which flipped the sign a thousand times in a
 circle.
+
+A reversal counts only after a move of at least ``arm_speed``: a grinding-force loop turns its
+axis back and forth at well under a millimetre a second hundreds of times a minute, and a pulse
+sized for a contour's reversal at each of those raised the force error by a third.
 
 The first move from rest is no reversal (the integrator holds no friction yet), nor is a start
 the other way after a standstill longer than ``patience`` (twice the decay time): the pulse is
@@ -57,7 +62,8 @@ REST_SPEED = 0.01
 far above a standing axis's rounding noise, far below any motion (one count in 100 s)"""
 
 REVERSAL = np.dtype([("amplitude", np.float64), ("decay", np.float64), ("lead", np.float64), ("rise", np.float64),
-                     ("patience", np.int64), ("direction", np.float64), ("pulse", np.float64), ("output", np.float64),
+                     ("patience", np.int64), ("arm_speed", np.float64), ("armed", np.int64),
+                     ("direction", np.float64), ("pulse", np.float64), ("output", np.float64),
                      ("still", np.int64), ("pending", np.float64), ("count", np.int64)])
 """One axis's reversal compensation:
 
@@ -70,6 +76,8 @@ lead       s       how far ahead the velocity is predicted                 :func
 rise       -       the output's step towards the pulse per tick,           :func:`setup_reversal`
                    ``1 - exp(-dt / T_rise)`` (1: no low-pass)
 patience   ticks   the longest standstill a reversal may follow            :func:`setup_reversal`
+arm_speed  c/s     the speed a move must reach for its reversal to count   :func:`setup_reversal`
+armed      0 / 1   it has, since the last reversal (state)                 :func:`reversal_pulse`
 direction  -       +1 / -1 / 0, the last commanded direction (state)       :func:`reversal_pulse`
 pulse      V       the pulse before its low-pass (state)                   :func:`reversal_pulse`
 output     V       the pulse after it, this tick's (state)                 :func:`reversal_pulse`
@@ -82,7 +90,7 @@ count      -       reversals seen since set up (state)                     :func
 
 
 def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, dt: float, lead: float = 0.0,
-                   rise: float = 0.0) -> None:
+                   rise: float = 0.0, arm_speed: float = 0.0, counts_per_unit: float = 1.0) -> None:
     """Fill ``r`` (a :data:`REVERSAL` record) and clear its state.
 
     Parameters
@@ -95,6 +103,11 @@ def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, d
         the drive's scaling [m/s/V | rad/s/V].
     dt
         the servo period [s].
+    lead, rise
+        how far ahead the velocity is predicted; the pulse's rise time constant [s] (0: a step).
+    arm_speed, counts_per_unit
+        the commanded speed a move must reach for its reversal to count [m/s | rad/s] (0: any);
+        the encoder's counts per m | rad, to convert it.
     """
     if not (speed_per_volt > 0 and dt > 0):
         raise ValueError("speed_per_volt and dt must be > 0")
@@ -106,6 +119,7 @@ def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, d
     r["lead"] = lead
     r["rise"] = 1.0 - math.exp(-dt / rise) if rise > 0 else 1.0
     r["patience"] = int(round(2.0 * time / dt)) if on else 0
+    r["arm_speed"] = max(arm_speed * counts_per_unit, REST_SPEED)
     reset_reversal(r)
 
 
@@ -115,6 +129,7 @@ def reset_reversal(r) -> None:
     r["pulse"] = 0.0
     r["output"] = 0.0
     r["still"] = 0
+    r["armed"] = 0
     r["pending"] = 0.0
     r["count"] = 0
 
@@ -139,6 +154,7 @@ def reversal_pulse(r, velocity, acceleration, jerk):
             r.direction = -r.pending
             r.pending = 0.0
             r.count -= 1
+            r.armed = 1  # the move it was fired in still counts
             cancelled = True
     predicted = velocity + r.lead * (acceleration + 0.5 * r.lead * jerk)
     if predicted > REST_SPEED:
@@ -149,13 +165,17 @@ def reversal_pulse(r, velocity, acceleration, jerk):
         sign = r.direction
     if cancelled:  # the stop's own tick: its deceleration still predicts the turn that did not come
         sign = r.direction
-    if sign != r.direction and r.direction != 0.0 and waited <= r.patience and r.pending == 0.0:
+    if sign != r.direction and r.direction != 0.0 and waited <= r.patience and r.pending == 0.0 \
+            and r.armed == 1:  # armed by the moves before this tick
         r.pulse = r.amplitude * sign
         r.count += 1
+        r.armed = 0
         if velocity * sign <= 0.0:  # fired ahead of the turn: to be confirmed
             r.pending = sign
     else:
         r.pulse *= r.decay
     r.direction = sign
+    if velocity > r.arm_speed or velocity < -r.arm_speed:  # the move the next reversal will end
+        r.armed = 1
     r.output += r.rise * (r.pulse - r.output)
     return r.output

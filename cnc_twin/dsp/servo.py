@@ -228,7 +228,7 @@ class ServoTask:
             setup_dac(channel["dac"])
             setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude, time=cfg.reversal_time,
                            speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,
-                           rise=cfg.reversal_rise)
+                           rise=cfg.reversal_rise, arm_speed=cfg.reversal_min_speed, counts_per_unit=cfg.counts_per_unit)
             comp = cfg.compensation
             if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
                 cpu = cfg.counts_per_unit

@@ -68,6 +68,9 @@ class ServoSpec(Strict):
     reversal_rise: float = Field(0.0, ge=0, le=100.0, description="reversal compensation: the pulse's rise time "
                                  "constant [ms] (a first-order low-pass on it, so that it excites the axis's modes "
                                  "less); 0 = a step")
+    reversal_min_speed: float = Field(0.0, ge=0, le=1e6, description="reversal compensation: the commanded "
+                                      "speed a move must reach for its reversal to count (a force loop's small "
+                                      "turns get no pulse) [mm/min | deg/min]; 0 = any")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
     integrator_limit: float = Field(3.0, ge=0, le=10.0, description="clamp on the integrator's contribution [V]")
 
@@ -314,6 +317,7 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | No
                 reversal_time=a.servo.reversal_time * units.MS,
                 reversal_lead=a.servo.reversal_lead * units.MS,
                 reversal_rise=a.servo.reversal_rise * units.MS,
+                reversal_min_speed=a.servo.reversal_min_speed * units.velocity_factor(rotary),
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],

@@ -10,7 +10,8 @@ Steps (each callable on its own)::
                MISMATCH_LIMIT on the circular tests each keeps its own gain, else all get the
                lowest (:func:`matched_dynamics`; a difference draws a 45 deg ellipse of
                v (1/kv_1 - 1/kv_2) / 2 without feed-forward)
-    reversal   X Y Z's reversal compensation (:mod:`cnc_twin.studies.reversal_tuning`)
+    reversal   X Y Z's reversal compensation (:mod:`cnc_twin.studies.reversal_tuning`), for moves of
+               at least MIN_SPEED_SHARE of the tests' feed
     after      the three circular tests with the commissioned settings
 
 The result is a set of scenario overrides (``servo.<axis>.<key>``) and the figures before and
@@ -21,7 +22,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +79,9 @@ def circular_tests(base: Mapping[str, Any], *, scenarios: Path) -> dict[str, Cir
     return out
 
 
+MIN_SPEED_SHARE = 0.1
+"""a reversal counts for the compensation after a move of at least this share of the circular
+tests' feed (300 mm/min at their 3 m/min): contouring reversals, not a force loop's small turns"""
 MISMATCH_LIMIT = 0.2e-3
 """[s] the largest difference of equivalent time between two interpolating axes left as it is:
 0.2 ms draws a 45 deg ellipse of +-5 um at 3 m/min (v dT / 2), half the acceptance's G"""
@@ -149,9 +153,10 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     result.overrides.update({f"servo.{axis}.kp": kv for axis, kv in gains.items()})
     base = {**machine, **result.overrides}
     scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=base)
+    min_speed = MIN_SPEED_SHARE * min(p.feed for test in result.before.values() for p in test.passes)
     for axis in COMPENSATED:
         c = None if coulomb is None else coulomb.get(axis)
-        result.reversal[axis] = reversal_tuning.first_setting(scenario, axis, c)
+        result.reversal[axis] = replace(reversal_tuning.first_setting(scenario, axis, c), min_speed=min_speed)
         s = result.reversal[axis]
         report(f"{axis}: first reversal setting from the drive and the identified friction: "
                f"{reversal_tuning.describe(s)}")

@@ -62,6 +62,8 @@ class ReversalSetting:
     time: float
     lead: float = 0.0
     rise: float = 0.0
+    min_speed: float = 0.0
+    """the commanded speed a move must reach for its reversal to count [m/s | rad/s] (0: any)"""
     backlash: float = 0.0
     """the card's backlash compensation [m | rad] (:mod:`cnc_twin.dsp.compensation`); negative
     where the tool leads the motor"""
@@ -78,6 +80,7 @@ class ReversalSetting:
                 f"servo.{a}.reversal_time": round(self.time / units.MS, 3),
                 f"servo.{a}.reversal_lead": round(self.lead / units.MS, 3),
                 f"servo.{a}.reversal_rise": round(self.rise / units.MS, 3),
+                f"servo.{a}.reversal_min_speed": round(self.min_speed / units.velocity_factor(rotary), 3),
                 f"axes.{a}.compensation.backlash": round(self.backlash / units.position_factor(rotary), 5)}
 
 
