@@ -89,7 +89,8 @@ def test_reversal_pulse(seed):
     rng = np.random.default_rng(seed)
     # velocities often 0 (a stop) and of either sign, as a reversal needs
     _walk(reversal.reversal_pulse, _axes(rng)["reversal"], rng,
-          lambda r: (float(r.choice([0.0, r.uniform(-1e4, 1e4)])), r.uniform(-1e6, 1e6), r.uniform(-1e8, 1e8)), 60)
+          lambda r: (float(r.choice([0.0, r.uniform(-1e4, 1e4)])), r.uniform(-1e6, 1e6), r.uniform(-1e8, 1e8),
+                     bool(r.random() < 0.7)), 60)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

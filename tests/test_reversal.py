@@ -24,10 +24,11 @@ def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0, arm_speed=0.0):
     return r
 
 
-def _run(r, velocities, accelerations=None, jerks=None):
+def _run(r, velocities, accelerations=None, jerks=None, path_on=True):
+    """The block's outputs over the ticks; ``path_on``: another axis moves (a contour goes on)."""
     accelerations = np.zeros(len(velocities)) if accelerations is None else accelerations
     jerks = np.zeros(len(velocities)) if jerks is None else jerks
-    return np.array([reversal_pulse(r[0], v, a, j) for v, a, j in zip(velocities, accelerations, jerks)])
+    return np.array([reversal_pulse(r[0], v, a, j, path_on) for v, a, j in zip(velocities, accelerations, jerks)])
 
 
 def test_a_reversal_gives_the_pulse_in_volts_with_the_new_sign_decaying_with_the_time_constant():
@@ -142,3 +143,13 @@ def test_a_reversal_counts_only_after_a_move_of_the_arming_speed():
     assert out[-1] < 0.0 and r[0]["count"] == 1
     _run(r, [900.0] * 10 + [-900.0] * 10)  # slow turns after it: none
     assert r[0]["count"] == 1
+
+
+def test_with_no_other_axis_moving_a_prediction_does_not_fire_but_the_turn_itself_does():
+    lead, decel = 0.02, 2e5
+    v = np.maximum(decel * np.arange(0.1, 0.0, -DT), 0.0)  # a single axis's trapezoid stop
+    r = _block(lead=lead)
+    assert np.all(_run(r, np.concatenate([v, np.zeros(20)]), np.concatenate([np.full(len(v), -decel), np.zeros(20)]),
+                       path_on=False) == 0.0)
+    out = _run(r, [-500.0, -1000.0], [-decel, -decel], path_on=False)  # then back: the turn itself
+    assert out[0] < 0.0 and r[0]["count"] == 1

@@ -36,6 +36,12 @@ standing axis's chord velocity is the difference of two floating-point setpoints
 counts/s of noise on a path whose other axes move, which flipped the sign a thousand times in a
 circle.
 
+A pulse ahead of the turn fires only while another axis moves at its arming speed (``path_on``):
+a contour's reversal is one axis turning while the path goes on; where every axis comes to rest
+together (a point-to-point move's trapezoid, a path's exact stop) the deceleration predicts a
+turn that never comes, and a pulse there pulled a single Y move 4 counts off its target. Without
+the path, the pulse fires when the velocity itself turns.
+
 A reversal counts only after a move of at least ``arm_speed``: a grinding-force loop turns its
 axis back and forth at well under a millimetre a second hundreds of times a minute, and a pulse
 sized for a contour's reversal at each of those raised the force error by a third.
@@ -135,9 +141,29 @@ def reset_reversal(r) -> None:
 
 
 @njit(cache=True)
-def reversal_pulse(r, velocity, acceleration, jerk):
+def forget_reversal(r):
+    """Clear ``r``'s state as at power-on (a :data:`REVERSAL` record): no direction known, no
+    pulse. While a step interpolator commands the axis the block is not used, and what it knew
+    before is stale after."""
+    r.direction = 0.0
+    r.pulse = 0.0
+    r.output = 0.0
+    r.still = 0
+    r.armed = 0
+    r.pending = 0.0
+
+
+@njit(cache=True)
+def is_moving(r, velocity):
+    """Whether ``velocity`` [counts/s] is at ``r``'s arming speed (a :data:`REVERSAL` record)."""
+    return velocity > r.arm_speed or velocity < -r.arm_speed
+
+
+@njit(cache=True)
+def reversal_pulse(r, velocity, acceleration, jerk, path_on):
     """The pulse [V] to add to this tick's drive command, ``velocity`` the period's commanded
-    velocity [counts/s], ``acceleration`` and ``jerk`` its changes [counts/s^2, counts/s^3];
+    velocity [counts/s], ``acceleration`` and ``jerk`` its changes [counts/s^2, counts/s^3],
+    ``path_on`` whether another axis moves at its arming speed (a prediction fires only then);
     advances ``r`` (a :data:`REVERSAL` record)."""
     waited = r.still  # the standstill before this tick
     moving = velocity > REST_SPEED or velocity < -REST_SPEED
@@ -165,17 +191,20 @@ def reversal_pulse(r, velocity, acceleration, jerk):
         sign = r.direction
     if cancelled:  # the stop's own tick: its deceleration still predicts the turn that did not come
         sign = r.direction
+    ahead = velocity * sign <= 0.0  # predicted: the velocity itself has not turned yet
+    if ahead and not path_on:  # no prediction without a path going on: wait for the turn itself
+        sign = r.direction
     if sign != r.direction and r.direction != 0.0 and waited <= r.patience and r.pending == 0.0 \
-            and r.armed == 1:  # armed by the moves before this tick
+            and r.armed == 1 and (path_on or not ahead):  # armed by the moves before this tick
         r.pulse = r.amplitude * sign
         r.count += 1
         r.armed = 0
-        if velocity * sign <= 0.0:  # fired ahead of the turn: to be confirmed
+        if ahead:  # fired ahead of the turn: to be confirmed
             r.pending = sign
     else:
         r.pulse *= r.decay
     r.direction = sign
-    if velocity > r.arm_speed or velocity < -r.arm_speed:  # the move the next reversal will end
+    if is_moving(r, velocity):  # the move the next reversal will end
         r.armed = 1
     r.output += r.rise * (r.pulse - r.output)
     return r.output

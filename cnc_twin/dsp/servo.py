@@ -12,7 +12,9 @@ Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
     actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
     volts    = pid_update(pid, command, actual, v, a)        # PID+FF
-    volts   += reversal_pulse(reversal, v, a, j)             # quadrant error compensation
+    volts   += reversal_pulse(reversal, v, a, j, path_on)    # quadrant error compensation (path_on: another
+                                                             # axis moves at its arming speed; not for a
+                                                             # step interpolator's commands)
     volts    = dac_write(dac, volts)                         # 12-bit, saturation counted
     force    = adc_convert(load cell + fault) - tare         # [N], tare taken on the first tick
 
@@ -54,7 +56,7 @@ from cnc_twin.dsp.dac import DAC, dac_write, setup_dac
 from cnc_twin.dsp.frame import FRAME_FIELDS, PERIOD_FIELDS
 from cnc_twin.dsp.encoder import QEP, qep_sample, setup_encoder
 from cnc_twin.dsp.pid import PID, pid_reset, pid_update, setup_pid
-from cnc_twin.dsp.reversal import REVERSAL, reversal_pulse, setup_reversal
+from cnc_twin.dsp.reversal import REVERSAL, forget_reversal, is_moving, reversal_pulse, setup_reversal
 from cnc_twin.dsp.step_output import StepGenerator
 
 # the functions below call the blocks' functions: recompile them when those change
@@ -67,21 +69,21 @@ AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64
                  ("comp", COMP), ("reversal", REVERSAL)])
 """One axis's servo channel, the record the servo functions work on:
 
-=============  ==============  ===========================================  =========================
-field          unit            meaning                                      written by
-=============  ==============  ===========================================  =========================
-qep            :data:`.QEP`    the encoder channel                          :func:`.qep_sample`
-pid            :data:`.PID`    the position loop                            :func:`.pid_update`
-dac            :data:`.DAC`    the analog output                            :func:`.dac_write`
-p_prev         counts          the setpoint at the period's start           :func:`latch_setpoint`
-p_next         counts          the setpoint at the period's end             :func:`latch_setpoint`
-velocity       counts/s        chord velocity, feed-forward                 :func:`latch_setpoint`
-acceleration   counts/s^2      its change, feed-forward                     :func:`latch_setpoint`
-jerk           counts/s^3      the acceleration's change                    :func:`latch_setpoint`
-encoder_fault  counts          added to the reading by injected faults      the fault injector
-comp           :data:`.COMP`   backlash and the pitch-error table's state   :func:`.comp_correction`
-reversal       :data:`.REVERSAL`  the reversal compensation's pulse         :func:`.reversal_pulse`
-=============  ==============  ===========================================  =========================
+=============  =================  ===========================================  =========================
+field          unit               meaning                                      written by
+=============  =================  ===========================================  =========================
+qep            :data:`.QEP`       the encoder channel                          :func:`.qep_sample`
+pid            :data:`.PID`       the position loop                            :func:`.pid_update`
+dac            :data:`.DAC`       the analog output                            :func:`.dac_write`
+p_prev         counts             the setpoint at the period's start           :func:`latch_setpoint`
+p_next         counts             the setpoint at the period's end             :func:`latch_setpoint`
+velocity       counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
+acceleration   counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
+jerk           counts/s^3         the acceleration's change                    :func:`latch_setpoint`
+encoder_fault  counts             added to the reading by injected faults      the fault injector
+comp           :data:`.COMP`      backlash and the pitch-error table's state   :func:`.comp_correction`
+reversal       :data:`.REVERSAL`  the reversal compensation's pulse            :func:`.reversal_pulse`
+=============  =================  ===========================================  =========================
 """
 
 LOAD_CELL = np.dtype([("adc", ADC), ("tare", np.float64), ("tare_set", np.int64), ("fault", np.float64)])
@@ -129,14 +131,27 @@ def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, posi
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
     with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
     correction added to the command (:func:`~cnc_twin.dsp.compensation.comp_correction`),
-    PID+FF, the reversal compensation's pulse (:func:`~cnc_twin.dsp.reversal.reversal_pulse`), DAC. Writes the command [counts] (without the correction), the reading [counts], the
-    DAC code and the output voltage [V] per axis into the ``*_out`` arrays (shape ``(n,)`` each)."""
-    for i in range(axes.shape[0]):
+    PID+FF, the reversal compensation's pulse (:func:`~cnc_twin.dsp.reversal.reversal_pulse`;
+    none under a step interpolator's commands, whose older cards had none and whose staircase
+    would read as reversals), DAC. Writes the command [counts] (without the correction), the
+    reading [counts], the DAC code and the output voltage [V] per axis into the ``*_out`` arrays
+    (shape ``(n,)`` each)."""
+    n = axes.shape[0]
+    moving = 0  # axes at their reversal compensation's arming speed: a path goes on (module docstring)
+    for i in range(n):
+        if is_moving(axes[i].reversal, axes[i].velocity):
+            moving += 1
+    for i in range(n):
         a = axes[i]
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
         corrected = command + comp_correction(a.comp, comp_tables[i], command, a.velocity)
-        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration) + reversal_pulse(a.reversal, a.velocity, a.acceleration, a.jerk)
+        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration)
+        if use_tick_command:
+            forget_reversal(a.reversal)
+        else:
+            others = moving - (1 if is_moving(a.reversal, a.velocity) else 0)
+            volts += reversal_pulse(a.reversal, a.velocity, a.acceleration, a.jerk, others > 0)
         volts_out[i] = dac_write(a.dac, volts)
         command_out[i] = command
         actual_out[i] = actual

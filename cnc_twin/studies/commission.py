@@ -160,7 +160,8 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
         s = result.reversal[axis]
         report(f"{axis}: first reversal setting from the drive and the identified friction: "
                f"{reversal_tuning.describe(s)}")
-    reversal_tuning.search(result.reversal, base, scenarios=scenarios, report=report)
+    reversal_tuning.search(result.reversal, base, scenarios=scenarios, report=report,
+                           counts_per_unit={a: scenario.axis(a).counts_per_unit for a in COMPENSATED})
     result.steps.append("reversal compensation on the circular tests XY, XZ, YZ: " + ", ".join(
         f"{a} {reversal_tuning.describe(s)}" for a, s in result.reversal.items()))
     for s in result.reversal.values():

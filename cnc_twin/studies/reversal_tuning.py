@@ -191,12 +191,13 @@ def axis_figures(overrides: Mapping[str, Any], *, scenarios: Path,
 
 
 def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scenarios: Path,
-           planes: Sequence[str] = PLANES, log: SearchLog | None = None,
+           counts_per_unit: Mapping[str, float], planes: Sequence[str] = PLANES, log: SearchLog | None = None,
            report: Callable[[str], None] = lambda line: None) -> dict[str, AxisFigures]:
     """Refine ``settings`` (per axis) in place (module docstring) on the circular tests of
     ``planes`` with ``base`` overrides: every trial runs them all and judges each axis by its
     largest spike over the planes it is in, so a setting good in one plane and bad in another is
-    not kept. Returns each axis's figures with the settings kept."""
+    not kept; ``counts_per_unit`` per axis [counts/m | counts/rad] rounds the backlash to whole
+    counts. Returns each axis's figures with the settings kept."""
     axes = tuple(settings)
     kept: dict[str, AxisFigures] = {}
 
@@ -232,10 +233,16 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
         return {a: replace(change(settings[a]), spike=None, circular=None) for a in axes}
 
     def lost_motion() -> None:
-        """Backlash compensation from the tip's step across the reversals (and half of it)."""
+        """Backlash compensation from the tip's step across the reversals (and half of it), in
+        whole encoder counts: less than one the motor's loop cannot hold, and a fraction of a count
+        only moves where its friction limit cycle sits (a Y move settled 4 counts off)."""
         measured = {a: kept[a].lost_motion * 1e-6 for a in axes}
-        keep([varied(lambda s, f=f: replace(s, backlash=s.backlash + f * measured[s.axis])) for f in (0.5, 1.0)],
-             "backlash from the lost motion")
+
+        def counted(s: ReversalSetting, f: float) -> ReversalSetting:
+            count = 1.0 / counts_per_unit[s.axis]
+            return replace(s, backlash=round((s.backlash + f * measured[s.axis]) / count) * count)
+
+        keep([varied(lambda s, f=f: counted(s, f)) for f in (0.5, 1.0)], "backlash from the lost motion")
 
     for axis in axes:
         settings[axis].spike = settings[axis].circular = None
