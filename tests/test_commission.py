@@ -65,10 +65,10 @@ def _spikes(figures):
 
 
 # [um] G, the largest spike, H: what the bundled default measured when commissioned (docs/tuning.md:
-# XY 8.3 / 3.9 / 4.9, XZ 3.6 / 2.4 / 2.6, YZ 10.2 / 4.8 / 5.3); the acceptance asked for is G <= 10,
+# XY 8.4 / 3.9 / 4.9, XZ 3.6 / 2.4 / 2.6, YZ 10.2 / 4.7 / 5.4); the acceptance asked for is G <= 10,
 # spikes <= 5, H <= 5 in every plane: XY and XZ meet it and are held to it, YZ's spikes too, its G
 # and H are held to what they measured with about 5 % to spare
-HELD = {"xy": (10.0, 5.0, 5.0), "xz": (10.0, 5.0, 5.0), "yz": (10.7, 5.0, 5.6)}
+HELD = {"xy": (10.0, 5.0, 5.0), "xz": (10.0, 5.0, 5.0), "yz": (10.7, 5.0, 5.7)}
 
 
 @pytest.mark.parametrize("plane", sorted(HELD))

@@ -218,21 +218,26 @@ def test_on_the_compliant_machine_the_cards_friction_feed_forward_stays_off():
     Coulomb friction; the card's friction feed-forward is a speed command on top. With the rigid
     machine's recipe (Coulomb / kv / speed_per_volt, per axis) the butterfly at 40 mm/s on the
     compliant machine's tuned loops runs with more contour error, max and RMS, than with it off as
-    its parameter file has it (measured 82.2 / 19.9 um against 80.0 / 16.6 um with the loops
-    tuned behind the drives' torque filters, 2026-11-27; 19.0 / 6.3 against 14.8 / 3.9 before the
-    drives' dead time)."""
+    its parameter file has it before commissioning (measured 82.2 / 19.9 um against 80.0 / 16.6 um
+    with the loops tuned behind the drives' torque filters, 2026-11-27; 19.0 / 6.3 against 14.8 /
+    3.9 before the drives' dead time). On the commissioned default, whose reversal compensation
+    takes the reversals' friction off, the recipe still costs RMS (15.6 against 11.7 um), though it
+    lowers the largest error (59.5 against 66.7 um): off stays the better setting over the contour."""
     from cnc_twin import run_scenario
     from cnc_twin.scenario.resources import BUNDLED_MACHINES
 
     path = scenarios_dir() / "published" / "farfalla.yaml"
-    compliant = dict(BUNDLED_MACHINES["compliant"])
     recipe = {"servo.X.friction_ff": 0.0139, "servo.Y.friction_ff": 0.0158, "servo.Z.friction_ff": 0.0157,
               "servo.A.friction_ff": 0.0405, "servo.B.friction_ff": 0.0384}
-    scenario = load_scenario(path, overrides=compliant)
-    assert all(scenario.axis(a).friction_ff == 0.0 for a in "XYZAB")
-    off = run_scenario(scenario).metrics["path"]["contour_error_um"]
-    on = run_scenario(load_scenario(path, overrides={**compliant, **recipe})).metrics["path"]["contour_error_um"]
-    assert off["max"] < on["max"] and off["rms"] < 0.95 * on["rms"], (off, on)
+    for name in ("uncommissioned", "compliant"):
+        machine = dict(BUNDLED_MACHINES[name])
+        scenario = load_scenario(path, overrides=machine)
+        assert all(scenario.axis(a).friction_ff == 0.0 for a in "XYZAB")
+        off = run_scenario(scenario).metrics["path"]["contour_error_um"]
+        on = run_scenario(load_scenario(path, overrides={**machine, **recipe})).metrics["path"]["contour_error_um"]
+        assert off["rms"] < 0.95 * on["rms"], (name, off, on)
+        if name == "uncommissioned":
+            assert off["max"] < on["max"], (off, on)
 
 
 @pytest.mark.parametrize("name", ["farfalla", "mazatrol"])
