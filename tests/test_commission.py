@@ -52,7 +52,7 @@ def test_mismatched_gains_without_feed_forward_draw_the_45_degree_ellipse_of_the
             assert abs(measured) == pytest.approx(expected, rel=0.2), (p.direction, measured, expected)
         else:  # matched: no ellipse beyond a tenth of the mismatched one's
             assert abs(measured) < 15.0, (p.direction, measured)
-    test = commission.CircularTest(result.metrics["ballbar"], passes, None)
+    test = reversal_tuning.CircularTest(result.metrics["ballbar"], passes, None)
     difference = commission.equivalent_time_difference(test)  # what commissioning reads of it
     if kv_y != kv_x:
         assert difference == pytest.approx(1 / kv_x - 1 / kv_y, rel=0.2)  # 5.96 ms: X lags longer

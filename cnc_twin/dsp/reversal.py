@@ -130,13 +130,8 @@ def setup_reversal(r, *, amplitude: float, time: float, speed_per_volt: float, d
 
 
 def reset_reversal(r) -> None:
-    """The state at power-on: no direction known, no pulse."""
-    r["direction"] = 0.0
-    r["pulse"] = 0.0
-    r["output"] = 0.0
-    r["still"] = 0
-    r["armed"] = 0
-    r["pending"] = 0.0
+    """The state at power-on: no direction known, no pulse, no reversal counted."""
+    forget_reversal(r)
     r["count"] = 0
 
 

@@ -214,6 +214,9 @@ class ServoTask:
     output
         ``analog`` (PID + DAC per axis, :meth:`tick`) or ``pulse`` (step generators,
         :meth:`tick_pulses`; the ``dac`` slots of ``frame`` then hold the pulses of the tick).
+    reversal_compensation
+        whether the axes' reversal compensation is set up as configured (False: off, whatever the
+        configuration says; the older cards' program kinds had none).
     """
 
     def __init__(
@@ -224,6 +227,7 @@ class ServoTask:
         power_on: Sequence[float],
         force_sensor: ForceSensorConfig,
         output: str = "analog",
+        reversal_compensation: bool = True,
     ):
         n = self.n_axes = len(axes)
         self.ticks_per_period = timing.ticks_per_period
@@ -241,7 +245,8 @@ class ServoTask:
                       speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
-            setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude, time=cfg.reversal_time,
+            setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude if reversal_compensation else 0.0,
+                           time=cfg.reversal_time,
                            speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,
                            rise=cfg.reversal_rise, arm_speed=cfg.reversal_min_speed, counts_per_unit=cfg.counts_per_unit)
             comp = cfg.compensation

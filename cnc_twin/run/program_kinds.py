@@ -11,6 +11,8 @@ Hooks, each with a default that serves a point-to-point program:
 - :meth:`ProgramKind.build_plant`: the MuJoCo plant (and, for a surface, the workpiece's collision
   tiles and the removal map), returned as :class:`PlantParts`;
 - ``referenced``: whether the axes count as referenced at power-on (the motion chip homes them);
+- ``reversal_compensation``: whether the card's reversal compensation runs (the older cards' kinds
+  had none);
 - :meth:`ProgramKind.stop_time`: the time to stop from the programmed feed, which the planner's
   look-ahead must always cover on a path program;
 - :meth:`ProgramKind.warm_up`: compile what the run will call, while the planner starts;
@@ -56,6 +58,8 @@ class ProgramKind:
 
     referenced = True
     """the axes count as referenced at power-on (soft limits apply from the start)"""
+    reversal_compensation = True
+    """the card's reversal compensation runs as the axes configure it (the older cards' kinds: off)"""
 
     def build_plant(self, twin: Twin, obstacles: list) -> PlantParts:
         """The plant for ``twin.scenario`` with the injected collision ``obstacles`` (centre, half
@@ -205,6 +209,8 @@ class CurveKind(_PathKind):
 class ContourKind(_PathKind):
     """Lines and arcs, run pass by pass with each interpolation method: per-pass contour metrics."""
 
+    reversal_compensation = False  # the older cards' point-by-point and DDA steps: their cards had none
+
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         from cnc_twin.run.contour_metrics import contour_metrics
 
@@ -283,6 +289,7 @@ class MotionChipKind(ProgramKind):
     """Motion-chip commands: the axes are not referenced until the program homes them."""
 
     referenced = False
+    reversal_compensation = False  # the motion chip's cards had none
 
     def metrics(self, twin: Twin, trace: Trace, dsp: DspTask, wall_time: float) -> dict[str, Any]:
         """The chip's events (motion done, home found, limits) with where each axis was [mm | deg]."""

@@ -96,7 +96,7 @@ class Twin:
         self.plant, self.removal, self.tiling = self.kind.build_plant(self, obstacles)
         self.servo = ServoTask(
             scenario.axes, timing=timing, power_on=self.plant.encoder_home, force_sensor=scenario.force_sensor,
-            output=scenario.command_output,
+            output=scenario.command_output, reversal_compensation=self.kind.reversal_compensation,
         )
         self.drives = None
         if scenario.command_output == "pulse":

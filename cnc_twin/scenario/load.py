@@ -14,7 +14,6 @@ override any of them, key by key.
 from __future__ import annotations
 
 import copy
-from dataclasses import replace
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -193,9 +192,6 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
     merged = dict(raw)
     defaults = params.model_dump()
     merged["axes"] = _deep_merge(defaults["axes"], raw.get("axes", {}))
-    for axis, given in (raw.get("axes") or {}).items():  # a compensation is one measurement: whole
-        if isinstance(given, dict) and isinstance(given.get("compensation"), dict) and axis in merged["axes"]:
-            merged["axes"][axis]["compensation"] = copy.deepcopy(given["compensation"])
     merged["force_sensor"] = _deep_merge(defaults["force_sensor"], raw.get("force_sensor", {}))
     spec = validate(ScenarioFile, merged, label)
     for i, fault in enumerate(spec.faults):
@@ -215,8 +211,6 @@ def scenario_from_dict(raw: Any, *, source_file: Path | None = None, source_text
             raise ScenarioError(label, "machine.block_shift", str(exc)) from None
     info = model_info(model)
     axes = convert_axes(spec.axes, info, label, folder)
-    if spec.program.type in OLDER_CARDS_KINDS:  # their cards had no reversal compensation
-        axes = tuple(replace(a, reversal_amplitude=0.0) for a in axes)
     if spec.command_output == "pulse":
         check_pulse_rates(axes, label)
     machine_tools = None if params.tool_table is None else params_path.parent / params.tool_table
@@ -327,16 +321,17 @@ def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:
     return found
 
 
-OLDER_CARDS_KINDS = ("contour", "motion_chip")
-"""program kinds of the older cards (point-by-point and DDA steps, the motion chip's profiles):
-they run without the DSP card's reversal compensation, which those cards did not have"""
+WHOLE_KEYS = frozenset({"compensation"})
+"""mappings a scenario's value replaces whole instead of key by key: an axis's compensation is one
+measurement (a comp file's columns and the backlash together)"""
 
 
 def _deep_merge(base: Any, override: Any) -> Any:
-    """``override`` on top of ``base``, key by key; non-mapping overrides replace (and get validated)."""
+    """``override`` on top of ``base``, key by key (but :data:`WHOLE_KEYS`, replaced whole);
+    non-mapping overrides replace (and get validated)."""
     if not isinstance(base, dict) or not isinstance(override, dict):
         return copy.deepcopy(override)
     out = copy.deepcopy(base)
     for key, value in override.items():
-        out[key] = _deep_merge(out[key], value) if key in out else copy.deepcopy(value)
+        out[key] = _deep_merge(out[key], value) if key in out and key not in WHOLE_KEYS else copy.deepcopy(value)
     return out

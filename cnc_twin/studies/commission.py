@@ -24,12 +24,12 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from cnc_twin.core.config import Scenario
 from cnc_twin.studies import reversal_tuning
-from cnc_twin.studies.reversal_tuning import PLANES, ReversalSetting
+from cnc_twin.studies.reversal_tuning import CircularTest, ReversalSetting, circular_tests
 
 INTERPOLATING = ("X", "Y", "Z", "A", "B")
 """the axes that interpolate together; C (the spindle) runs on its own"""
@@ -45,8 +45,8 @@ class Commissioning:
 
     parameters: Path
     overrides: dict[str, float] = field(default_factory=dict)
-    before: dict[str, "CircularTest"] = field(default_factory=dict)
-    after: dict[str, "CircularTest"] = field(default_factory=dict)
+    before: dict[str, CircularTest] = field(default_factory=dict)
+    after: dict[str, CircularTest] = field(default_factory=dict)
     steps: list[str] = field(default_factory=list)
     reversal: dict[str, ReversalSetting] = field(default_factory=dict)
 
@@ -54,29 +54,6 @@ class Commissioning:
 def machine_overrides(parameters: Path) -> dict[str, str]:
     """The overrides that run a bundled scenario on ``parameters`` (its path made absolute)."""
     return {"machine.parameters": str(Path(parameters).resolve())}
-
-
-@dataclass(frozen=True)
-class CircularTest:
-    """One circular test's ``figures`` (metrics.json's ``ballbar``), its ``passes``
-    (:class:`~cnc_twin.run.ballbar.BallbarPass`) and its ``test`` (the scenario's
-    :class:`~cnc_twin.core.config.BallbarTest`)."""
-
-    figures: dict[str, Any]
-    passes: list
-    test: Any
-
-
-def circular_tests(base: Mapping[str, Any], *, scenarios: Path) -> dict[str, CircularTest]:
-    """The three circular tests with ``base`` overrides, per plane."""
-    from cnc_twin.run.ballbar import ballbar_passes
-
-    out = {}
-    for plane in PLANES:
-        scenario, result = reversal_tuning.circular_run(plane, base, scenarios=scenarios)
-        passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
-        out[plane] = CircularTest(result.metrics["ballbar"], passes, scenario.ballbar)
-    return out
 
 
 MIN_SPEED_SHARE = 0.1
@@ -105,8 +82,7 @@ def equivalent_time_difference(test: CircularTest) -> float:
     return float(2.0 * np.mean(terms)) if terms else 0.0
 
 
-def matched_dynamics(parameters: Path, before: Mapping[str, CircularTest], *,
-                     scenarios: Path) -> tuple[dict[str, float], str]:
+def matched_dynamics(scenario: Scenario, before: Mapping[str, CircularTest]) -> tuple[dict[str, float], str]:
     """The position-loop gains of :data:`INTERPOLATING` commissioning sets (an empty mapping: each
     keeps its own) and a line saying which and why.
 
@@ -117,10 +93,8 @@ def matched_dynamics(parameters: Path, before: Mapping[str, CircularTest], *,
     where every pair is within :data:`MISMATCH_LIMIT` each axis keeps its own gain, the highest its
     margins allow, for the disturbances (friction, the other axes' forces, the process) that the
     feed-forward does not see. Otherwise, or without full feed-forward, every one gets the lowest
-    of their gains."""
-    from cnc_twin.scenario.load import load_scenario
-
-    scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=machine_overrides(parameters))
+    of their gains. ``scenario``: a scenario on the machine being commissioned; ``before``: its
+    circular tests."""
     gains = {axis: scenario.axis(axis).kp for axis in INTERPOLATING}
     full_ff = all(scenario.axis(axis).kvff == 1.0 for axis in INTERPOLATING)
     differences = {plane: equivalent_time_difference(test) for plane, test in before.items()}
@@ -147,12 +121,14 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     machine = machine_overrides(parameters)
     report("circular tests before commissioning ...")
     result.before = circular_tests(machine, scenarios=scenarios)
-    gains, line = matched_dynamics(parameters, result.before, scenarios=scenarios)
+    # the machine as given: its gains, drives and encoders (the first reversal settings take the
+    # drives', which the gains do not change)
+    scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=machine)
+    gains, line = matched_dynamics(scenario, result.before)
     result.steps.append(line)
     report(line)
     result.overrides.update({f"servo.{axis}.kp": kv for axis, kv in gains.items()})
     base = {**machine, **result.overrides}
-    scenario = load_scenario(scenarios / "ballbar_xy.yaml", overrides=base)
     min_speed = MIN_SPEED_SHARE * min(p.feed for test in result.before.values() for p in test.passes)
     for axis in COMPENSATED:
         c = None if coulomb is None else coulomb.get(axis)

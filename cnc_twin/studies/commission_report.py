@@ -7,7 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from cnc_twin.run.ballbar_plot import DIRECTION_STYLE, polar_axes
-from cnc_twin.studies.commission import CircularTest, Commissioning, yaml_number
+from cnc_twin.studies.commission import Commissioning, yaml_number
+from cnc_twin.studies.reversal_tuning import CircularTest
 
 DIRECTIONS = ("ccw", "cw")
 

@@ -27,7 +27,7 @@ backlash from the lost motion (:func:`reversal_steps`), the lead and the amplitu
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -84,13 +84,6 @@ class ReversalSetting:
                 f"axes.{a}.compensation.backlash": round(self.backlash / units.position_factor(rotary), 5)}
 
 
-@dataclass
-class SearchLog:
-    """Every circular test the search ran: the overrides and the spikes per axis [um]."""
-
-    runs: list[tuple[dict[str, float], dict[str, float]]] = field(default_factory=list)
-
-
 def first_setting(scenario: Scenario, axis: str, coulomb: float | None = None) -> ReversalSetting:
     """The first setting from the drive and the friction (module docstring): ``coulomb`` [N | N m]
     at the axis, identified on the twin when None."""
@@ -104,10 +97,9 @@ def first_setting(scenario: Scenario, axis: str, coulomb: float | None = None) -
     return ReversalSetting(axis, amplitude=2.0 * coulomb / drive.kp, time=drive.tn)
 
 
-def plane_spikes(metrics: Mapping[str, Any], plane: str) -> dict[str, float]:
+def plane_spikes(ballbar: Mapping[str, Any], plane: str) -> dict[str, float]:
     """The largest reversal spike's size [um] of each axis of ``plane`` over both directions, from
-    a run's metrics (``ballbar``)."""
-    ballbar = metrics["ballbar"]
+    a circular test's figures (metrics.json's ``ballbar``)."""
     out = {}
     for k, axis in enumerate(plane):
         sizes = [abs(ballbar[d]["reversal_spikes_um"][q]) for d in ("ccw", "cw") for q in QUADRANTS_OF[k]]
@@ -115,19 +107,32 @@ def plane_spikes(metrics: Mapping[str, Any], plane: str) -> dict[str, float]:
     return out
 
 
-def circular_run(plane: str, overrides: Mapping[str, Any], *, scenarios: Path):
-    """Run the bundled circular test of ``plane`` with ``overrides``: its scenario and
-    :class:`~cnc_twin.run.result.RunResult`."""
+@dataclass(frozen=True)
+class CircularTest:
+    """One circular test's ``figures`` (metrics.json's ``ballbar``), its ``passes``
+    (:class:`~cnc_twin.run.ballbar.BallbarPass`) and its ``test`` (the scenario's
+    :class:`~cnc_twin.core.config.BallbarTest`)."""
+
+    figures: dict[str, Any]
+    passes: list
+    test: Any
+
+
+def circular_tests(base: Mapping[str, Any], *, scenarios: Path,
+                   planes: Sequence[str] = PLANES) -> dict[str, CircularTest]:
+    """The bundled circular tests of ``planes`` (``scenarios``' ``ballbar_<plane>.yaml``) run with
+    ``base`` overrides, per plane."""
+    from cnc_twin.run.ballbar import ballbar_passes
     from cnc_twin.run.twin import run_scenario
     from cnc_twin.scenario.load import load_scenario
 
-    scenario = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml", overrides=dict(overrides))
-    return scenario, run_scenario(scenario)
-
-
-def circular_test(plane: str, overrides: Mapping[str, Any], *, scenarios: Path) -> dict[str, Any]:
-    """Run the bundled circular test of ``plane`` with ``overrides``; its metrics."""
-    return circular_run(plane, overrides, scenarios=scenarios)[1].metrics
+    out = {}
+    for plane in planes:
+        scenario = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml", overrides=dict(base))
+        result = run_scenario(scenario)
+        passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
+        out[plane] = CircularTest(result.metrics["ballbar"], passes, scenario.ballbar)
+    return out
 
 
 @dataclass(frozen=True)
@@ -158,8 +163,8 @@ def reversal_steps(passes, plane: str) -> dict[str, float]:
         steps = []
         for p in passes:
             sign = 1.0 if p.direction == "ccw" else -1.0
-            for quadrant in (0.0, 180.0) if k == 0 else (90.0, 270.0):
-                rel = np.degrees(np.angle(np.exp(1j * (p.angle - np.radians(quadrant))))) * sign
+            for quadrant in QUADRANTS_OF[k]:
+                rel = np.degrees(np.angle(np.exp(1j * (p.angle - np.radians(float(quadrant)))))) * sign
                 after = p.deviation[(rel > 5.0) & (rel < 15.0)]
                 before = p.deviation[(rel < -5.0) & (rel > -15.0)]
                 if len(after) and len(before):
@@ -172,26 +177,21 @@ def axis_figures(overrides: Mapping[str, Any], *, scenarios: Path,
                  planes: Sequence[str] = PLANES) -> dict[str, AxisFigures]:
     """Each axis's :class:`AxisFigures` over the circular tests of ``planes`` it is in (the spike
     the largest, the lost motion the mean)."""
-    from cnc_twin.run.ballbar import ballbar_passes
-
     spikes: dict[str, float] = {}
     steps: dict[str, list[float]] = {}
     circular: dict[str, float] = {}
-    for plane in planes:
-        scenario, result = circular_run(plane, overrides, scenarios=scenarios)
-        ballbar = result.metrics["ballbar"]
-        g = max(ballbar[d]["circular_deviation_um"] for d in ("ccw", "cw"))
-        for axis, spike in plane_spikes(result.metrics, plane).items():
+    for plane, test in circular_tests(overrides, scenarios=scenarios, planes=planes).items():
+        g = max(test.figures[d]["circular_deviation_um"] for d in ("ccw", "cw"))
+        for axis, spike in plane_spikes(test.figures, plane).items():
             spikes[axis] = max(spikes.get(axis, 0.0), spike)
             circular[axis] = max(circular.get(axis, 0.0), g)
-        passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
-        for axis, step in reversal_steps(passes, plane).items():
+        for axis, step in reversal_steps(test.passes, plane).items():
             steps.setdefault(axis, []).append(step)
     return {axis: AxisFigures(spikes[axis], float(np.mean(steps[axis])), circular[axis]) for axis in spikes}
 
 
 def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scenarios: Path,
-           counts_per_unit: Mapping[str, float], planes: Sequence[str] = PLANES, log: SearchLog | None = None,
+           counts_per_unit: Mapping[str, float], planes: Sequence[str] = PLANES,
            report: Callable[[str], None] = lambda line: None) -> dict[str, AxisFigures]:
     """Refine ``settings`` (per axis) in place (module docstring) on the circular tests of
     ``planes`` with ``base`` overrides: every trial runs them all and judges each axis by its
@@ -212,8 +212,6 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
             for s in candidate.values():
                 overrides.update(s.overrides())
             figures = axis_figures(overrides, scenarios=scenarios, planes=planes)
-            if log is not None:
-                log.runs.append((overrides, {a: f.spike for a, f in figures.items()}))
             for axis in axes:
                 best, new = settings[axis], figures[axis]
                 if best.spike is None:
