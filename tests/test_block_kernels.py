@@ -29,6 +29,8 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         encoder.setup_encoder(channel["qep"], 10 ** rng.uniform(3, 7), rng.uniform(-0.5, 0.5))
         pid.setup_pid(channel["pid"], kp=rng.uniform(0, 200), ki=rng.choice([0.0, rng.uniform(0, 5e4)]),
                       kd=rng.uniform(0, 2), kvff=rng.uniform(0, 1.2), kaff=rng.uniform(0, 0.01),
+                      aff_washout=rng.choice([0.0, rng.uniform(1e-3, 0.1)]),
+                      ff_equivalent_time=rng.choice([0.0, rng.uniform(1e-4, 5e-3)]),
                       friction_ff=rng.uniform(0, 1), friction_ff_band=rng.uniform(1e-4, 1e-2),
                       speed_per_volt=rng.uniform(0.01, 0.1), counts_per_unit=channel["qep"]["counts_per_unit"],
                       dt=2.5e-4, output_limit=10.0, integrator_limit=rng.uniform(0.1, 10))
@@ -49,6 +51,11 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         channel["velocity"], channel["acceleration"] = rng.uniform(-1e6, 1e6), rng.uniform(-1e8, 1e8)
         channel["jerk"] = rng.uniform(-1e10, 1e10)
         channel["encoder_fault"] = rng.integers(-20, 21)
+        channel["pid"]["reference"] = channel["p_prev"] + rng.uniform(-100, 100)
+        channel["pid"]["reference_set"] = rng.choice([0.0, 1.0])
+        channel["pid"]["aff_lowpass"] = rng.uniform(-1e8, 1e8)
+        channel["deflection"][:] = rng.choice([0.0, 1.0], size=n) * rng.uniform(-3e-5, 3e-5, size=n)
+        channel["coupling"][:] = rng.choice([0.0, 1.0], size=n) * rng.uniform(-5, 5, size=n)
     return axes
 
 

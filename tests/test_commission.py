@@ -17,6 +17,8 @@ spikes <= 5, H <= 5 um); the bounds here hold what it measures now (docs/tuning.
 
 from __future__ import annotations
 
+import shutil
+
 import pytest
 import yaml
 
@@ -119,6 +121,24 @@ def test_the_commissioned_file_is_the_source_with_the_settings_and_its_comments(
             if f"servo.{axis}.{key}" not in settings:
                 assert after["axes"][axis]["servo"][key] == value, (axis, key)
     assert {k: v for k, v in after.items() if k != "axes"} == {k: v for k, v in before.items() if k != "axes"}
+
+
+def test_a_commissioned_mapping_is_written_inside_the_servo_mapping_and_replaced_whole(tmp_path):
+    source = models_dir() / "polisher_uncommissioned.yaml"
+    first = commission.write_parameters(source, {"servo.A.coupling": {"Y": 0.22144}, "servo.A.kaff": 0.0038,
+                                                 "servo.Y.deflection": {"X": 5.3, "Y": -16.5}}, tmp_path / "a.yaml")
+    second = commission.write_parameters(first, {"servo.A.coupling": {"X": -0.1, "Y": 0.3}, "servo.A.kp": 40.0,
+                                                 "servo.Y.deflection": {}}, tmp_path / "b.yaml")
+    before, a, b = (yaml.safe_load(p.read_text()) for p in (source, first, second))
+    assert a["axes"]["A"]["servo"]["coupling"] == {"Y": 0.22144} and a["axes"]["A"]["servo"]["kaff"] == 0.0038
+    assert a["axes"]["Y"]["servo"]["deflection"] == {"X": 5.3, "Y": -16.5}
+    assert b["axes"]["A"]["servo"]["coupling"] == {"X": -0.1, "Y": 0.3} and b["axes"]["A"]["servo"]["kp"] == 40.0
+    assert b["axes"]["Y"]["servo"]["deflection"] == {}
+    for key, value in before["axes"]["A"]["servo"].items():  # the keys after a nested mapping kept
+        if key not in ("kp", "kaff"):
+            assert b["axes"]["A"]["servo"][key] == value, key
+    shutil.copy(models_dir() / "polisher.tbl", tmp_path)  # the file's tool table, beside it
+    load_scenario(scenarios_dir() / "ballbar_xy.yaml", overrides={"machine.parameters": str(second)})  # it loads
 
 
 def test_the_bundled_default_differs_from_the_uncommissioned_file_only_in_the_commissioned_keys():

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from cnc_twin.dsp.pid import new_pid, pid_update
@@ -39,6 +41,34 @@ def test_velocity_feed_forward_gives_commanded_speed():
 def test_acceleration_feed_forward():
     u = loop(kp=0.0, kaff=0.002).update(0.0, 0.0, 0.0, 2.0 * CPU)
     assert u * SPV == pytest.approx(0.004)
+
+
+def test_the_acceleration_feed_forward_through_its_high_pass_fades_with_the_washout_time():
+    """A lasting acceleration: kaff a exp(-t / washout), the drive's integral taking it over (the
+    inverse of a PI speed loop); the high-pass's discrete step is exp(-dt / washout) per tick."""
+    kaff, washout, a = 0.004, 0.02, 2.0 * CPU
+    pid = loop(kp=0.0, kaff=kaff, aff_washout=washout)
+    for k in range(1, 401):  # 0.1 s = 5 washout times
+        u = pid.update(0.0, 0.0, 0.0, a)
+        assert u * SPV == pytest.approx(kaff * 2.0 * math.exp(-k * DT / washout), rel=1e-9)
+
+
+def test_the_command_the_loop_compares_with_lags_by_the_equivalent_time():
+    """A 1000-count step of the command: the loop sees the first-order lag 1000 (1 - exp(-t / T))
+    of it from the tick after the first (which takes the command as it is)."""
+    kp, lag = 40.0, 0.002
+    pid = loop(kp=kp, ff_equivalent_time=lag)
+    assert pid.update(0.0, 0.0, 0.0, 0.0) == 0.0  # the first tick: the reference is the command
+    for k in range(1, 41):
+        u = pid.update(1000.0, 0.0, 0.0, 0.0)
+        seen = 1000.0 * (1.0 - math.exp(-k * DT / lag))
+        assert u * SPV * CPU == pytest.approx(kp * seen, rel=1e-9)
+
+
+def test_without_the_lag_the_loop_compares_with_the_command_itself():
+    pid = loop(kp=40.0)
+    pid.update(0.0, 0.0, 0.0, 0.0)
+    assert pid.update(1000.0, 0.0, 0.0, 0.0) * SPV * CPU == pytest.approx(40.0 * 1000.0)
 
 
 def test_integrator_accumulates_error_over_time():

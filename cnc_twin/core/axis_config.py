@@ -117,6 +117,21 @@ class AxisConfig:
     """friction feed-forward [V] with the sign of the commanded speed; 0 = off"""
     friction_ff_band: float = 1e-3
     """commanded speed over which the friction feed-forward ramps from 0 to full [m/s | rad/s]"""
+    aff_washout: float = 0.0
+    """the acceleration feed-forward's high-pass time constant [s] (the drive's speed-loop integral
+    time, whose integral takes over a lasting acceleration); 0 = no high-pass"""
+    ff_equivalent_time: float = 0.0
+    """the speed loop's equivalent time constant [s]: the position loop compares the actual
+    position with the command through a first-order lag of this time (feed-forward symmetrised);
+    0 = off"""
+    deflection: tuple[float, ...] = ()
+    """the tool tip's deflection along this axis per unit commanded acceleration of each axis, in
+    :data:`~cnc_twin.core.axes.AXES` order [s^2 = m per m/s^2, mixed units for rotary axes]; the card
+    commands the axis that much less (an acceleration-dependent position correction); () = none"""
+    coupling: tuple[float, ...] = ()
+    """the inertia coupling to each axis, in :data:`~cnc_twin.core.axes.AXES` order: the mass
+    matrix's off-diagonal over the axis's own inertia [SI units of this axis's acceleration per
+    the other's]; the acceleration feed-forward adds ``coupling_j a_j``; () = none"""
     reversal_amplitude: float = 0.0
     """reversal compensation: the speed pulse added when the commanded velocity changes sign
     [m/s | rad/s]; 0 = off (:mod:`cnc_twin.dsp.reversal`)"""

@@ -11,7 +11,8 @@ Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for 
 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
     actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
-    volts    = pid_update(pid, command, actual, v, a)        # PID+FF
+    command += comp_correction(...) + deflection_correction  # backlash, pitch; the tip's deflection
+    volts    = pid_update(pid, command, actual, v, a + sum_j coupling_j a_j)  # PID+FF
     volts   += reversal_pulse(reversal, v, a, j, path_on)    # quadrant error compensation (path_on: another
                                                              # axis moves at its arming speed; not for a
                                                              # step interpolator's commands)
@@ -47,6 +48,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numba import njit
 
+from cnc_twin.core.axes import N_AXES
 from cnc_twin.core.config import AxisConfig, ForceSensorConfig, Timing
 from cnc_twin.core.kernel_cache import purge_stale
 from cnc_twin.dsp import adc, compensation, dac, encoder, pid, reversal
@@ -66,7 +68,8 @@ purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file_
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
                  ("velocity", np.float64), ("acceleration", np.float64), ("jerk", np.float64),
                  ("encoder_fault", np.int64),
-                 ("comp", COMP), ("reversal", REVERSAL)])
+                 ("comp", COMP), ("reversal", REVERSAL), ("deflection", np.float64, (N_AXES,)),
+                 ("coupling", np.float64, (N_AXES,))])
 """One axis's servo channel, the record the servo functions work on:
 
 =============  =================  ===========================================  =========================
@@ -83,6 +86,12 @@ jerk           counts/s^3         the acceleration's change                    :
 encoder_fault  counts             added to the reading by injected faults      the fault injector
 comp           :data:`.COMP`      backlash and the pitch-error table's state   :func:`.comp_correction`
 reversal       :data:`.REVERSAL`  the reversal compensation's pulse            :func:`.reversal_pulse`
+deflection     counts per         the tip's deflection along this axis per     :class:`ServoTask`
+               counts/s^2,        commanded acceleration of each axis
+               shape ``(6,)``     (:func:`deflection_correction`)
+coupling       counts/s^2 per     the inertia coupling to each axis: the       :class:`ServoTask`
+               counts/s^2,        acceleration feed-forward's share of its
+               shape ``(6,)``     acceleration (:func:`coupled_acceleration`)
 =============  =================  ===========================================  =========================
 """
 
@@ -124,13 +133,42 @@ def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
 
 
 @njit(cache=True)
+def deflection_correction(axes, i):
+    """Axis ``i``'s correction [counts] for its tip's acceleration-dependent deflection: the
+    opposite of ``sum_j deflection[j] a_j`` over the axes' commanded accelerations ``a_j``
+    [counts/s^2], and its rate [counts/s] from their jerks, the velocity feed-forward's share
+    (else the position loop would lag the correction's changes)."""
+    a = axes[i]
+    offset = 0.0
+    rate = 0.0
+    for j in range(axes.shape[0]):
+        offset -= a.deflection[j] * axes[j].acceleration
+        rate -= a.deflection[j] * axes[j].jerk
+    return offset, rate
+
+
+@njit(cache=True)
+def coupled_acceleration(axes, i):
+    """The acceleration [counts/s^2] axis ``i``'s acceleration feed-forward works on: its own
+    commanded acceleration plus ``coupling[j] a_j`` of the others (the mass matrix's off-diagonal
+    over the axis's inertia: the force another axis's acceleration puts on this axis's drive,
+    which the feed-forward then supplies, as it supplies the axis's own)."""
+    a = axes[i]
+    total = a.acceleration
+    for j in range(axes.shape[0]):
+        total += a.coupling[j] * axes[j].acceleration
+    return total
+
+
+@njit(cache=True)
 def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, positions, command_out, actual_out,
                code_out, volts_out):
     """One servo interrupt for every axis of ``axes`` (:data:`AXIS`, shape ``(n,)``; their pitch-error
     tables ``comp_tables``, shape ``(n, TABLE_ROWS, MAX_POINTS)``): the fine
     interpolation at ``fraction`` of the period (or ``tick_command`` [counts], shape ``(n,)``,
     with ``use_tick_command``), QEP at ``positions`` [m | rad], the leadscrew compensation's
-    correction added to the command (:func:`~cnc_twin.dsp.compensation.comp_correction`),
+    correction added to the command (:func:`~cnc_twin.dsp.compensation.comp_correction`) and the
+    tip's deflection's (:func:`deflection_correction`, not under a step interpolator's commands),
     PID+FF, the reversal compensation's pulse (:func:`~cnc_twin.dsp.reversal.reversal_pulse`;
     none under a step interpolator's commands, whose older cards had none and whose staircase
     would read as reversals), DAC. Writes the command [counts] (without the correction), the
@@ -146,7 +184,12 @@ def servo_tick(axes, comp_tables, fraction, tick_command, use_tick_command, posi
         command = fine_command(a, fraction, tick_command[i], use_tick_command)
         actual = qep_sample(a.qep, positions[i], a.encoder_fault)
         corrected = command + comp_correction(a.comp, comp_tables[i], command, a.velocity)
-        volts = pid_update(a.pid, corrected, actual, a.velocity, a.acceleration)
+        velocity = a.velocity
+        if not use_tick_command:
+            offset, rate = deflection_correction(axes, i)
+            corrected += offset
+            velocity += rate
+        volts = pid_update(a.pid, corrected, actual, velocity, coupled_acceleration(axes, i))
         if use_tick_command:
             forget_reversal(a.reversal)
         else:
@@ -241,10 +284,15 @@ class ServoTask:
             channel = self.axes[i]
             setup_encoder(channel["qep"], cfg.counts_per_unit, p0)
             setup_pid(channel["pid"], kp=cfg.kp, ki=cfg.ki, kd=cfg.kd, kvff=cfg.kvff, kaff=cfg.kaff,
+                      aff_washout=cfg.aff_washout, ff_equivalent_time=cfg.ff_equivalent_time,
                       friction_ff=cfg.friction_ff, friction_ff_band=cfg.friction_ff_band,
                       speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
+            for j, coefficient in enumerate(cfg.deflection):  # [s^2] -> counts per counts/s^2
+                channel["deflection"][j] = coefficient * cfg.counts_per_unit / axes[j].counts_per_unit
+            for j, ratio in enumerate(cfg.coupling):  # SI -> counts/s^2 per counts/s^2
+                channel["coupling"][j] = ratio * cfg.counts_per_unit / axes[j].counts_per_unit
             setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude if reversal_compensation else 0.0,
                            time=cfg.reversal_time,
                            speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,

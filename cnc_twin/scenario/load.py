@@ -321,9 +321,10 @@ def _resolve(name: str, folder: Path | None, label: Path, key: str) -> Path:
     return found
 
 
-WHOLE_KEYS = frozenset({"compensation"})
+WHOLE_KEYS = frozenset({"compensation", "deflection", "coupling"})
 """mappings a scenario's value replaces whole instead of key by key: an axis's compensation is one
-measurement (a comp file's columns and the backlash together)"""
+measurement (a comp file's columns and the backlash together), and so are a servo's deflection
+and coupling (one fit over the axes; ``{}`` turns them off)"""
 
 
 def _deep_merge(base: Any, override: Any) -> Any:

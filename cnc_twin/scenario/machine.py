@@ -53,6 +53,26 @@ class ServoSpec(Strict):
     kd: float = Field(0.0, ge=0, le=1e3, description="derivative gain [-]: speed per unit error rate")
     kvff: float = Field(1.0, ge=0, le=100.0, description="velocity feed-forward [-]; 1 feeds the full commanded speed")
     kaff: float = Field(0.0, ge=0, le=100.0, description="acceleration feed-forward [s]: speed per unit commanded acceleration")
+    aff_washout: float = Field(0.0, ge=0, le=10000.0, description="the acceleration feed-forward's high-pass "
+                               "time constant [ms]: the drive's speed-loop integral time (its integral takes "
+                               "over a lasting acceleration); 0 = no high-pass")
+    ff_equivalent_time: float = Field(0.0, ge=0, le=100.0, description="the drive speed loop's equivalent "
+                                      "time constant [ms]: the position loop compares the actual position with the "
+                                      "command through a first-order lag of this time, so that the feed-forward "
+                                      "and the position loop do not fight (symmetrised feed-forward); 0 = off")
+    deflection: dict[Literal["X", "Y", "Z", "A", "B", "C"], float] = Field(
+        default_factory=dict, description="the tool tip's deflection along this axis (tip less encoder) per unit "
+        "commanded acceleration of each axis named, as a scale on the table or the circular test measures it "
+        "[um per m/s^2, i.e. ms^2; for a rotary axis read deg for mm: mdeg, 1000 deg/s^2]: the card "
+        "corrects the command by the opposite, so that the tip lands on the path (an acceleration-dependent "
+        "position correction: a screw's windup, a bridge's bending, as Heidenhain's cross-talk compensation "
+        "does); {} = none")
+    coupling: dict[Literal["X", "Y", "Z", "A", "B", "C"], float] = Field(
+        default_factory=dict, description="the axis's inertia coupling to the axes named: the force (torque) "
+        "another axis's acceleration puts on this axis's drive over this axis's own inertia, the mass matrix's "
+        "off-diagonal over its diagonal [mm per mm, deg per mm, mm per deg or deg per deg: this axis's "
+        "acceleration per the other's]; the acceleration feed-forward adds it, kaff x (a + sum coupling_j a_j), "
+        "so that a tilting head holds still while the table under it accelerates; {} = none")
     friction_ff: float = Field(0.0, ge=0, le=10.0, description="friction feed-forward [V]: added with the sign of the "
                                "commanded speed to cancel the axis's Coulomb friction; 0 = off")
     friction_ff_band: float = Field(1.0, gt=0, description="commanded speed over which the friction feed-forward "
@@ -275,6 +295,17 @@ def convert_timing(spec: TimingSpec, label: Path) -> Timing:
     )
 
 
+def _per_axis(coefficients: dict[str, float], rotary: bool, scale: float) -> tuple[float, ...]:
+    """One axis's coefficients on the other axes (``servo.deflection``, ``servo.coupling``: ``scale``
+    x this axis's scenario unit per the other's) in SI, one per axis in :data:`AXES` order; ()
+    when empty."""
+    if not coefficients:
+        return ()
+    own = units.position_factor(rotary)
+    return tuple(scale * coefficients.get(other, 0.0) * own / units.position_factor(is_rotary(other))
+                 for other in AXES)
+
+
 def _counts_per_unit(axis: str, enc: EncoderSpec) -> float:
     if enc.resolution is not None:
         return 1.0 / (enc.resolution * units.position_factor(is_rotary(axis)))
@@ -311,6 +342,10 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | No
                 kd=a.servo.kd,
                 kvff=a.servo.kvff,
                 kaff=a.servo.kaff,
+                aff_washout=a.servo.aff_washout * units.MS,
+                ff_equivalent_time=a.servo.ff_equivalent_time * units.MS,
+                deflection=_per_axis(a.servo.deflection, rotary, 1e-6),
+                coupling=_per_axis(a.servo.coupling, rotary, 1.0),
                 friction_ff=a.servo.friction_ff,
                 friction_ff_band=a.servo.friction_ff_band * units.position_factor(rotary),
                 reversal_amplitude=a.servo.reversal_amplitude * units.velocity_factor(rotary),

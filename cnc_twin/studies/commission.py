@@ -10,6 +10,11 @@ Steps (each callable on its own)::
                MISMATCH_LIMIT on the circular tests each keeps its own gain, else all get the
                lowest (:func:`matched_dynamics`; a difference draws a 45 deg ellipse of
                v (1/kv_1 - 1/kv_2) / 2 without feed-forward)
+    feed-forward  X Y Z A B's acceleration feed-forward as the inverse of their drives' speed loops
+               on the identified inertia, with the CAD model's inertia coupling between them
+               (:mod:`cnc_twin.studies.feedforward`)
+    deflection the tip's acceleration-dependent deflection against the motor encoders on the
+               circular tests, X Y Z, corrected on the card (:mod:`cnc_twin.studies.deflection`)
     reversal   X Y Z's reversal compensation (:mod:`cnc_twin.studies.reversal_tuning`), for moves of
                at least MIN_SPEED_SHARE of the tests' feed
     after      the three circular tests with the commissioned settings
@@ -24,11 +29,14 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from cnc_twin.core.config import Scenario
 from cnc_twin.studies import reversal_tuning
+from cnc_twin.studies.deflection import FEED_FACTOR, deflection_overrides, fast_circular_traces, fit_deflection
+from cnc_twin.studies.feedforward import FeedForward, identify_feed_forward
 from cnc_twin.studies.reversal_tuning import CircularTest, ReversalSetting, circular_tests
 
 INTERPOLATING = ("X", "Y", "Z", "A", "B")
@@ -44,11 +52,14 @@ class Commissioning:
     one line per step saying what it did and why, ``reversal`` each axis's setting."""
 
     parameters: Path
-    overrides: dict[str, float] = field(default_factory=dict)
+    overrides: dict[str, Any] = field(default_factory=dict)
     before: dict[str, CircularTest] = field(default_factory=dict)
     after: dict[str, CircularTest] = field(default_factory=dict)
     steps: list[str] = field(default_factory=list)
     reversal: dict[str, ReversalSetting] = field(default_factory=dict)
+    feed_forward: dict[str, FeedForward] = field(default_factory=dict)
+    deflection: dict[str, dict[str, float]] = field(default_factory=dict)
+    """[s^2] per axis, per axis whose acceleration deflects its tip"""
 
 
 def machine_overrides(parameters: Path) -> dict[str, str]:
@@ -128,6 +139,21 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     result.steps.append(line)
     report(line)
     result.overrides.update({f"servo.{axis}.kp": kv for axis, kv in gains.items()})
+    result.feed_forward = identify_feed_forward(scenario, INTERPOLATING)
+    line = "feed-forward from the drives and the identified inertia: " + "; ".join(
+        f"{a} {f.describe()}" for a, f in result.feed_forward.items())
+    result.steps.append(line)
+    report(line)
+    for f in result.feed_forward.values():
+        result.overrides.update(f.overrides())
+    report(f"circular tests at {FEED_FACTOR:g} x their feed with the feed-forward, for the tip's deflection ...")
+    result.deflection = fit_deflection(fast_circular_traces({**machine, **result.overrides}, scenarios=scenarios))
+    line = (f"the tip's deflection against the motor encoders on the circular tests at {FEED_FACTOR:g} x their feed "
+            "[um per m/s^2], corrected: ") + "; ".join(
+        f"{a} " + " ".join(f"{o} {c * 1e6:+.1f}" for o, c in row.items()) for a, row in result.deflection.items() if row)
+    result.steps.append(line)
+    report(line)
+    result.overrides.update(deflection_overrides(result.deflection))
     base = {**machine, **result.overrides}
     min_speed = MIN_SPEED_SHARE * min(p.feed for test in result.before.values() for p in test.passes)
     for axis in COMPENSATED:
@@ -154,41 +180,106 @@ def yaml_number(value: float) -> str:
     return text if text not in ("", "-0") else "0"
 
 
-def set_flow_keys(text: str, axis: str, mapping: str, values: Mapping[str, float]) -> str:
-    """``text`` (a parameter file) with ``values`` set in ``axis``'s ``mapping: {...}`` flow
-    mapping (``servo``, ``compensation``): each key's value replaced where it is, added before the
-    closing brace where it is not; a mapping the axis lacks is added on a line of its own after its
-    ``servo`` mapping. ValueError when the axis (or its servo mapping) is not found."""
+def yaml_value(value: float | Mapping[str, float]) -> str:
+    """A number (:func:`yaml_number`) or a mapping of numbers as a YAML flow mapping."""
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{key}: {yaml_number(v)}" for key, v in value.items()) + "}"
+    return yaml_number(value)
+
+
+def _closing_brace(text: str, opening: int) -> int:
+    """The index of the brace that closes the one at ``opening`` (nested flow mappings counted)."""
+    depth = 0
+    for k in range(opening, len(text)):
+        if text[k] == "{":
+            depth += 1
+        elif text[k] == "}":
+            depth -= 1
+            if depth == 0:
+                return k
+    raise ValueError("a flow mapping in the parameter file is not closed")
+
+
+def _value_end(body: str, start: int) -> int:
+    """Where the value starting at ``start`` of a flow mapping's ``body`` ends: a nested mapping's
+    closing brace + 1, else the next comma or the body's end."""
+    k = start
+    while k < len(body) and body[k] in " \t":
+        k += 1
+    if k < len(body) and body[k] == "{":
+        return _closing_brace(body, k) + 1
+    comma = body.find(",", k)
+    return len(body.rstrip()) if comma < 0 else comma
+
+
+def set_flow_keys(text: str, axis: str, mapping: str, values: Mapping[str, float | Mapping[str, float]]) -> str:
+    """``text`` (a parameter file) with ``values`` (numbers, or mappings of numbers) set in
+    ``axis``'s ``mapping: {...}`` flow mapping (``servo``, ``compensation``): each key's value
+    replaced where it is, added before the closing brace where it is not; a mapping the axis lacks
+    is added on a line of its own after its ``servo`` mapping. ValueError when the axis (or its
+    servo mapping) is not found."""
     head = re.search(rf"^  {axis}:\s*$", text, re.M)
     if head is None:
         raise ValueError(f"no axis {axis} in the parameter file")
     following = re.search(r"^  \S", text[head.end():], re.M)  # the next axis, or the next top-level key
     end = head.end() + following.start() if following else len(text)
-    found = re.compile(rf"({mapping}:\s*\{{)([^}}]*)(\}})", re.S).search(text, head.end(), end)
+    found = re.compile(rf"\b{mapping}:\s*\{{").search(text, head.end(), end)
     if found is None:
-        servo = re.compile(r"servo:\s*\{[^}]*\}", re.S).search(text, head.end(), end)
+        servo = re.compile(r"\bservo:\s*\{").search(text, head.end(), end)
         if servo is None:
             raise ValueError(f"no servo: {{...}} under {axis} in the parameter file")
-        line_end = text.index("\n", servo.end())
-        values = {key: value for key, value in values.items() if value != 0}
+        line_end = text.index("\n", _closing_brace(text, servo.end() - 1))
+        values = {key: value for key, value in values.items() if value}
         if not values:  # nothing to add: the mapping's defaults stand
             return text
-        body = ", ".join(f"{key}: {yaml_number(value)}" for key, value in values.items())
+        body = ", ".join(f"{key}: {yaml_value(value)}" for key, value in values.items())
         return text[:line_end + 1] + f"    {mapping}: {{{body}}}\n" + text[line_end + 1:]
-    body = found.group(2)
+    opening = found.end() - 1
+    closing = _closing_brace(text, opening)
+    body = text[opening + 1:closing]
     added = []
     for key, value in values.items():
-        pattern = re.compile(rf"(\b{key}:\s*)([^,}}\s]+)")
-        if pattern.search(body):
-            body = pattern.sub(lambda m, v=value: m.group(1) + yaml_number(v), body, count=1)
-        else:
-            added.append(f"{key}: {yaml_number(value)}")
+        at = _top_level_key(body, key)
+        if at is not None:
+            value_end = _value_end(body, at)
+            body = body[:at] + " " + yaml_value(value) + body[value_end:]
+        elif not (isinstance(value, Mapping) and not value):
+            added.append(f"{key}: {yaml_value(value)}")
     if added:
-        body = body.rstrip() + ",\n             " + ", ".join(added)
-    return text[:found.start(2)] + body + text[found.end(2):]
+        body = body.rstrip() + "," + _wrapped(added)
+    return text[:opening + 1] + body + text[closing:]
 
 
-def write_parameters(source: Path, overrides: Mapping[str, float], out: Path, *, header: str = "") -> Path:
+def _wrapped(items: list[str], indent: int = 13, width: int = 110) -> str:
+    """``items`` joined by commas on lines of at most ``width`` characters, each new line indented
+    by ``indent`` (under the servo mapping's first key)."""
+    lines, line = [], ""
+    for item in items:
+        if line and indent + len(line) + 2 + len(item) > width:
+            lines.append(line + ",")
+            line = item
+        else:
+            line = f"{line}, {item}" if line else item
+    lines.append(line)
+    return "".join("\n" + " " * indent + text for text in lines)
+
+
+def _top_level_key(body: str, key: str) -> int | None:
+    """Where ``key``'s value starts (just after its colon) in a flow mapping's ``body``, at its top
+    level (not inside a nested mapping); None when it is not there."""
+    depth = 0
+    for match in re.finditer(rf"[{{}}]|\b{re.escape(key)}:", body):
+        token = match.group(0)
+        if token == "{":
+            depth += 1
+        elif token == "}":
+            depth -= 1
+        elif depth == 0:
+            return match.end()
+    return None
+
+
+def write_parameters(source: Path, overrides: Mapping[str, Any], out: Path, *, header: str = "") -> Path:
     """Write ``source`` with ``overrides`` (``servo.<axis>.<key>``, ``axes.<axis>.<mapping>.<key>``)
     applied to ``out``, ``header`` (comment lines) first; returns it."""
     text = header + Path(source).read_text()

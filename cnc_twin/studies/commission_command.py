@@ -48,8 +48,11 @@ def commission_command(parameters: Path | None, out: Path | None) -> int:
 
     result = commission(source, scenarios=scenarios_dir(), report=say)
     header = (f"# Commissioned by `cnc-twin commission` from {source.name}: the interpolating axes' dynamics\n"
-              "# matched (report.md's first step says how), reversal compensation (servo.reversal_*) and backlash\n"
-              "# compensation (compensation.backlash) set on the circular tests XY, XZ, YZ; the figures: docs/tuning.md.\n"
+              "# matched (report.md's first step says how), the acceleration feed-forward as the drives' speed-loop\n"
+              "# inverse on the identified inertia (servo.kaff, aff_washout) with the CAD model's inertia coupling\n"
+              "# (servo.coupling), the tip's deflection measured on fast circular tests (servo.deflection), reversal\n"
+              "# compensation (servo.reversal_*) and backlash compensation (compensation.backlash) set on the\n"
+              "# circular tests XY, XZ, YZ; the figures: docs/tuning.md.\n"
               "# Below: the source's own comments, which describe it before commissioning.\n")
     name = source.name.replace(SUFFIX, "") if SUFFIX in source.stem else f"{source.stem}_commissioned{source.suffix}"
     written = write_parameters(source, result.overrides, out / name, header=header)

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from cnc_twin.run.ballbar_plot import DIRECTION_STYLE, polar_axes
-from cnc_twin.studies.commission import Commissioning, yaml_number
+from cnc_twin.studies.commission import Commissioning, yaml_value
 from cnc_twin.studies.reversal_tuning import CircularTest
 
 DIRECTIONS = ("ccw", "cw")
@@ -38,7 +38,7 @@ def report_markdown(result: Commissioning) -> str:
     lines += ["", "G: circular deviation (least-squares circle); spike: the largest reversal spike's size at 0 / "
               "90 / 180 / 270 deg; H: hysteresis between the directions.", ""]
     lines += ["## Settings", "", "| override | value |", "|---|---|"]
-    lines += [f"| `{k}` | {yaml_number(v)} |" for k, v in result.overrides.items()]
+    lines += [f"| `{k}` | {yaml_value(v)} |" for k, v in result.overrides.items()]
     return "\n".join(lines) + "\n"
 
 
