@@ -103,7 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="tune on this bundled machine instead of the one the scenario names")
 
     commission = sub.add_parser("commission", help="commission a machine parameter file on the circular tests: "
-                                                   "matched dynamics, reversal and backlash compensation, a report")
+                                                   "matched dynamics, feed-forward, the tip's deflection, reversal and "
+                                                   "backlash compensation, a report")
     commission.add_argument("parameters", nargs="?", type=Path, default=None,
                             help="machine parameter file (default: the bundled polisher_uncommissioned.yaml)")
     commission.add_argument("--out", type=Path, default=None,

@@ -85,6 +85,17 @@ def test_the_coupling_holds_the_head_still_while_the_table_runs_the_circle():
     assert with_coupling < 0.4 * without
 
 
+def test_the_coupling_is_what_keeps_the_yz_test_s_reversals_alike_in_both_directions():
+    """Y's reversal in the YZ circular test: the head swings on its lever under Y's acceleration one
+    way or the other with the direction of travel unless A's drive is fed its coupling."""
+    def figures(overrides):
+        scenario = load_scenario(scenarios_dir() / "ballbar_yz.yaml", overrides=overrides)
+        return run_scenario(scenario).metrics["ballbar"]
+
+    held, swinging = figures({}), figures({"servo.A.coupling": {}})
+    assert swinging["hysteresis_um"] > 5.0 >= held["hysteresis_um"]
+
+
 def _tip_outside_command(trace) -> float:
     """How far the tip runs outside the commanded circle [m]: the mean of the tip's radius less the
     command's about the command's centre (fitted, least squares) over the periods on the circle."""

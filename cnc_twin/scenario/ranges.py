@@ -13,6 +13,8 @@ from cnc_twin.scenario.schema_base import LARGEST_VALUE
 EXTRA_CHECKS = {
     "encoder.lines_per_rev": "; the 32-bit QEP counter must span the travel",
     "servo.output_limit": " (the DAC's +-10 V)",
+    "servo.deflection": " each, keyed by axis (X .. C)",
+    "servo.coupling": " each, keyed by axis (X .. C)",
 }
 """range words of fields with a check beyond their own bounds (a validator elsewhere)"""
 
