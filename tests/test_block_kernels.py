@@ -142,8 +142,9 @@ def test_latch_setpoint_servo_tick_and_read_encoders(seed):
     ticks = 4
     for _ in range(20):
         setpoint = rng.uniform(-1e6, 1e6, size=n)
-        servo.latch_setpoint(compiled, setpoint, 1000.0)
-        servo.latch_setpoint.py_func(interpreted, setpoint, 1000.0)
+        pressing = bool(rng.random() < 0.3)
+        servo.latch_setpoint(compiled, setpoint, 1000.0, pressing)
+        servo.latch_setpoint.py_func(interpreted, setpoint, 1000.0, pressing)
         use_ticks = bool(rng.random() < 0.3)
         tick_commands = rng.uniform(-1e6, 1e6, size=(ticks, n))
         for j in range(ticks):
