@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_twin.dsp.reversal import REVERSAL, START_SHARE, reversal_pulse, setup_reversal
+from cnc_twin.dsp.reversal import REVERSAL, reversal_pulse, setup_reversal
 
 DT = 2.5e-4  # s, the servo period
 SPV = 0.05  # m/s per V
@@ -109,16 +109,13 @@ def test_a_standing_axis_s_rounding_noise_is_no_reversal():
     assert r[0]["count"] == 0
 
 
-def test_a_start_the_other_way_after_a_standstill_longer_than_twice_the_decay_time_gets_half_the_pulse():
+def test_a_start_the_other_way_after_a_standstill_longer_than_twice_the_decay_time_is_no_reversal():
     r = _block(time=0.02)  # patience: 2 x 20 ms = 160 ticks
     assert r[0]["patience"] == 160
     out = _run(r, [30.0] * 10 + [0.0] * 161 + [-30.0] * 10)
-    assert np.all(out[:171] == 0.0)
-    assert out[171] == pytest.approx(-START_SHARE * 0.004 / SPV) and r[0]["count"] == 1  # at the turn itself
-    out = _run(r, [0.0] * 161 + [-30.0] * 10)  # the same way again after a standstill: nothing
-    assert out[-1] == pytest.approx(out[0] * math.exp(-DT / 0.02) ** 170) and r[0]["count"] == 1
-    out = _run(r, [0.0] * 160 + [30.0])  # within the patience: a whole reversal
-    assert out[-1] == pytest.approx(0.004 / SPV, rel=0.1) and r[0]["count"] == 2
+    assert np.all(out == 0.0) and r[0]["count"] == 0
+    out = _run(r, [0.0] * 160 + [30.0])  # within it: a reversal
+    assert out[-1] > 0.0 and r[0]["count"] == 1
 
 
 def test_a_pulse_fired_ahead_of_a_trapezoid_s_stop_ends_at_the_stop_and_the_direction_stays():

@@ -67,7 +67,7 @@ purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file_
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
                  ("velocity", np.float64), ("acceleration", np.float64), ("jerk", np.float64),
-                 ("ff_acceleration", np.float64),
+                 ("path_next", np.float64), ("path_velocity", np.float64), ("ff_acceleration", np.float64),
                  ("encoder_fault", np.int64),
                  ("comp", COMP), ("reversal", REVERSAL), ("deflection", np.float64, (N_AXES,)),
                  ("coupling", np.float64, (N_AXES,))])
@@ -84,9 +84,12 @@ p_next         counts             the setpoint at the period's end             :
 velocity       counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
 jerk           counts/s^3         the acceleration's change                    :func:`latch_setpoint`
-ff_            counts/s^2         the acceleration the feed-forward and the    :func:`latch_setpoint`
-acceleration                      deflection correction work on (0 while the
-                                  force loop runs)
+path_next      counts             the period's end setpoint of the path alone  :func:`latch_setpoint`
+                                  (without the force loop's push)
+path_velocity  counts/s           its chord velocity                           :func:`latch_setpoint`
+ff_            counts/s^2         its change: the acceleration the             :func:`latch_setpoint`
+acceleration                      feed-forward and the deflection correction
+                                  work on
 encoder_fault  counts             added to the reading by injected faults      the fault injector
 comp           :data:`.COMP`      backlash and the pitch-error table's state   :func:`.comp_correction`
 reversal       :data:`.REVERSAL`  the reversal compensation's pulse            :func:`.reversal_pulse`
@@ -106,16 +109,17 @@ the cell's reading [N] (``fault``, written by the fault injector; 0 normally).""
 
 
 @njit(cache=True)
-def latch_setpoint(axes, setpoint, inv_period, pressing=False):
+def latch_setpoint(axes, setpoint, path, inv_period):
     """Latch the period's end setpoint [counts] (shape ``(n,)``) into ``axes`` (:data:`AXIS`,
-    shape ``(n,)``) and derive the feed-forward terms; ``inv_period`` is 1 / T_ipo [1/s];
-    ``pressing``: the force loop runs: the acceleration feed-forward and the deflection correction
-    rest (``ff_acceleration`` 0). The loop's push along the tool axis is a correction the card adds
-    to the path, and its second difference is the loop's noise: fed forward (Z's kaff through its
-    high-pass) or turned into a position correction (Z's deflection, even with the correction's
-    own share at rest) it set the bundled force programs' Z oscillating at about 3 Hz, their force
-    error from 0.5 - 0.8 % to 21 - 33 %; pressing runs at a polishing feed, whose accelerations
-    these terms do next to nothing for."""
+    shape ``(n,)``) and derive the feed-forward terms; ``inv_period`` is 1 / T_ipo [1/s].
+
+    ``path`` [counts] (shape ``(n,)``) is the interpolator's path alone, without the force loop's
+    push along the tool axis (and the spindle's turn of C): the acceleration feed-forward and the
+    deflection correction work on its acceleration (``ff_acceleration``). The push is a correction
+    the card adds to the path, its second difference the loop's noise: fed forward (Z's kaff
+    through its high-pass) or turned into a position correction (Z's deflection) it set the bundled
+    force programs' Z oscillating at about 3 Hz, their force error from 0.5 - 0.8 % to 21 - 33 %.
+    """
     for i in range(axes.shape[0]):
         a = axes[i]
         a.p_prev = a.p_next
@@ -124,8 +128,11 @@ def latch_setpoint(axes, setpoint, inv_period, pressing=False):
         acceleration = (velocity - a.velocity) * inv_period
         a.jerk = (acceleration - a.acceleration) * inv_period
         a.acceleration = acceleration
-        a.ff_acceleration = 0.0 if pressing else acceleration
         a.velocity = velocity
+        path_velocity = (path[i] - a.path_next) * inv_period
+        a.ff_acceleration = (path_velocity - a.path_velocity) * inv_period
+        a.path_velocity = path_velocity
+        a.path_next = path[i]
 
 
 @njit(cache=True)
@@ -148,7 +155,7 @@ def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
 def deflection_correction(axes, i):
     """Axis ``i``'s correction [counts] for its tip's acceleration-dependent deflection: the
     opposite of ``sum_j deflection[j] a_j`` over the axes' commanded accelerations ``a_j``
-    [counts/s^2] (``ff_acceleration``: it rests while the force loop runs, :func:`latch_setpoint`).
+    [counts/s^2] of the path alone (``ff_acceleration``, :func:`latch_setpoint`).
     No rate of it goes to the velocity feed-forward: that would be the jerk, the setpoints' third
     difference (the term took the flat plate's force error from 0.51 to 36 %); the position loop
     takes the correction's slow changes."""
@@ -162,8 +169,8 @@ def deflection_correction(axes, i):
 @njit(cache=True)
 def coupled_acceleration(axes, i):
     """The acceleration [counts/s^2] axis ``i``'s acceleration feed-forward works on: its own
-    commanded acceleration plus ``coupling[j] a_j`` of the others (``ff_acceleration``: 0 while the
-    force loop runs, :func:`latch_setpoint`; the mass matrix's off-diagonal
+    commanded acceleration plus ``coupling[j] a_j`` of the others (``ff_acceleration``: the path's,
+    without the force loop's push, :func:`latch_setpoint`; the mass matrix's off-diagonal
     over the axis's inertia: the force another axis's acceleration puts on this axis's drive,
     which the feed-forward then supplies, as it supplies the axis's own)."""
     a = axes[i]
@@ -347,19 +354,21 @@ class ServoTask:
         self.load_cell[0]["fault"] = value
 
     def begin_period(self, setpoint: Sequence[float], ticks: list[list[float]] | None = None,
-                     pressing: bool = False) -> None:
+                     path: Sequence[float] | None = None) -> None:
         """Latch the next period's end setpoint [counts] and derive the feed-forward terms.
 
         ``ticks`` (optional, one command per tick, each shape ``(6,)`` [counts]) replaces the
         linear fine interpolation for this period: a step interpolator's own lattice points.
-        ``pressing``: the force loop runs (the deflection correction rests).
+        ``path`` [counts]: the path alone, without the force loop's push (None: the setpoint).
         """
         if ticks is None:
             self.use_tick_commands = False
         else:
             self.tick_commands[:] = ticks
             self.use_tick_commands = True
-        latch_setpoint(self.axes, np.asarray(setpoint, dtype=np.float64), self.inv_period, pressing)
+        latched = np.asarray(setpoint, dtype=np.float64)
+        latch_setpoint(self.axes, latched, latched if path is None else np.asarray(path, dtype=np.float64),
+                       self.inv_period)
 
     def tick(self, j: int, positions: Sequence[float], pad_force: float) -> np.ndarray:
         """One servo interrupt, tick ``j`` of the period.
@@ -429,7 +438,7 @@ class ServoTask:
         """Compile the functions the methods call (or load them from numba's cache) now, not in
         the timed run: each called once on copies of the records, with the run's argument types."""
         n, axes, cell = self.n_axes, self.axes.copy(), self.load_cell.copy()
-        latch_setpoint(axes, np.zeros(n), self.inv_period, False)
+        latch_setpoint(axes, np.zeros(n), np.zeros(n), self.inv_period)
         servo_tick(axes, self.comp_tables.copy(), self.fractions[0], self.tick_commands[0], False, np.zeros(n),
                    self._command.copy(), self._actual.copy(), self._code.copy(), self._volts.copy())
         read_encoders(axes, np.zeros(n), self._actual.copy())

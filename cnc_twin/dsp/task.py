@@ -46,7 +46,6 @@ from array import array
 from time import perf_counter_ns
 
 from cnc_twin.dsp.chip import EVENT_HOME_FOUND
-from cnc_twin.dsp.force import ForceState
 from cnc_twin.dsp.interpolator import SegmentInterpolator
 from cnc_twin.dsp.servo import PERIOD_FIELDS, ServoTask
 from cnc_twin.dsp.supervisor import STOP_CONTROLLED, STOP_DISABLE, STOP_RETRACT, Retract, Supervisor
@@ -187,7 +186,7 @@ class DspTask:
             trip = supervisor.clamp(setpoint)
             if trip is not None:
                 self.raise_fault(trip.code, trip.message, k, stop=trip.stop, axis=trip.axis)
-        servo.begin_period(setpoint, interp.tick_commands, pressing=interp.force.state != ForceState.OFF)
+        servo.begin_period(setpoint, interp.tick_commands, path=interp.hold_counts)
         self._update_state()
         if self.state == DspState.FAULT and self.at_rest_time is None:
             self.at_rest_time = k * self.period

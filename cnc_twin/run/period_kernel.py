@@ -387,7 +387,7 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
         process.spin = spin
         for i in range(n):
             axis_state[i].held = held[i]
-        _latch_setpoint(axes, setpoint, cs.inv_period, force_on)  # ServoTask.begin_period: the feed-forward terms
+        _latch_setpoint(axes, setpoint, held, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
         servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
                                False, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness,

@@ -45,6 +45,10 @@ class EncoderSpec(Strict):
         return self
 
 
+PerAxis = dict[Literal["X", "Y", "Z", "A", "B", "C"], float]
+"""a number per axis named (a servo's deflection and coupling on the other axes)"""
+
+
 class ServoSpec(Strict):
     """Position loop gains in machine terms; the DSP converts them to volts per count."""
 
@@ -60,14 +64,14 @@ class ServoSpec(Strict):
                                       "time constant [ms]: the position loop compares the actual position with the "
                                       "command through a first-order lag of this time, so that the feed-forward "
                                       "and the position loop do not fight (symmetrised feed-forward); 0 = off")
-    deflection: dict[Literal["X", "Y", "Z", "A", "B", "C"], float] = Field(
+    deflection: PerAxis = Field(
         default_factory=dict, description="the tool tip's deflection along this axis (tip less encoder) per unit "
         "commanded acceleration of each axis named, as a scale on the table or the circular test measures it "
         "[um per m/s^2, i.e. ms^2; for a rotary axis read deg for mm: mdeg, 1000 deg/s^2]: the card "
         "corrects the command by the opposite, so that the tip lands on the path (an acceleration-dependent "
         "position correction: a screw's windup, a bridge's bending, as Heidenhain's cross-talk compensation "
         "does); {} = none")
-    coupling: dict[Literal["X", "Y", "Z", "A", "B", "C"], float] = Field(
+    coupling: PerAxis = Field(
         default_factory=dict, description="the axis's inertia coupling to the axes named: the force (torque) "
         "another axis's acceleration puts on this axis's drive over this axis's own inertia, the mass matrix's "
         "off-diagonal over its diagonal [mm per mm, deg per mm, mm per deg or deg per deg: this axis's "
