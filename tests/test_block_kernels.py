@@ -50,7 +50,7 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         channel["p_prev"], channel["p_next"] = rng.uniform(-1e6, 1e6, size=2)
         channel["velocity"], channel["acceleration"] = rng.uniform(-1e6, 1e6), rng.uniform(-1e8, 1e8)
         channel["jerk"] = rng.uniform(-1e10, 1e10)
-        channel["path_next"], channel["path_velocity"] = channel["p_next"], channel["velocity"]
+        channel["push"], channel["push_velocity"] = rng.choice([0.0, rng.uniform(-100, 100)]), rng.uniform(-1e3, 1e3)
         channel["ff_acceleration"] = channel["acceleration"]
         channel["encoder_fault"] = rng.integers(-20, 21)
         channel["pid"]["reference"] = channel["p_prev"] + rng.uniform(-100, 100)
@@ -144,9 +144,9 @@ def test_latch_setpoint_servo_tick_and_read_encoders(seed):
     ticks = 4
     for _ in range(20):
         setpoint = rng.uniform(-1e6, 1e6, size=n)
-        path = setpoint - rng.choice([0.0, 1.0]) * rng.uniform(-100, 100, size=n)  # a force loop's push
-        servo.latch_setpoint(compiled, setpoint, path, 1000.0)
-        servo.latch_setpoint.py_func(interpreted, setpoint, path, 1000.0)
+        push = rng.choice([0.0, 1.0], size=n) * rng.uniform(-100, 100, size=n)  # a force loop's, or none
+        servo.latch_setpoint(compiled, setpoint, push, 1000.0)
+        servo.latch_setpoint.py_func(interpreted, setpoint, push, 1000.0)
         use_ticks = bool(rng.random() < 0.3)
         tick_commands = rng.uniform(-1e6, 1e6, size=(ticks, n))
         for j in range(ticks):

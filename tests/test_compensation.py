@@ -92,7 +92,8 @@ def test_a_bad_table_is_refused_in_one_line_naming_the_key(tmp_path, compensatio
 @pytest.fixture(scope="module")
 def worn(tmp_path_factory):
     """A folder with the compliant machine whose X screw is worn (its MJCF: the screw tendon's
-    lead 50 um/m long, a deadband of 8 um), and a scenario on it with the bundled parameter file."""
+    lead 50 um/m long, a deadband of 8 um), and a scenario on it with the bundled parameter file
+    (X's backlash compensation off)."""
     folder = tmp_path_factory.mktemp("worn")
     xml = (models_dir() / "polisher.xml").read_text()
     screw = ('<fixed name="x_screw" stiffness="8e+07" damping="9352.14" springlength="0">\n'
@@ -108,6 +109,9 @@ def worn(tmp_path_factory):
     shutil.copy(models_dir() / "workcell.xml", folder / "workcell.xml")
     raw = yaml.safe_load((scenarios_dir() / "jog_axes.yaml").read_text())
     raw["machine"] = {"model": "scene_worn.xml", "parameters": "polisher.yaml"}
+    # the screw measured as it is: without the commissioned file's own backlash compensation on X
+    # (1 um, set for the new screw), which would part the directions by that much less
+    raw.setdefault("axes", {}).setdefault("X", {})["compensation"] = {"backlash": 0.0}
     (folder / "worn.yaml").write_text(yaml.safe_dump(raw))
     return folder
 

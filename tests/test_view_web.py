@@ -71,9 +71,11 @@ def test_the_printed_address_opens_the_run_and_the_server_idles(tmp_path):
 
     pixels = np.asarray(Image.open(tmp_path / "viewer.png").convert("RGB")).astype(int)
     # the plane view draws the commanded and actual paths in their own colours: on screen only if
-    # the page loaded this run (the Welcome page, or a run without the views, shows neither)
+    # the page loaded this run (the Welcome page, or a run without the views, shows neither); the
+    # actual path draws over the commanded one where they meet (on the commissioned default 486
+    # pixels of the commanded colour stay in sight)
     for colour in (COMMANDED_RGB, ACTUAL_RGB):
-        assert (np.abs(pixels - colour).max(axis=2) <= 8).sum() > 500, f"no path drawn in {colour}"
+        assert (np.abs(pixels - colour).max(axis=2) <= 8).sum() > 200, f"no path drawn in {colour}"
     assert idle_share < IDLE_SHARE, f"the served viewer used {idle_share:.0%} of a core while idle"
     if os.environ.get("CNC_TWIN_DOCS_SCREENSHOT"):
         shutil.copyfile(tmp_path / "viewer.png", REPO / "docs" / "rerun_default_blueprint.png")

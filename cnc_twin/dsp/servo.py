@@ -67,7 +67,7 @@ purge_stale(__file__, [encoder.__file__, pid.__file__, dac.__file__, adc.__file_
 
 AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64), ("p_next", np.float64),
                  ("velocity", np.float64), ("acceleration", np.float64), ("jerk", np.float64),
-                 ("path_next", np.float64), ("path_velocity", np.float64), ("ff_acceleration", np.float64),
+                 ("push", np.float64), ("push_velocity", np.float64), ("ff_acceleration", np.float64),
                  ("encoder_fault", np.int64),
                  ("comp", COMP), ("reversal", REVERSAL), ("deflection", np.float64, (N_AXES,)),
                  ("coupling", np.float64, (N_AXES,))])
@@ -84,10 +84,9 @@ p_next         counts             the setpoint at the period's end             :
 velocity       counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration   counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
 jerk           counts/s^3         the acceleration's change                    :func:`latch_setpoint`
-path_next      counts             the period's end setpoint of the path alone  :func:`latch_setpoint`
-                                  (without the force loop's push)
-path_velocity  counts/s           its chord velocity                           :func:`latch_setpoint`
-ff_            counts/s^2         its change: the acceleration the             :func:`latch_setpoint`
+push           counts             the force loop's push in the setpoint        :func:`latch_setpoint`
+push_velocity  counts/s           its chord velocity                           :func:`latch_setpoint`
+ff_            counts/s^2         the acceleration less the push's: what the   :func:`latch_setpoint`
 acceleration                      feed-forward and the deflection correction
                                   work on
 encoder_fault  counts             added to the reading by injected faults      the fault injector
@@ -109,16 +108,18 @@ the cell's reading [N] (``fault``, written by the fault injector; 0 normally).""
 
 
 @njit(cache=True)
-def latch_setpoint(axes, setpoint, path, inv_period):
+def latch_setpoint(axes, setpoint, push, inv_period):
     """Latch the period's end setpoint [counts] (shape ``(n,)``) into ``axes`` (:data:`AXIS`,
     shape ``(n,)``) and derive the feed-forward terms; ``inv_period`` is 1 / T_ipo [1/s].
 
-    ``path`` [counts] (shape ``(n,)``) is the interpolator's path alone, without the force loop's
-    push along the tool axis (and the spindle's turn of C): the acceleration feed-forward and the
-    deflection correction work on its acceleration (``ff_acceleration``). The push is a correction
-    the card adds to the path, its second difference the loop's noise: fed forward (Z's kaff
-    through its high-pass) or turned into a position correction (Z's deflection) it set the bundled
-    force programs' Z oscillating at about 3 Hz, their force error from 0.5 - 0.8 % to 21 - 33 %.
+    ``push`` [counts] (shape ``(n,)``) is the force loop's push along the tool axis in the
+    setpoint (0 where none): the acceleration feed-forward and the deflection correction work on
+    the setpoint's acceleration less the push's (``ff_acceleration``). The push is a correction the
+    card adds to the path, its second difference the loop's noise: fed forward (Z's kaff through its
+    high-pass) or turned into a position correction (Z's deflection) it set the bundled force
+    programs' Z oscillating at about 3 Hz, their force error from 0.5 - 0.8 % to 21 - 33 %. Where
+    the push starts or ends (0 before or after, the standoff on the other side: the setpoint goes
+    on smoothly, the push steps) its step is no motion: the push's rate starts again from there.
     """
     for i in range(axes.shape[0]):
         a = axes[i]
@@ -129,10 +130,14 @@ def latch_setpoint(axes, setpoint, path, inv_period):
         a.jerk = (acceleration - a.acceleration) * inv_period
         a.acceleration = acceleration
         a.velocity = velocity
-        path_velocity = (path[i] - a.path_next) * inv_period
-        a.ff_acceleration = (path_velocity - a.path_velocity) * inv_period
-        a.path_velocity = path_velocity
-        a.path_next = path[i]
+        if (push[i] == 0.0) != (a.push == 0.0):  # it starts or ends: a step, not a motion
+            push_velocity = 0.0
+            a.push_velocity = 0.0
+        else:
+            push_velocity = (push[i] - a.push) * inv_period
+        a.ff_acceleration = acceleration - (push_velocity - a.push_velocity) * inv_period
+        a.push_velocity = push_velocity
+        a.push = push[i]
 
 
 @njit(cache=True)
@@ -155,7 +160,7 @@ def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
 def deflection_correction(axes, i):
     """Axis ``i``'s correction [counts] for its tip's acceleration-dependent deflection: the
     opposite of ``sum_j deflection[j] a_j`` over the axes' commanded accelerations ``a_j``
-    [counts/s^2] of the path alone (``ff_acceleration``, :func:`latch_setpoint`).
+    [counts/s^2] without the force loop's push (``ff_acceleration``, :func:`latch_setpoint`).
     No rate of it goes to the velocity feed-forward: that would be the jerk, the setpoints' third
     difference (the term took the flat plate's force error from 0.51 to 36 %); the position loop
     takes the correction's slow changes."""
@@ -169,8 +174,8 @@ def deflection_correction(axes, i):
 @njit(cache=True)
 def coupled_acceleration(axes, i):
     """The acceleration [counts/s^2] axis ``i``'s acceleration feed-forward works on: its own
-    commanded acceleration plus ``coupling[j] a_j`` of the others (``ff_acceleration``: the path's,
-    without the force loop's push, :func:`latch_setpoint`; the mass matrix's off-diagonal
+    commanded acceleration plus ``coupling[j] a_j`` of the others (``ff_acceleration``: without the
+    force loop's push, :func:`latch_setpoint`; the mass matrix's off-diagonal
     over the axis's inertia: the force another axis's acceleration puts on this axis's drive,
     which the feed-forward then supplies, as it supplies the axis's own)."""
     a = axes[i]
@@ -292,6 +297,7 @@ class ServoTask:
         n = self.n_axes = len(axes)
         self.ticks_per_period = timing.ticks_per_period
         self.inv_period = 1.0 / timing.interpolation_period
+        self._no_push = np.zeros(n)  # begin_period's push where none is given
         """1 / the interpolation period [1/s]"""
         self.axes = np.zeros(n, AXIS)
         """the servo channels, one :data:`AXIS` record per axis, shape ``(n,)``"""
@@ -354,21 +360,20 @@ class ServoTask:
         self.load_cell[0]["fault"] = value
 
     def begin_period(self, setpoint: Sequence[float], ticks: list[list[float]] | None = None,
-                     path: Sequence[float] | None = None) -> None:
+                     push: Sequence[float] | None = None) -> None:
         """Latch the next period's end setpoint [counts] and derive the feed-forward terms.
 
         ``ticks`` (optional, one command per tick, each shape ``(6,)`` [counts]) replaces the
         linear fine interpolation for this period: a step interpolator's own lattice points.
-        ``path`` [counts]: the path alone, without the force loop's push (None: the setpoint).
+        ``push`` [counts]: the force loop's push in the setpoint (None: none).
         """
         if ticks is None:
             self.use_tick_commands = False
         else:
             self.tick_commands[:] = ticks
             self.use_tick_commands = True
-        latched = np.asarray(setpoint, dtype=np.float64)
-        latch_setpoint(self.axes, latched, latched if path is None else np.asarray(path, dtype=np.float64),
-                       self.inv_period)
+        pushed = self._no_push if push is None else np.asarray(push, dtype=np.float64)
+        latch_setpoint(self.axes, np.asarray(setpoint, dtype=np.float64), pushed, self.inv_period)
 
     def tick(self, j: int, positions: Sequence[float], pad_force: float) -> np.ndarray:
         """One servo interrupt, tick ``j`` of the period.
