@@ -129,8 +129,9 @@ def test_a_worn_screw_measured_then_corrected_by_the_table_written_from_it(worn)
     gap = np.mean(before.forward_error[1:-1] - before.reverse_error[1:-1])
     # [mm] the directions part by no more than the nut's backlash (where in it the table rests
     # depends on how the stop settles: 3 um with the drives' loops of 2026-11-26, under 1.5 um
-    # behind the torque filter's softer loops)
-    assert 0.0 < gap < BACKLASH * 1e3
+    # behind the torque filter's softer loops; with the commissioned acceleration feed-forward the
+    # stops creep on in the direction of travel, -6.1 um: docs/tuning.md)
+    assert abs(gap) < BACKLASH * 1e3
     assert np.abs(np.concatenate([before.forward_error, before.reverse_error])).max() > 0.015
     write_comp_file(before, worn / "screwcompX.dat")
     after = measure_positioning(worn / "worn.yaml", "X", targets,

@@ -53,18 +53,6 @@ def test_the_acceleration_feed_forward_through_its_high_pass_fades_with_the_wash
         assert u * SPV == pytest.approx(kaff * 2.0 * math.exp(-k * DT / washout), rel=1e-9)
 
 
-def test_the_high_pass_s_tail_ends_when_the_axis_comes_to_rest():
-    """After a deceleration the high-pass gives kaff (0 - lp) while the axis still moves, and
-    nothing once its commanded velocity and acceleration are both 0."""
-    kaff, washout, a = 0.004, 0.02, 2.0 * CPU
-    pid = loop(kp=0.0, kaff=kaff, aff_washout=washout)
-    for _ in range(40):
-        pid.update(0.0, 0.0, 100.0, -a)  # decelerating
-    tail = pid.update(0.0, 0.0, 100.0, 0.0)  # still moving: the tail
-    assert tail * SPV == pytest.approx(kaff * 2.0 * (1.0 - math.exp(-40 * DT / washout)) * math.exp(-DT / washout), rel=1e-9)
-    assert pid.update(0.0, 0.0, 0.0, 0.0) == 0.0 and pid.update(0.0, 0.0, 0.0, 0.0) == 0.0  # at rest: none
-
-
 def test_the_command_the_loop_compares_with_lags_by_the_equivalent_time():
     """A 1000-count step of the command: the loop sees the first-order lag 1000 (1 - exp(-t / T))
     of it from the tick after the first (which takes the command as it is)."""

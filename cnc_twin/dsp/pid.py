@@ -38,8 +38,6 @@ reference         counts                 the lagged command the loop compares   
                                          with
 reference_set     -                      1 once ``reference`` holds a command    :func:`pid_update`,
                                                                                  :func:`pid_reset`
-moving            -                      1 once commanded to move (velocity not  :func:`pid_update`
-                                         0), until it comes to rest
 ================  =====================  ======================================  ==============
 
 Gains are given in machine terms and converted once with the drive scaling ``speed_per_volt``
@@ -67,12 +65,7 @@ gain ``kp_speed`` and integral time ``tn`` on an inertia ``J``, whose closed loo
 - the acceleration feed-forward through a first-order high-pass of time ``aff_washout`` (``tn``):
   ``v + (J / kp_speed) s tn / (1 + s tn) a`` is that loop's exact inverse, so its speed follows
   the commanded one; without the high-pass the term keeps pushing where the drive's integral
-  already has, and shrinks a circle by about ``R kaff w^2 / kp`` (w its angular speed). The
-  high-pass's tail ends where the axis's commanded move comes to rest (velocity and acceleration
-  0 after a velocity; an axis that stands, fed only its coupling to others, keeps it): at rest
-  the friction holds the axis, not the drive's integral alone, and the tail crept every stop on
-  in the direction of travel (a worn X screw's positioning run parted its directions by -6.1 um
-  instead of +0.4, the bundled circle's Y went 23 um past its stop instead of 11);
+  already has, and shrinks a circle by about ``R kaff w^2 / kp`` (w its angular speed);
 - the command the position loop compares with through a first-order lag of ``ff_equivalent_time``
   (the speed loop's remaining equivalent time: its filters, the current loop, the dead time), so
   that the loop does not correct a lag the feed-forward's axis has anyway (Siemens' "symmetrising"
@@ -83,8 +76,7 @@ gain ``kp_speed`` and integral time ``tn`` on an inertia ``J``, whose closed loo
 Algorithm (dt = servo period)::
 
     r = command on the first tick (or after pid_reset), else r + reference_alpha (command - r)
-    lp = lp + aff_washout (acceleration - lp)    (lp = 0 first where a move came to rest: velocity
-                                                  and acceleration 0 after a velocity)
+    lp = lp + aff_washout (acceleration - lp)
     e = r - feedback              (in 32-bit arithmetic: wrapped into [-2^31, 2^31), count_error)
     i_try = clamp(i + ki_c * e * dt, -integrator_limit, +integrator_limit)
     ramp = clamp(velocity / (friction_ff_band * counts_per_unit), -1, +1)   # the friction's sign, softened
@@ -104,7 +96,7 @@ from cnc_twin.dsp.encoder import count_error
 PID = np.dtype([(name, np.float64) for name in (
     "kp", "ki_dt", "kd_over_dt", "kvff", "kaff", "aff_washout", "reference_alpha", "friction_ff", "friction_rate",
     "output_limit", "integrator_limit", "integrator", "previous_error", "aff_lowpass", "reference",
-    "reference_set", "moving")])
+    "reference_set")])
 """one position loop's record: see the module docstring for its fields"""
 
 
@@ -147,7 +139,7 @@ def setup_pid(pid, *, kp: float, ki: float = 0.0, kd: float = 0.0, kvff: float =
     pid["friction_rate"] = 1.0 / (friction_ff_band * counts_per_unit)
     pid["output_limit"] = output_limit
     pid["integrator_limit"] = integrator_limit
-    for state in ("integrator", "previous_error", "aff_lowpass", "reference", "reference_set", "moving"):
+    for state in ("integrator", "previous_error", "aff_lowpass", "reference", "reference_set"):
         pid[state] = 0.0
 
 
@@ -166,11 +158,6 @@ def pid_update(pid, command, feedback, velocity, acceleration):
         pid.reference_set = 1.0
     else:
         pid.reference += pid.reference_alpha * (command - pid.reference)
-    if velocity != 0.0:
-        pid.moving = 1.0
-    elif pid.moving != 0.0 and acceleration == 0.0:  # it came to rest: the high-pass's tail ends with its move
-        pid.aff_lowpass = 0.0
-        pid.moving = 0.0
     pid.aff_lowpass += pid.aff_washout * (acceleration - pid.aff_lowpass)
     error = count_error(pid.reference, feedback)  # the 32-bit position may have wrapped
     ramp = velocity * pid.friction_rate
@@ -215,4 +202,3 @@ def pid_reset(pid):
     pid.aff_lowpass = 0.0
     pid.reference = 0.0
     pid.reference_set = 0.0
-    pid.moving = 0.0
