@@ -126,10 +126,10 @@ class AxisConfig:
     0 = off"""
     deflection: tuple[float, ...] = ()
     """the tool tip's deflection along this axis per unit commanded acceleration of each axis, in
-    :data:`~cnc_twin.core.axes.AXES` order [s^2 = m per m/s^2, mixed units for rotary axes]; the card
+    ``AXES`` order (X Y Z A B C) [s^2 = m per m/s^2, mixed units for rotary axes]; the card
     commands the axis that much less (an acceleration-dependent position correction); () = none"""
     coupling: tuple[float, ...] = ()
-    """the inertia coupling to each axis, in :data:`~cnc_twin.core.axes.AXES` order: the mass
+    """the inertia coupling to each axis, in ``AXES`` order (X Y Z A B C): the mass
     matrix's off-diagonal over the axis's own inertia [SI units of this axis's acceleration per
     the other's]; the acceleration feed-forward adds ``coupling_j a_j``; () = none"""
     reversal_amplitude: float = 0.0

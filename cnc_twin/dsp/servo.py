@@ -73,32 +73,32 @@ AXIS = np.dtype([("qep", QEP), ("pid", PID), ("dac", DAC), ("p_prev", np.float64
                  ("coupling", np.float64, (N_AXES,))])
 """One axis's servo channel, the record the servo functions work on:
 
-=============  =================  ===========================================  =========================
-field          unit               meaning                                      written by
-=============  =================  ===========================================  =========================
-qep            :data:`.QEP`       the encoder channel                          :func:`.qep_sample`
-pid            :data:`.PID`       the position loop                            :func:`.pid_update`
-dac            :data:`.DAC`       the analog output                            :func:`.dac_write`
-p_prev         counts             the setpoint at the period's start           :func:`latch_setpoint`
-p_next         counts             the setpoint at the period's end             :func:`latch_setpoint`
-velocity       counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
-acceleration   counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
-jerk           counts/s^3         the acceleration's change                    :func:`latch_setpoint`
-push           counts             the force loop's push in the setpoint        :func:`latch_setpoint`
-push_velocity  counts/s           its chord velocity                           :func:`latch_setpoint`
-ff_            counts/s^2         the acceleration less the push's: what the   :func:`latch_setpoint`
-acceleration                      feed-forward and the deflection correction
-                                  work on
-encoder_fault  counts             added to the reading by injected faults      the fault injector
-comp           :data:`.COMP`      backlash and the pitch-error table's state   :func:`.comp_correction`
-reversal       :data:`.REVERSAL`  the reversal compensation's pulse            :func:`.reversal_pulse`
-deflection     counts per         the tip's deflection along this axis per     :class:`ServoTask`
-               counts/s^2,        commanded acceleration of each axis
-               shape ``(6,)``     (:func:`deflection_correction`)
-coupling       counts/s^2 per     the inertia coupling to each axis: the       :class:`ServoTask`
-               counts/s^2,        acceleration feed-forward's share of its
-               shape ``(6,)``     acceleration (:func:`coupled_acceleration`)
-=============  =================  ===========================================  =========================
+===============  =================  ===========================================  =========================
+field            unit               meaning                                      written by
+===============  =================  ===========================================  =========================
+qep              :data:`.QEP`       the encoder channel                          :func:`.qep_sample`
+pid              :data:`.PID`       the position loop                            :func:`.pid_update`
+dac              :data:`.DAC`       the analog output                            :func:`.dac_write`
+p_prev           counts             the setpoint at the period's start           :func:`latch_setpoint`
+p_next           counts             the setpoint at the period's end             :func:`latch_setpoint`
+velocity         counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
+acceleration     counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
+jerk             counts/s^3         the acceleration's change                    :func:`latch_setpoint`
+push             counts             the force loop's push in the setpoint        :func:`latch_setpoint`
+push_velocity    counts/s           its chord velocity                           :func:`latch_setpoint`
+ff_acceleration  counts/s^2         the acceleration less the push's: what the   :func:`latch_setpoint`
+                                    feed-forward and the deflection correction
+                                    work on
+encoder_fault    counts             added to the reading by injected faults      the fault injector
+comp             :data:`.COMP`      backlash and the pitch-error table's state   :func:`.comp_correction`
+reversal         :data:`.REVERSAL`  the reversal compensation's pulse            :func:`.reversal_pulse`
+deflection       counts per         the tip's deflection along this axis per     :class:`ServoTask`
+                 counts/s^2,        commanded acceleration of each axis
+                 shape ``(6,)``     (:func:`deflection_correction`)
+coupling         counts/s^2 per     the inertia coupling to each axis: the       :class:`ServoTask`
+                 counts/s^2,        acceleration feed-forward's share of its
+                 shape ``(6,)``     acceleration (:func:`coupled_acceleration`)
+===============  =================  ===========================================  =========================
 """
 
 LOAD_CELL = np.dtype([("adc", ADC), ("tare", np.float64), ("tare_set", np.int64), ("fault", np.float64)])

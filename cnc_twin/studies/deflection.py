@@ -36,7 +36,7 @@ SMALLEST = 1e-6
 
 
 def deflection_samples(trace, axes: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """From one run's ``trace`` (:class:`~cnc_twin.trace.trace_file.Trace`): per period, the tip
+    """From one run's ``trace`` (:class:`~cnc_twin.trace.trace.Trace`): per period, the tip
     less the encoder of ``axes`` [m], shape ``(n, k)``, and their commanded accelerations [m/s^2],
     shape ``(n, k)``; linear axes only."""
     tpp = trace.ticks_per_period
