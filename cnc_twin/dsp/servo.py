@@ -4,15 +4,16 @@ Per interpolation period (``begin_period``), from the coarse interpolator's setp
 ``p_next`` [counts]::
 
     v = (p_next - p_prev) / T_ipo          # chord velocity [counts/s], feed-forward
-    a = (v - v_prev) / T_ipo               # [counts/s^2], feed-forward
-    j = (a - a_prev) / T_ipo               # [counts/s^3], the reversal compensation's prediction
+    a = (v - v_prev) / T_ipo               # [counts/s^2], the reversal compensation's prediction
+    j = (a - a_prev) / T_ipo               # [counts/s^3], the same
+    a_ff = a - the force loop's push's     # [counts/s^2], feed-forward and deflection correction
 
 Per servo tick ``j`` of ``n`` in the period (``tick``, :func:`servo_tick`), for each axis::
 
     command  = p_prev + (p_next - p_prev) * (j + 1) / n     # linear fine interpolation
     actual   = qep_sample(qep, position, encoder_fault)      # encoder, counts
-    command += comp_correction(...) + deflection_correction  # backlash, pitch; the tip's deflection
-    volts    = pid_update(pid, command, actual, v, a + sum_j coupling_j a_j)  # PID+FF
+    command += comp_correction(...) - sum_j deflection_j a_ff_j  # backlash, pitch; the tip's deflection
+    volts    = pid_update(pid, command, actual, v, a_ff + sum_j coupling_j a_ff_j)  # PID+FF
     volts   += reversal_pulse(reversal, v, a, j, path_on)    # quadrant error compensation (path_on: another
                                                              # axis moves at its arming speed; not for a
                                                              # step interpolator's commands)
