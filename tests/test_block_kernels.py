@@ -144,9 +144,9 @@ def test_latch_setpoint_servo_tick_and_read_encoders(seed):
     ticks = 4
     for _ in range(20):
         setpoint = rng.uniform(-1e6, 1e6, size=n)
-        push = rng.choice([0.0, 1.0], size=n) * rng.uniform(-100, 100, size=n)  # a force loop's, or none
-        servo.latch_setpoint(compiled, setpoint, push, 1000.0)
-        servo.latch_setpoint.py_func(interpreted, setpoint, push, 1000.0)
+        path = setpoint - rng.choice([0.0, 1.0], size=n) * rng.uniform(-100, 100, size=n)  # a force loop's push, or none
+        servo.latch_setpoint(compiled, setpoint, path, 1000.0)
+        servo.latch_setpoint.py_func(interpreted, setpoint, path, 1000.0)
         use_ticks = bool(rng.random() < 0.3)
         tick_commands = rng.uniform(-1e6, 1e6, size=(ticks, n))
         for j in range(ticks):

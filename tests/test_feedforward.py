@@ -22,21 +22,21 @@ from cnc_twin.core.axes import AXES, joint_name
 from cnc_twin.core.errors import ScenarioError
 from cnc_twin.machine.model_file import load_model
 from cnc_twin.scenario.resources import BUNDLED_MACHINES, scenarios_dir
-from cnc_twin.studies.commissioning import entered_rigid_body
+from cnc_twin.studies.commissioning import entered_rigid_body, identify_rigid_body
 from cnc_twin.studies.deflection import fast_circular_traces
-from cnc_twin.studies.feedforward import identify_feed_forward
+from cnc_twin.studies.feedforward import feed_forward
 
 UNCOMMISSIONED = dict(BUNDLED_MACHINES["uncommissioned"])
 
 
 @pytest.fixture(scope="module")
-def feed_forward():
+def identified():
     scenario = load_scenario(scenarios_dir() / "ballbar_xy.yaml", overrides=UNCOMMISSIONED)
-    return scenario, identify_feed_forward(scenario, ("X", "Y", "Z", "A", "B"))
+    return scenario, feed_forward(scenario, {a: identify_rigid_body(scenario, a) for a in ("X", "Y", "Z", "A", "B")})
 
 
-def test_the_acceleration_feed_forward_is_the_speed_loop_s_inverse_on_the_entered_inertia(feed_forward):
-    scenario, found = feed_forward
+def test_the_acceleration_feed_forward_is_the_speed_loop_s_inverse_on_the_entered_inertia(identified):
+    scenario, found = identified
     for axis, f in found.items():
         drive = scenario.axis(axis).drive
         assert f.kaff == pytest.approx(entered_rigid_body(scenario, axis).inertia / drive.kp, rel=0.03), axis
@@ -55,8 +55,8 @@ def _static_moment(model: mujoco.MjModel, data: mujoco.MjData, joint: str, linea
     return float(mass * np.dot(data.xaxis[j.id], np.cross(lever, direction)))
 
 
-def test_the_head_s_coupling_is_its_static_moment_over_its_inertia(feed_forward):
-    scenario, found = feed_forward
+def test_the_head_s_coupling_is_its_static_moment_over_its_inertia(identified):
+    scenario, found = identified
     model = load_model(scenario.model_file)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)

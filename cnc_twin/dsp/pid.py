@@ -101,8 +101,9 @@ PID = np.dtype([(name, np.float64) for name in (
 
 
 def setup_pid(pid, *, kp: float, ki: float = 0.0, kd: float = 0.0, kvff: float = 0.0, kaff: float = 0.0,
-              aff_washout: float = 0.0, ff_equivalent_time: float = 0.0, friction_ff: float = 0.0, friction_ff_band: float = 1e-3, speed_per_volt: float,
-              counts_per_unit: float, dt: float, output_limit: float = 10.0, integrator_limit: float = 10.0) -> None:
+              aff_washout: float = 0.0, ff_equivalent_time: float = 0.0, friction_ff: float = 0.0,
+              friction_ff_band: float = 1e-3, speed_per_volt: float, counts_per_unit: float, dt: float,
+              output_limit: float = 10.0, integrator_limit: float = 10.0) -> None:
     """Fill ``pid`` (a :data:`PID` record) from gains in machine terms and clear its state.
 
     Parameters

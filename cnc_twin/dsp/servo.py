@@ -85,7 +85,8 @@ p_next           counts             the setpoint at the period's end            
 velocity         counts/s           chord velocity, feed-forward                 :func:`latch_setpoint`
 acceleration     counts/s^2         its change, feed-forward                     :func:`latch_setpoint`
 jerk             counts/s^3         the acceleration's change                    :func:`latch_setpoint`
-push             counts             the force loop's push in the setpoint        :func:`latch_setpoint`
+push             counts             the force loop's push in the setpoint (the   :func:`latch_setpoint`
+                                    setpoint less the path)
 push_velocity    counts/s           its chord velocity                           :func:`latch_setpoint`
 ff_acceleration  counts/s^2         the acceleration less the push's: what the   :func:`latch_setpoint`
                                     feed-forward and the deflection correction
@@ -108,13 +109,19 @@ tick (``tare_set`` 1 once taken; :func:`read_load_cell`) and the force an inject
 the cell's reading [N] (``fault``, written by the fault injector; 0 normally)."""
 
 
+PUSHED_AXES = 3
+"""the axes the force loop's push is in (X Y Z: along the tool axis); C's setpoint differs from the
+path by the spindle's turn, a motion"""
+
+
 @njit(cache=True)
-def latch_setpoint(axes, setpoint, push, inv_period):
+def latch_setpoint(axes, setpoint, path, inv_period):
     """Latch the period's end setpoint [counts] (shape ``(n,)``) into ``axes`` (:data:`AXIS`,
     shape ``(n,)``) and derive the feed-forward terms; ``inv_period`` is 1 / T_ipo [1/s].
 
-    ``push`` [counts] (shape ``(n,)``) is the force loop's push along the tool axis in the
-    setpoint (0 where none): the acceleration feed-forward and the deflection correction work on
+    ``path`` [counts] (shape ``(n,)``) is the interpolator's path, the setpoint without the force
+    loop's push along the tool axis: the push is the setpoint less the path on
+    :data:`PUSHED_AXES`, and the acceleration feed-forward and the deflection correction work on
     the setpoint's acceleration less the push's (``ff_acceleration``). The push is a correction the
     card adds to the path, its second difference the loop's noise: fed forward (Z's kaff through its
     high-pass) or turned into a position correction (Z's deflection) it set the bundled force
@@ -131,14 +138,15 @@ def latch_setpoint(axes, setpoint, push, inv_period):
         a.jerk = (acceleration - a.acceleration) * inv_period
         a.acceleration = acceleration
         a.velocity = velocity
-        if (push[i] == 0.0) != (a.push == 0.0):  # it starts or ends: a step, not a motion
+        push = setpoint[i] - path[i] if i < PUSHED_AXES else 0.0
+        if (push == 0.0) != (a.push == 0.0):  # it starts or ends: a step, not a motion
             push_velocity = 0.0
             a.push_velocity = 0.0
         else:
-            push_velocity = (push[i] - a.push) * inv_period
+            push_velocity = (push - a.push) * inv_period
         a.ff_acceleration = acceleration - (push_velocity - a.push_velocity) * inv_period
         a.push_velocity = push_velocity
-        a.push = push[i]
+        a.push = push
 
 
 @njit(cache=True)
@@ -158,6 +166,17 @@ def fine_commands(axes, fraction, tick_command, use_tick_command, command_out):
 
 
 @njit(cache=True)
+def weighted_acceleration(axes, weights, start):
+    """``start + sum_j weights[j] a_j`` [counts/s^2 x the weights' unit] over the axes'
+    ``ff_acceleration`` (:func:`latch_setpoint`), summed in that order; ``weights`` shape ``(n,)``:
+    an axis's deflection or coupling."""
+    total = start
+    for j in range(axes.shape[0]):
+        total += weights[j] * axes[j].ff_acceleration
+    return total
+
+
+@njit(cache=True)
 def deflection_correction(axes, i):
     """Axis ``i``'s correction [counts] for its tip's acceleration-dependent deflection: the
     opposite of ``sum_j deflection[j] a_j`` over the axes' commanded accelerations ``a_j``
@@ -165,11 +184,7 @@ def deflection_correction(axes, i):
     No rate of it goes to the velocity feed-forward: that would be the jerk, the setpoints' third
     difference (the term took the flat plate's force error from 0.51 to 36 %); the position loop
     takes the correction's slow changes."""
-    a = axes[i]
-    offset = 0.0
-    for j in range(axes.shape[0]):
-        offset -= a.deflection[j] * axes[j].ff_acceleration
-    return offset
+    return -weighted_acceleration(axes, axes[i].deflection, 0.0)
 
 
 @njit(cache=True)
@@ -179,11 +194,7 @@ def coupled_acceleration(axes, i):
     force loop's push, :func:`latch_setpoint`; the mass matrix's off-diagonal
     over the axis's inertia: the force another axis's acceleration puts on this axis's drive,
     which the feed-forward then supplies, as it supplies the axis's own)."""
-    a = axes[i]
-    total = a.ff_acceleration
-    for j in range(axes.shape[0]):
-        total += a.coupling[j] * axes[j].ff_acceleration
-    return total
+    return weighted_acceleration(axes, axes[i].coupling, axes[i].ff_acceleration)
 
 
 @njit(cache=True)
@@ -298,7 +309,6 @@ class ServoTask:
         n = self.n_axes = len(axes)
         self.ticks_per_period = timing.ticks_per_period
         self.inv_period = 1.0 / timing.interpolation_period
-        self._no_push = np.zeros(n)  # begin_period's push where none is given
         """1 / the interpolation period [1/s]"""
         self.axes = np.zeros(n, AXIS)
         """the servo channels, one :data:`AXIS` record per axis, shape ``(n,)``"""
@@ -313,10 +323,9 @@ class ServoTask:
                       speed_per_volt=cfg.speed_per_volt, counts_per_unit=cfg.counts_per_unit,
                       dt=timing.servo_period, output_limit=cfg.output_limit, integrator_limit=cfg.integrator_limit)
             setup_dac(channel["dac"])
-            for j, coefficient in enumerate(cfg.deflection):  # [s^2] -> counts per counts/s^2
-                channel["deflection"][j] = coefficient * cfg.counts_per_unit / axes[j].counts_per_unit
-            for j, ratio in enumerate(cfg.coupling):  # SI -> counts/s^2 per counts/s^2
-                channel["coupling"][j] = ratio * cfg.counts_per_unit / axes[j].counts_per_unit
+            for field in ("deflection", "coupling"):  # SI ([s^2], -) -> counts per counts/s^2 of each axis
+                for j, value in enumerate(getattr(cfg, field)):
+                    channel[field][j] = value * cfg.counts_per_unit / axes[j].counts_per_unit
             setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude if reversal_compensation else 0.0,
                            time=cfg.reversal_time,
                            speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,
@@ -361,20 +370,21 @@ class ServoTask:
         self.load_cell[0]["fault"] = value
 
     def begin_period(self, setpoint: Sequence[float], ticks: list[list[float]] | None = None,
-                     push: Sequence[float] | None = None) -> None:
+                     path: Sequence[float] | None = None) -> None:
         """Latch the next period's end setpoint [counts] and derive the feed-forward terms.
 
         ``ticks`` (optional, one command per tick, each shape ``(6,)`` [counts]) replaces the
         linear fine interpolation for this period: a step interpolator's own lattice points.
-        ``push`` [counts]: the force loop's push in the setpoint (None: none).
+        ``path`` [counts]: the setpoint without the force loop's push (None: the setpoint).
         """
         if ticks is None:
             self.use_tick_commands = False
         else:
             self.tick_commands[:] = ticks
             self.use_tick_commands = True
-        pushed = self._no_push if push is None else np.asarray(push, dtype=np.float64)
-        latch_setpoint(self.axes, np.asarray(setpoint, dtype=np.float64), pushed, self.inv_period)
+        latched = np.asarray(setpoint, dtype=np.float64)
+        latch_setpoint(self.axes, latched, latched if path is None else np.asarray(path, dtype=np.float64),
+                       self.inv_period)
 
     def tick(self, j: int, positions: Sequence[float], pad_force: float) -> np.ndarray:
         """One servo interrupt, tick ``j`` of the period.

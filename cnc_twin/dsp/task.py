@@ -186,9 +186,7 @@ class DspTask:
             trip = supervisor.clamp(setpoint)
             if trip is not None:
                 self.raise_fault(trip.code, trip.message, k, stop=trip.stop, axis=trip.axis)
-        held = interp.hold_counts  # the path: the push is the rest of X Y Z (C's is the spindle's turn)
-        servo.begin_period(setpoint, interp.tick_commands, push=[setpoint[0] - held[0], setpoint[1] - held[1],
-                                                                  setpoint[2] - held[2], 0.0, 0.0, 0.0])
+        servo.begin_period(setpoint, interp.tick_commands, path=interp.hold_counts)
         self._update_state()
         if self.state == DspState.FAULT and self.at_rest_time is None:
             self.at_rest_time = k * self.period

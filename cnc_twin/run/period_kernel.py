@@ -257,7 +257,6 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
     force_trial = loop.copy()
     held = np.empty(n)
     setpoint = np.empty(n)
-    push = np.empty(n)
     limits = supervision[1]
     limits_trial = limits.copy()
     inputs = np.zeros(n, np.int64)
@@ -388,9 +387,7 @@ def run_periods(n_max, mode, k0, servo_args, feed_record, profile, curve_args, a
         process.spin = spin
         for i in range(n):
             axis_state[i].held = held[i]
-        for i in range(n):  # the force loop's push: X Y Z's setpoint less the path (C's is the spindle's turn)
-            push[i] = setpoint[i] - held[i] if i < 3 else 0.0
-        _latch_setpoint(axes, setpoint, push, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
+        _latch_setpoint(axes, setpoint, held, cs.inv_period)  # ServoTask.begin_period: the feed-forward terms
         row = row0 + k * row_step
         servo_kernel.run_ticks(model_ptr, data_ptr, substeps, axes, comp_tables, load_cell, fractions, tick_commands,
                                False, qpos, qvel, taps, positions, amps, volts, ctrl, screws, tendon_stiffness,

@@ -36,7 +36,8 @@ import numpy as np
 from cnc_twin.core.config import Scenario
 from cnc_twin.studies import reversal_tuning
 from cnc_twin.studies.deflection import FEED_FACTOR, deflection_overrides, fast_circular_traces, fit_deflection
-from cnc_twin.studies.feedforward import FeedForward, identify_feed_forward
+from cnc_twin.studies.commissioning import identify_rigid_body
+from cnc_twin.studies.feedforward import FeedForward, feed_forward
 from cnc_twin.studies.reversal_tuning import CircularTest, ReversalSetting, circular_tests
 
 INTERPOLATING = ("X", "Y", "Z", "A", "B")
@@ -125,7 +126,8 @@ def matched_dynamics(scenario: Scenario, before: Mapping[str, CircularTest]) -> 
 def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], None] = lambda line: None,
                coulomb: Mapping[str, float] | None = None) -> Commissioning:
     """Run the steps of the module docstring on ``parameters`` (a machine parameter file) with the
-    bundled circular tests in ``scenarios``; ``coulomb`` [N | N m] per axis skips identifying it."""
+    bundled circular tests in ``scenarios``; ``coulomb`` [N | N m] per axis: the friction the first
+    reversal setting takes instead of the identified one."""
     from cnc_twin.scenario.load import load_scenario
 
     result = Commissioning(Path(parameters))
@@ -139,7 +141,10 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     result.steps.append(line)
     report(line)
     result.overrides.update({f"servo.{axis}.kp": kv for axis, kv in gains.items()})
-    result.feed_forward = identify_feed_forward(scenario, INTERPOLATING)
+    # each axis's rigid body identified once, on its drive's own signals: its inertia for the
+    # feed-forward, its friction for the reversal compensation's first setting
+    bodies = {axis: identify_rigid_body(scenario, axis) for axis in INTERPOLATING}
+    result.feed_forward = feed_forward(scenario, bodies)
     line = "feed-forward from the drives and the identified inertia: " + "; ".join(
         f"{a} {f.describe()}" for a, f in result.feed_forward.items()) + (
         "; no symmetrising lag (servo.ff_equivalent_time 0): with the speed loops' inverse the drives add "
@@ -159,7 +164,7 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     base = {**machine, **result.overrides}
     min_speed = MIN_SPEED_SHARE * min(p.feed for test in result.before.values() for p in test.passes)
     for axis in COMPENSATED:
-        c = None if coulomb is None else coulomb.get(axis)
+        c = bodies[axis].coulomb if coulomb is None else coulomb.get(axis, bodies[axis].coulomb)
         result.reversal[axis] = replace(reversal_tuning.first_setting(scenario, axis, c), min_speed=min_speed)
         s = result.reversal[axis]
         report(f"{axis}: first reversal setting from the drive and the identified friction: "

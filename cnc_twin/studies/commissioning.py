@@ -18,6 +18,7 @@ antiresonance (a dip) and the resonance (a peak) on the rigid body's mass line, 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -241,35 +242,22 @@ class RigidBody:
     coulomb: float
 
 
-@dataclass(frozen=True)
-class DriveRun:
-    """One axis driven through its drive's loops by a speed command of two sines
-    (:func:`drive_run`), every physics step recorded: ``time`` [s], ``command`` the speed command
-    [m/s | rad/s], the drive's ``force`` [N | N m at the axis], the motor's ``speed`` [m/s | rad/s]
-    and ``position`` [m | rad], ``settled`` where the start's transient is over."""
+def identify_rigid_body(scenario: Scenario, axis: str, *, seconds: float = 4.0, speed: float = 0.3,
+                        frequencies: tuple[float, float] = (1.0, 2.7), threshold: float = 0.1) -> RigidBody:
+    """Least-squares fit of ``u = m a + b v + c sign(v) + k x + d`` on a run of the nonlinear twin, as
+    Erkorkmaz and Altintas identify a feed drive from its own signals.
 
-    axis_index: int
-    time: np.ndarray
-    command: np.ndarray
-    force: np.ndarray
-    speed: np.ndarray
-    position: np.ndarray
-    settled: np.ndarray
-    frequencies: tuple[float, ...]
-
-    @property
-    def acceleration(self) -> np.ndarray:
-        """The motor's acceleration per step [m/s^2 | rad/s^2] (the speed's backward difference:
-        the force acts over the step that ends at ``speed[k]``)."""
-        return np.diff(self.speed, prepend=0.0) / (self.time[1] - self.time[0])
-
-
-def drive_run(scenario: Scenario, axis: str, *, seconds: float = 4.0, speed: float = 0.3,
-              frequencies: tuple[float, float] = (1.0, 2.7)) -> DriveRun:
-    """Drive ``axis`` by a speed command of two sines (each ``speed / 2`` of the drive's full speed,
+    The axis follows a speed command of two sines (each ``speed / 2`` of the drive's full speed,
     at ``frequencies`` [Hz], well below the axis's first mode, so table and motor move as one;
-    two, so that position and acceleration are not in antiphase), on one side of home (the side
-    the axis has room on), through its drive's loops."""
+    two, so that position and acceleration are not in antiphase and ``k`` and ``m`` part), on one
+    side of home (the side the axis has room on), through its drive's loops. Each physics step
+    records the force the drive applies (MuJoCo's actuator force, after the current loop), the
+    motor's speed ``v`` after the step and so the step's acceleration ``a`` (the speed's backward
+    difference), and its position ``x``. ``k x + d`` take the loads that depend on the position
+    or on nothing (a counterbalance's spring, gravity on a tilting head). Samples slower than
+    ``threshold`` of the full speed are left out of the fit: around a reversal MuJoCo's friction,
+    a soft constraint, takes a few of its time constants to build up again.
+    """
     i = AXES.index(axis)
     timestep = scenario.timing.physics_timestep
     plant = Plant(load_model(scenario.model_file), timestep=timestep, drives=scenario.drives)
@@ -280,40 +268,21 @@ def drive_run(scenario: Scenario, axis: str, *, seconds: float = 4.0, speed: flo
     side = _direction(scenario, i, reach)
     n = int(round(seconds / timestep))
     t = np.arange(n) * timestep
-    volts_command = side * 10.0 * speed / 2.0 * sum(np.sin(2.0 * np.pi * f * t) for f in frequencies)
+    command = side * 10.0 * speed / 2.0 * sum(np.sin(2.0 * np.pi * f * t) for f in frequencies)
     volts = np.zeros(len(AXES))
     force, v, x = np.empty(n), np.empty(n), np.empty(n)
     for k in range(n):
-        volts[i] = volts_command[k]
+        volts[i] = command[k]
         plant.apply_volts(volts)
         plant.step(1)
         force[k] = data.actuator_force[act]
         v[k] = data.qvel[tap["dof_adr"]] * tap["scale"]
         x[k] = data.qpos[tap["qpos_adr"]] * tap["scale"]
-    return DriveRun(i, t, volts_command * spv, force, v, x, t > 1.0 / min(frequencies), tuple(frequencies))
-
-
-def identify_rigid_body(scenario: Scenario, axis: str, *, seconds: float = 4.0, speed: float = 0.3,
-                        frequencies: tuple[float, float] = (1.0, 2.7), threshold: float = 0.1,
-                        run: DriveRun | None = None) -> RigidBody:
-    """Least-squares fit of ``u = m a + b v + c sign(v) + k x + d`` on a run of the nonlinear twin, as
-    Erkorkmaz and Altintas identify a feed drive from its own signals.
-
-    The run (:func:`drive_run`, or ``run`` where one was made): each physics step records the
-    force the drive applies (MuJoCo's actuator force, after the current loop), the motor's speed
-    ``v`` after the step and so the step's acceleration ``a``, and its position ``x``. ``k x + d``
-    take the loads that depend on the position or on nothing (a counterbalance's spring, gravity
-    on a tilting head). Samples slower than ``threshold`` of the full speed are left out of the
-    fit: around a reversal MuJoCo's friction, a soft constraint, takes a few of its time constants
-    to build up again.
-    """
-    if run is None:
-        run = drive_run(scenario, axis, seconds=seconds, speed=speed, frequencies=frequencies)
-    v = run.speed
-    use = run.settled & (np.abs(v) > threshold * 10.0 * scenario.axis(axis).speed_per_volt)
-    basis = np.column_stack([run.acceleration[use], v[use], np.sign(v[use]), run.position[use],
-                             np.ones(int(use.sum()))])
-    (m, b, c, _, _), *_ = np.linalg.lstsq(basis, run.force[use], rcond=None)
+    a = np.diff(v, prepend=0.0) / timestep  # the force acts over the step that ends at v[k]
+    settled = t > 1.0 / min(frequencies)  # the start's transient gone
+    use = settled & (np.abs(v) > threshold * 10.0 * spv)
+    basis = np.column_stack([a[use], v[use], np.sign(v[use]), x[use], np.ones(int(use.sum()))])
+    (m, b, c, _, _), *_ = np.linalg.lstsq(basis, force[use], rcond=None)
     return RigidBody(float(m), float(b), float(c))
 
 
@@ -328,11 +297,13 @@ def _home_mass_matrix(scenario: Scenario) -> tuple[mujoco.MjModel, np.ndarray]:
     return model, full
 
 
-def entered_coupling(scenario: Scenario, axis: str, other: str) -> float:
-    """The force on ``axis``'s joint per unit acceleration of ``other``'s [N | N m per m/s^2 |
-    rad/s^2] that the MJCF enters (as a CAD model gives it): their mass matrix entry at home."""
+def entered_coupling(scenario: Scenario, axes: Sequence[str]) -> dict[str, dict[str, float]]:
+    """Per axis of ``axes``, the force on its joint per unit acceleration of each other's [N | N m
+    per m/s^2 | rad/s^2] that the MJCF enters (as a CAD model gives it): their mass matrix entries
+    at home."""
     model, full = _home_mass_matrix(scenario)
-    return float(full[int(model.joint(joint_name(axis)).dofadr[0]), int(model.joint(joint_name(other)).dofadr[0])])
+    dof = {axis: int(model.joint(joint_name(axis)).dofadr[0]) for axis in axes}
+    return {axis: {other: float(full[dof[axis], dof[other]]) for other in axes if other != axis} for axis in axes}
 
 
 def entered_rigid_body(scenario: Scenario, axis: str) -> RigidBody:

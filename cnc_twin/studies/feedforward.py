@@ -15,7 +15,7 @@ commanded speed through ``(kv s + kv / tn) / (m s^2 + kv s + kv / tn)``, whose e
                                       5 at the motor) holds it against most of a drive run's
                                       accelerations, so a run cannot part the two
 
-The inertia from one :func:`~cnc_twin.studies.commissioning.drive_run` per axis (two sines of speed
+The inertia from each axis's rigid body, identified on its drive's own signals (two sines of speed
 through the drive, :func:`~cnc_twin.studies.commissioning.identify_rigid_body`).
 
 Why no symmetrising lag (``servo.ff_equivalent_time``): real controls delay the position loop's
@@ -30,13 +30,13 @@ default machine), and a lag set per axis would draw that ellipse itself (v dT / 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from cnc_twin.core import units
 from cnc_twin.core.axes import is_rotary
 from cnc_twin.core.config import Scenario
-from cnc_twin.studies.commissioning import DriveRun, drive_run, entered_coupling, identify_rigid_body
+from cnc_twin.studies.commissioning import RigidBody, entered_coupling
 
 @dataclass
 class FeedForward:
@@ -73,23 +73,20 @@ class FeedForward:
         return text
 
 
-def identify_feed_forward(scenario: Scenario, axes: Sequence[str], *,
-                          runs: Mapping[str, DriveRun] | None = None) -> dict[str, FeedForward]:
-    """Each of ``axes``'s :class:`FeedForward` (module docstring) on ``scenario``'s machine, from
-    one drive run per axis (``runs``, or made here); the couplings among ``axes``."""
-    runs = dict(runs) if runs else {a: drive_run(scenario, a) for a in axes}
+def feed_forward(scenario: Scenario, bodies: Mapping[str, RigidBody]) -> dict[str, FeedForward]:
+    """The :class:`FeedForward` (module docstring) of each axis of ``bodies`` (its rigid body,
+    identified on the drive's own signals, :func:`~cnc_twin.studies.commissioning.identify_rigid_body`)
+    on ``scenario``'s machine, with the couplings among them."""
     out: dict[str, FeedForward] = {}
-    for axis in axes:
+    for axis, body in bodies.items():
         drive = scenario.axis(axis).drive
         if drive is None:
             raise ValueError(f"{axis}: the feed-forward is set from a drive with loops of its own "
                              "(the parameter file's drive: ...); this axis has the MJCF's ideal velocity source")
-        inertia = identify_rigid_body(scenario, axis, run=runs[axis]).inertia
-        out[axis] = FeedForward(axis, inertia, inertia / drive.kp, drive.tn)
-    for axis in axes:  # the CAD model's cross inertia over the identified inertia
-        for other in axes:
-            if other != axis:
-                ratio = entered_coupling(scenario, axis, other) / out[axis].inertia
-                if abs(ratio) > 1e-9:
-                    out[axis].coupling[other] = ratio
+        out[axis] = FeedForward(axis, body.inertia, body.inertia / drive.kp, drive.tn)
+    for axis, forces in entered_coupling(scenario, list(out)).items():  # the CAD model's cross inertia
+        for other, force in forces.items():  # over the identified inertia
+            ratio = force / out[axis].inertia
+            if abs(ratio) > 1e-9:
+                out[axis].coupling[other] = ratio
     return out
