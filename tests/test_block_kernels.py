@@ -38,9 +38,13 @@ def _axes(rng: np.random.Generator, n: int = 6) -> np.ndarray:
         reversal.setup_reversal(channel["reversal"], amplitude=rng.choice([0.0, rng.uniform(0, 0.01)]),
                                 time=rng.uniform(1e-3, 0.1), lead=rng.uniform(0, 0.02), rise=rng.uniform(0, 0.01),
                                 arm_speed=rng.choice([0.0, rng.uniform(0, 0.01)]), counts_per_unit=1e6,
-                                speed_per_volt=rng.uniform(0.01, 0.1), dt=2.5e-4)
+                                speed_per_volt=rng.uniform(0.01, 0.1), dt=2.5e-4,
+                                standstill=rng.choice([0.0, rng.uniform(0, 1)]), start_speed=rng.uniform(0, 1e-3),
+                                stop_speed=rng.uniform(0, 3e-3), adapt_amplitude=rng.choice([0.0, rng.uniform(0, 0.02)]),
+                                adapt_from=rng.uniform(0, 0.1), adapt_to=rng.uniform(0.2, 1.0))
         channel["reversal"]["direction"] = rng.choice([-1.0, 0.0, 1.0])
         channel["reversal"]["pulse"] = rng.uniform(-0.1, 0.1)
+        channel["reversal"]["unloaded"] = rng.choice([-1, 0, 1, 2])
         channel["qep"]["counter16"] = rng.integers(0, 1 << 16)
         channel["qep"]["position32"] = rng.integers(-(1 << 31), 1 << 31)
         channel["pid"]["integrator"] = rng.uniform(-1, 1)

@@ -2,7 +2,8 @@
 definition: a pulse of the set amplitude with the new direction's sign at a reversal of the
 commanded velocity, decaying by exp(-dt / T) a tick, through its rise time's low-pass; none at the
 first move from rest, at a stop (jerk-limited or not) or on a standing axis's rounding noise; the
-lead starts it that long before the velocity's zero, predicted to second order."""
+lead starts it that long before the velocity's zero, predicted to second order; half of it at a stop and at
+the start after it when asked; its height adapted to the acceleration at the reversal when asked."""
 
 from __future__ import annotations
 
@@ -11,16 +12,17 @@ import math
 import numpy as np
 import pytest
 
-from cnc_twin.dsp.reversal import REVERSAL, reversal_pulse, setup_reversal
+from cnc_twin.dsp.reversal import REVERSAL, pulse_height, reversal_pulse, setup_reversal
 
 DT = 2.5e-4  # s, the servo period
 SPV = 0.05  # m/s per V
 
 
-def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0, arm_speed=0.0):
+def _block(amplitude=0.004, time=0.02, lead=0.0, rise=0.0, arm_speed=0.0, **more):
+    """A block set up with ``more`` of setup_reversal's keywords (standstill, adaptation)."""
     r = np.zeros(1, REVERSAL)
     setup_reversal(r[0], amplitude=amplitude, time=time, lead=lead, rise=rise, arm_speed=arm_speed,
-                   counts_per_unit=1e6, speed_per_volt=SPV, dt=DT)
+                   counts_per_unit=1e6, speed_per_volt=SPV, dt=DT, **more)
     return r
 
 
@@ -153,3 +155,92 @@ def test_with_no_other_axis_moving_a_prediction_does_not_fire_but_the_turn_itsel
                        path_on=False) == 0.0)
     out = _run(r, [-500.0, -1000.0], [-decel, -decel], path_on=False)  # then back: the turn itself
     assert out[0] < 0.0 and r[0]["count"] == 1
+
+
+def _ramp(v0, v1, ticks):
+    """Velocities [counts/s] from v0 to v1 over ``ticks`` and their accelerations [counts/s^2]."""
+    v = np.linspace(v0, v1, ticks)
+    return v, np.full(ticks, (v1 - v0) / ((ticks - 1) * DT))
+
+
+STILL = dict(standstill=0.5, start_speed=0.3e-3, stop_speed=1e-3)  # m/s: 300 and 1000 counts/s
+
+
+def test_a_stop_gets_the_share_against_the_motion_and_the_start_after_it_the_share_with_it():
+    r = _block(**STILL)
+    cruise = _run(r, np.full(20, 5000.0))
+    v, a = _ramp(5000.0, 0.0, 200)  # decelerating to rest: 25 counts/s a tick
+    stop = _run(r, v, a)
+    assert np.all(cruise == 0.0)
+    first = np.flatnonzero(stop != 0.0)[0]
+    assert v[first] < 1000.0 <= v[first - 1]  # under the stop speed
+    assert stop[first] == pytest.approx(-0.5 * 0.004 / SPV)  # half the pulse, against the motion
+    rest = _run(r, np.zeros(1200))
+    assert abs(rest[-1]) < 1e-6  # decayed at rest (15 time constants)
+    v, a = _ramp(0.0, -2000.0, 100)  # a start the other way, after a rest longer than the patience
+    start = _run(r, v, a)
+    first = np.flatnonzero(np.abs(start) > 1e-6)[0]
+    assert v[first] < -300.0 <= v[first - 1]  # past the start speed
+    assert start[first] == pytest.approx(-0.5 * 0.004 / SPV)  # half the pulse, with the motion
+    assert r[0]["count"] == 0  # neither is a reversal
+
+
+def test_a_start_the_same_way_after_a_stop_loads_the_friction_again_and_without_the_share_nothing_happens():
+    for standstill, expect in ((0.5, 0.5 * 0.004 / SPV), (0.0, 0.0)):
+        r = _block(**{**STILL, "standstill": standstill})
+        _run(r, np.full(20, 5000.0))
+        _run(r, *_ramp(5000.0, 0.0, 200))
+        _run(r, np.zeros(400))
+        v, a = _ramp(0.0, 2000.0, 100)
+        start = _run(r, v, a)
+        assert start.max() == pytest.approx(expect, abs=1e-12)
+
+
+def test_a_slow_axis_that_wobbles_under_the_stop_speed_gets_no_second_pulse_until_it_turns():
+    r = _block(**STILL)
+    _run(r, np.full(20, 5000.0))
+    _run(r, *_ramp(5000.0, 800.0, 100))  # the stop's pulse at 1000 counts/s
+    assert r[0]["unloaded"] == 1
+    pulse = r[0]["pulse"]
+    wobble = np.array([800.0, 700.0, 750.0, 600.0, 650.0] * 4)  # faster again, above the start speed
+    out = _run(r, wobble, np.gradient(wobble) / DT)
+    assert np.all(np.diff(np.abs(out)) <= 1e-12) and r[0]["pulse"] == pytest.approx(pulse * r[0]["decay"] ** 20)
+    v, a = _ramp(600.0, -1000.0, 50)  # it turns: the start's half, the other way
+    out = _run(r, v, a)
+    assert out[np.flatnonzero(v < -300.0)[0]] == pytest.approx(-0.5 * 0.004 / SPV)
+
+
+def test_a_stop_at_a_reversal_predicted_ahead_is_the_stop_s_share():
+    r = _block(lead=0.01, **STILL)
+    t = np.arange(200) * DT
+    v0, acc = 4000.0, -400000.0  # a trapezoid's deceleration: the prediction crosses zero ahead
+    v = np.concatenate([np.full(20, v0), np.maximum(v0 + acc * t, 0.0)])
+    out = _run(r, v, np.concatenate([np.zeros(20), np.where(v[20:] > 0, acc, 0.0)]))
+    stop = np.flatnonzero(v == 0.0)[0]
+    fired = np.flatnonzero(out != 0.0)[0]
+    assert fired <= 22 and out[fired] == pytest.approx(-0.004 / SPV)  # fired ahead as a reversal
+    assert r[0]["pending"] == 0.0 and r[0]["direction"] == 1.0
+    # the stop: its share, against the motion (and its first tick's decay)
+    assert out[stop] == pytest.approx(-0.5 * 0.004 / SPV * math.exp(-DT / 0.02))
+    assert r[0]["count"] == 0 and r[0]["unloaded"] == 2
+
+
+def test_the_adaptation_goes_linearly_from_the_amplitude_to_its_own_between_two_accelerations_held_beyond():
+    r = _block(amplitude=0.004, adapt_amplitude=0.006, adapt_from=0.05, adapt_to=0.2)[0]  # m/s, m/s^2, m/s^2
+    height = {a: pulse_height(r, a * 1e6) * SPV for a in (0.0, 0.05, 0.125, 0.2, 0.9)}  # [m/s] at a [m/s^2]
+    assert height[0.0] == pytest.approx(0.004) and height[0.05] == pytest.approx(0.004)
+    assert height[0.125] == pytest.approx(0.005)  # half-way
+    assert height[0.2] == pytest.approx(0.006) and height[0.9] == pytest.approx(0.006)  # held, not extrapolated
+    assert pulse_height(r, -0.125e6) == pulse_height(r, 0.125e6)
+    plain = _block(amplitude=0.004)[0]
+    assert pulse_height(plain, 3e6) == plain["amplitude"]  # none: the amplitude at every acceleration
+    v = np.linspace(1000.0, -1000.0, 9)  # a reversal at 0.125 m/s^2 (125000 counts/s^2)
+    block = _block(amplitude=0.004, adapt_amplitude=0.006, adapt_from=0.05, adapt_to=0.2)
+    _run(block, np.full(10, 1000.0))  # a move first: the reversal's direction
+    out = _run(block, v, np.full(len(v), -125000.0))
+    assert out[np.flatnonzero(out != 0.0)[0]] == pytest.approx(-0.005 / SPV)
+
+
+def test_an_adaptation_without_two_accelerations_in_order_is_refused():
+    with pytest.raises(ValueError):
+        _block(adapt_amplitude=0.006, adapt_from=0.2, adapt_to=0.2)

@@ -146,6 +146,21 @@ class AxisConfig:
     reversal_min_speed: float = 0.0
     """reversal compensation: the commanded speed a move must reach for its reversal to count
     [m/s | rad/s]; 0 = any"""
+    reversal_standstill: float = 0.0
+    """reversal compensation: the share of the pulse given at a stop (against the motion) and at
+    the start after it (with it) [-]; 0 = none"""
+    reversal_start_speed: float = 0.0
+    """reversal compensation: the commanded speed a start's pulse waits for [m/s | rad/s]"""
+    reversal_stop_speed: float = 0.0
+    """reversal compensation: the commanded speed under which a decelerating axis gets a stop's
+    pulse [m/s | rad/s]"""
+    reversal_adapt_amplitude: float = 0.0
+    """reversal compensation's adaptation: the pulse at the acceleration ``reversal_adapt_to``
+    [m/s | rad/s]; 0 = the same pulse at every acceleration"""
+    reversal_adapt_from: float = 0.0
+    reversal_adapt_to: float = 0.0
+    """the accelerations between which the pulse goes from ``reversal_amplitude`` to
+    ``reversal_adapt_amplitude`` [m/s^2 | rad/s^2]"""
     index_period: float = 0.0
     """distance between the encoder's index pulses (one motor revolution) [m | rad]; 0 = none"""
     index_offset: float = 0.0

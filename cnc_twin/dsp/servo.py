@@ -329,7 +329,10 @@ class ServoTask:
             setup_reversal(channel["reversal"], amplitude=cfg.reversal_amplitude if reversal_compensation else 0.0,
                            time=cfg.reversal_time,
                            speed_per_volt=cfg.speed_per_volt, dt=timing.servo_period, lead=cfg.reversal_lead,
-                           rise=cfg.reversal_rise, arm_speed=cfg.reversal_min_speed, counts_per_unit=cfg.counts_per_unit)
+                           rise=cfg.reversal_rise, arm_speed=cfg.reversal_min_speed, counts_per_unit=cfg.counts_per_unit,
+                           standstill=cfg.reversal_standstill, start_speed=cfg.reversal_start_speed,
+                           stop_speed=cfg.reversal_stop_speed, adapt_amplitude=cfg.reversal_adapt_amplitude,
+                           adapt_from=cfg.reversal_adapt_from, adapt_to=cfg.reversal_adapt_to)
             comp = cfg.compensation
             if comp is not None:  # machine coordinates [m | rad] -> the card's counts from power-on
                 cpu = cfg.counts_per_unit

@@ -95,8 +95,34 @@ class ServoSpec(Strict):
     reversal_min_speed: float = Field(0.0, ge=0, le=1e6, description="reversal compensation: the commanded "
                                       "speed a move must reach for its reversal to count (a force loop's small "
                                       "turns get no pulse) [mm/min | deg/min]; 0 = any")
+    reversal_standstill: float = Field(0.0, ge=0, le=1.0, description="reversal compensation at stops and "
+                                       "starts: the share of the pulse given against the motion as the axis "
+                                       "comes to a stop and with it as it starts again (0.5: the drive's "
+                                       "integrator at rest holds no friction); 0 = none")
+    reversal_start_speed: float = Field(0.0, ge=0, le=1e6, description="reversal compensation: the commanded "
+                                        "speed a start's pulse waits for [mm/min | deg/min]")
+    reversal_stop_speed: float = Field(0.0, ge=0, le=1e6, description="reversal compensation: the commanded "
+                                       "speed under which a decelerating axis gets a stop's pulse "
+                                       "[mm/min | deg/min]")
+    reversal_adapt_amplitude: float = Field(0.0, ge=0, le=6000.0, description="reversal compensation's "
+                                            "adaptation characteristic: the pulse at a reversal with the commanded "
+                                            "acceleration reversal_adapt_to, linear from reversal_amplitude at "
+                                            "reversal_adapt_from, held beyond [mm/min | deg/min]; 0 = none")
+    reversal_adapt_from: float = Field(0.0, ge=0, le=1e6, description="reversal compensation's adaptation: the "
+                                       "acceleration up to which the pulse is reversal_amplitude "
+                                       "[mm/s^2 | deg/s^2]")
+    reversal_adapt_to: float = Field(0.0, ge=0, le=1e6, description="reversal compensation's adaptation: the "
+                                     "acceleration from which the pulse is reversal_adapt_amplitude "
+                                     "[mm/s^2 | deg/s^2]")
     output_limit: float = Field(10.0, gt=0, le=10.0, description="clamp on the loop output [V]")
     integrator_limit: float = Field(3.0, ge=0, le=10.0, description="clamp on the integrator's contribution [V]")
+
+    @model_validator(mode="after")
+    def _adaptation_between_two_accelerations(self) -> "ServoSpec":
+        if self.reversal_adapt_amplitude > 0 and not self.reversal_adapt_from < self.reversal_adapt_to:
+            raise KeyedValueError(("reversal_adapt_to",), "an adaptation (reversal_adapt_amplitude > 0) needs "
+                                  "reversal_adapt_to above reversal_adapt_from")
+        return self
 
 
 class PulseSpec(Strict):
@@ -357,6 +383,12 @@ def convert_axes(spec: AxesSpec, info: ModelInfo, label: Path, folder: Path | No
                 reversal_lead=a.servo.reversal_lead * units.MS,
                 reversal_rise=a.servo.reversal_rise * units.MS,
                 reversal_min_speed=a.servo.reversal_min_speed * units.velocity_factor(rotary),
+                reversal_standstill=a.servo.reversal_standstill,
+                reversal_start_speed=a.servo.reversal_start_speed * units.velocity_factor(rotary),
+                reversal_stop_speed=a.servo.reversal_stop_speed * units.velocity_factor(rotary),
+                reversal_adapt_amplitude=a.servo.reversal_adapt_amplitude * units.velocity_factor(rotary),
+                reversal_adapt_from=a.servo.reversal_adapt_from * units.position_factor(rotary),
+                reversal_adapt_to=a.servo.reversal_adapt_to * units.position_factor(rotary),
                 output_limit=a.servo.output_limit,
                 integrator_limit=a.servo.integrator_limit,
                 travel=info.travel[i],

@@ -16,7 +16,10 @@ Steps (each callable on its own)::
     deflection the tip's acceleration-dependent deflection against the motor encoders on the
                circular tests, X Y Z, corrected on the card (:mod:`cnc_twin.studies.deflection`)
     reversal   X Y Z's reversal compensation (:mod:`cnc_twin.studies.reversal_tuning`), for moves of
-               at least MIN_SPEED_SHARE of the tests' feed
+               at least MIN_SPEED_SHARE of the tests' feed, with STANDSTILL_SHARE of its pulse at
+               stops and starts (:mod:`cnc_twin.dsp.reversal`); then its pulse's adaptation to the
+               acceleration at the reversal, on the tests at twice their feed
+               (:func:`~cnc_twin.studies.reversal_tuning.adapt`)
     after      the three circular tests with the commissioned settings
 
 The result is a set of scenario overrides (``servo.<axis>.<key>``) and the figures before and
@@ -71,6 +74,16 @@ def machine_overrides(parameters: Path) -> dict[str, str]:
 MIN_SPEED_SHARE = 0.1
 """a reversal counts for the compensation after a move of at least this share of the circular
 tests' feed (300 mm/min at their 3 m/min): contouring reversals, not a force loop's small turns"""
+STANDSTILL_SHARE = 0.5
+"""the share of the reversal pulse given at a stop and at the start after it: the drive's integrator
+holds the friction while the axis moves and about nothing at rest (the position loop bleeds it
+down through MuJoCo's soft friction), so a stop and a start each swing it through half a reversal's"""
+START_SPEED = 0.3e-3
+STOP_SPEED = 1e-3
+"""[m/s] the commanded speeds a start's pulse waits for and a stop's comes under: below about
+1 mm/s MuJoCo's friction, a soft constraint, fades and the push that held it creeps the axis on
+(the bundled circle's X ran 11 um past its stop); at the first tick of motion a start's pulse
+pushed the circle's start 10 um inside (0.3 mm/s: X 4.7 um at most; 0.5: 7.0; 1: 10.9)"""
 MISMATCH_LIMIT = 0.2e-3
 """[s] the largest difference of equivalent time between two interpolating axes left as it is:
 0.2 ms draws a 45 deg ellipse of +-5 um at 3 m/min (v dT / 2), half the acceptance's G"""
@@ -165,14 +178,22 @@ def commission(parameters: Path, *, scenarios: Path, report: Callable[[str], Non
     min_speed = MIN_SPEED_SHARE * min(p.feed for test in result.before.values() for p in test.passes)
     for axis in COMPENSATED:
         c = bodies[axis].coulomb if coulomb is None else coulomb.get(axis, bodies[axis].coulomb)
-        result.reversal[axis] = replace(reversal_tuning.first_setting(scenario, axis, c), min_speed=min_speed)
+        result.reversal[axis] = replace(reversal_tuning.first_setting(scenario, axis, c), min_speed=min_speed,
+                                        standstill=STANDSTILL_SHARE, start_speed=START_SPEED, stop_speed=STOP_SPEED)
         s = result.reversal[axis]
         report(f"{axis}: first reversal setting from the drive and the identified friction: "
                f"{reversal_tuning.describe(s)}")
     reversal_tuning.search(result.reversal, base, scenarios=scenarios, report=report,
                            counts_per_unit={a: scenario.axis(a).counts_per_unit for a in COMPENSATED})
-    result.steps.append("reversal compensation on the circular tests XY, XZ, YZ: " + ", ".join(
-        f"{a} {reversal_tuning.describe(s)}" for a, s in result.reversal.items()))
+    accel_from = reversal_tuning.reversal_acceleration(result.before)
+    report(f"the reversal pulse's adaptation to the acceleration, on the circular tests at "
+           f"{reversal_tuning.ADAPT_FEED_FACTOR:g} x their feed ...")
+    accel_to = reversal_tuning.adapt(result.reversal, base, scenarios=scenarios, accel_from=accel_from, report=report)
+    result.steps.append(
+        "reversal compensation on the circular tests XY, XZ, YZ, its pulse adapted to the acceleration at a "
+        f"reversal between theirs ({accel_from * 1e3:.0f} mm/s^2) and theirs at {reversal_tuning.ADAPT_FEED_FACTOR:g} x "
+        f"the feed ({accel_to * 1e3:.0f} mm/s^2): " + ", ".join(
+            f"{a} {reversal_tuning.describe(s)}" for a, s in result.reversal.items()))
     for s in result.reversal.values():
         result.overrides.update(s.overrides())
     report("circular tests after commissioning ...")

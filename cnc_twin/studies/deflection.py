@@ -18,8 +18,6 @@ on R50 the centripetal acceleration (0.05 m/s^2) deflects the tip by about one e
 
 from __future__ import annotations
 
-import re
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -27,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from cnc_twin.core.axes import AXES
+from cnc_twin.studies.reversal_tuning import circular_tests
 
 FEED_FACTOR = 4.0
 """the circular tests' feed for the measurement, times theirs (F3000 -> F12000 on R50: 0.8 m/s^2)"""
@@ -76,20 +75,6 @@ def deflection_overrides(deflection: dict[str, dict[str, float]]) -> dict[str, d
 def fast_circular_traces(base: Mapping[str, Any], *, scenarios: Path, planes: Sequence[str] = ("XY", "XZ", "YZ"),
                          factor: float = FEED_FACTOR) -> list:
     """The traces of the bundled circular tests of ``planes`` (``scenarios``' ``ballbar_<plane>``)
-    with ``base`` overrides, their programs' F words times ``factor`` (copies in a temporary
-    folder)."""
-    from cnc_twin.run.twin import run_scenario
-    from cnc_twin.scenario.load import load_scenario
-
-    traces = []
-    with tempfile.TemporaryDirectory(prefix="cnc-twin-deflection-") as folder:
-        for plane in planes:
-            scenario = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml", overrides=dict(base))
-            program = Path(scenario.program.file)
-            faster = Path(folder) / program.name
-            faster.write_text(re.sub(r"F(\d+(?:\.\d*)?)", lambda m: f"F{float(m.group(1)) * factor:g}",
-                                     program.read_text()))
-            run = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml",
-                                overrides={**base, "program.file": str(faster)})
-            traces.append(run_scenario(run).trace)
-    return traces
+    with ``base`` overrides, their programs' F words times ``factor``."""
+    tests = circular_tests(base, scenarios=scenarios, planes=planes, feed_factor=factor, keep_traces=True)
+    return [t.trace for t in tests.values()]

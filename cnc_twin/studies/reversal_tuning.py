@@ -26,6 +26,8 @@ backlash from the lost motion (:func:`reversal_steps`), the lead and the amplitu
 
 from __future__ import annotations
 
+import re
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -64,6 +66,16 @@ class ReversalSetting:
     rise: float = 0.0
     min_speed: float = 0.0
     """the commanded speed a move must reach for its reversal to count [m/s | rad/s] (0: any)"""
+    standstill: float = 0.0
+    """the share of the pulse given at a stop and at the start after it (0: none)"""
+    start_speed: float = 0.0
+    stop_speed: float = 0.0
+    """the commanded speeds a start's pulse waits for and a stop's pulse comes under [m/s | rad/s]"""
+    adapt_amplitude: float = 0.0
+    adapt_from: float = 0.0
+    adapt_to: float = 0.0
+    """the adaptation characteristic: the pulse [m/s | rad/s] at a reversal with the acceleration
+    ``adapt_to``, from ``amplitude`` at ``adapt_from`` [m/s^2 | rad/s^2] (0: none)"""
     backlash: float = 0.0
     """the card's backlash compensation [m | rad] (:mod:`cnc_twin.dsp.compensation`); negative
     where the tool leads the motor"""
@@ -81,6 +93,12 @@ class ReversalSetting:
                 f"servo.{a}.reversal_lead": round(self.lead / units.MS, 3),
                 f"servo.{a}.reversal_rise": round(self.rise / units.MS, 3),
                 f"servo.{a}.reversal_min_speed": round(self.min_speed / units.velocity_factor(rotary), 3),
+                f"servo.{a}.reversal_standstill": round(self.standstill, 3),
+                f"servo.{a}.reversal_start_speed": round(self.start_speed / units.velocity_factor(rotary), 3),
+                f"servo.{a}.reversal_stop_speed": round(self.stop_speed / units.velocity_factor(rotary), 3),
+                f"servo.{a}.reversal_adapt_amplitude": round(self.adapt_amplitude / units.velocity_factor(rotary), 3),
+                f"servo.{a}.reversal_adapt_from": round(self.adapt_from / units.position_factor(rotary), 3),
+                f"servo.{a}.reversal_adapt_to": round(self.adapt_to / units.position_factor(rotary), 3),
                 f"axes.{a}.compensation.backlash": round(self.backlash / units.position_factor(rotary), 5)}
 
 
@@ -111,28 +129,46 @@ def plane_spikes(ballbar: Mapping[str, Any], plane: str) -> dict[str, float]:
 class CircularTest:
     """One circular test's ``figures`` (metrics.json's ``ballbar``), its ``passes``
     (:class:`~cnc_twin.run.ballbar.BallbarPass`) and its ``test`` (the scenario's
-    :class:`~cnc_twin.core.config.BallbarTest`)."""
+    :class:`~cnc_twin.core.config.BallbarTest`); ``trace`` the run's, when asked for."""
 
     figures: dict[str, Any]
     passes: list
     test: Any
+    trace: Any = None
 
 
-def circular_tests(base: Mapping[str, Any], *, scenarios: Path,
-                   planes: Sequence[str] = PLANES) -> dict[str, CircularTest]:
+def circular_tests(base: Mapping[str, Any], *, scenarios: Path, planes: Sequence[str] = PLANES,
+                   feed_factor: float = 1.0, keep_traces: bool = False) -> dict[str, CircularTest]:
     """The bundled circular tests of ``planes`` (``scenarios``' ``ballbar_<plane>.yaml``) run with
-    ``base`` overrides, per plane."""
+    ``base`` overrides, per plane; ``feed_factor`` times their programs' F words (copies in a
+    temporary folder), ``keep_traces`` to keep each run's trace."""
     from cnc_twin.run.ballbar import ballbar_passes
     from cnc_twin.run.twin import run_scenario
     from cnc_twin.scenario.load import load_scenario
 
     out = {}
-    for plane in planes:
-        scenario = load_scenario(scenarios / f"ballbar_{plane.lower()}.yaml", overrides=dict(base))
-        result = run_scenario(scenario)
-        passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
-        out[plane] = CircularTest(result.metrics["ballbar"], passes, scenario.ballbar)
+    with tempfile.TemporaryDirectory(prefix="cnc-twin-circular-") as folder:
+        for plane in planes:
+            path = scenarios / f"ballbar_{plane.lower()}.yaml"
+            overrides = dict(base)
+            if feed_factor != 1.0:
+                program = Path(load_scenario(path, overrides=overrides).program.file)
+                faster = Path(folder) / program.name
+                faster.write_text(re.sub(r"F(\d+(?:\.\d*)?)", lambda m: f"F{float(m.group(1)) * feed_factor:g}",
+                                         program.read_text()))
+                overrides["program.file"] = str(faster)
+            scenario = load_scenario(path, overrides=overrides)
+            result = run_scenario(scenario)
+            passes = ballbar_passes(result.trace, scenario.ballbar, scenario.timing.interpolation_period)
+            out[plane] = CircularTest(result.metrics["ballbar"], passes, scenario.ballbar,
+                                      result.trace if keep_traces else None)
     return out
+
+
+def reversal_acceleration(tests: Mapping[str, CircularTest]) -> float:
+    """[m/s^2] the smallest centripetal acceleration v^2 / R of the tests' passes (``v`` the
+    measured mean feed): an axis's commanded acceleration at its reversal on a circle."""
+    return min(p.feed ** 2 / t.test.radius for t in tests.values() for p in t.passes)
 
 
 @dataclass(frozen=True)
@@ -173,14 +209,14 @@ def reversal_steps(passes, plane: str) -> dict[str, float]:
     return out
 
 
-def axis_figures(overrides: Mapping[str, Any], *, scenarios: Path,
-                 planes: Sequence[str] = PLANES) -> dict[str, AxisFigures]:
+def axis_figures(overrides: Mapping[str, Any], *, scenarios: Path, planes: Sequence[str] = PLANES,
+                 feed_factor: float = 1.0) -> dict[str, AxisFigures]:
     """Each axis's :class:`AxisFigures` over the circular tests of ``planes`` it is in (the spike
-    the largest, the lost motion the mean)."""
+    the largest, the lost motion the mean), at ``feed_factor`` times their feed."""
     spikes: dict[str, float] = {}
     steps: dict[str, list[float]] = {}
     circular: dict[str, float] = {}
-    for plane, test in circular_tests(overrides, scenarios=scenarios, planes=planes).items():
+    for plane, test in circular_tests(overrides, scenarios=scenarios, planes=planes, feed_factor=feed_factor).items():
         g = max(test.figures[d]["circular_deviation_um"] for d in ("ccw", "cw"))
         for axis, spike in plane_spikes(test.figures, plane).items():
             spikes[axis] = max(spikes.get(axis, 0.0), spike)
@@ -257,6 +293,44 @@ def search(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, sce
     return kept
 
 
+ADAPT_FEED_FACTOR = 2.0
+"""the adaptation's circular tests run at this times the acceptance's feed (6 m/min: a reversal at
+4 x the acceleration, 0.2 m/s^2 at R 50, near the bundled 6 m/min circle's 0.25)"""
+ADAPT_FACTORS = (1.0, 1.05, 1.1, 1.15, 1.2, 1.3, 1.4)
+"""the pulse at the faster tests' reversals, tried as these times the one the acceptance's tests set"""
+
+
+def adapt(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scenarios: Path, accel_from: float,
+          planes: Sequence[str] = PLANES, report: Callable[[str], None] = lambda line: None) -> float:
+    """Set ``settings``' adaptation characteristic in place (Siemens' friction compensation with
+    adaptation: the pulse a reversal needs grows with the acceleration it comes with): the circular
+    tests of ``planes`` at :data:`ADAPT_FEED_FACTOR` times their feed, ``base`` overrides, every
+    axis's pulse there tried at each of :data:`ADAPT_FACTORS` times its own in the same runs, each
+    axis keeping the factor with its smallest spike over its planes (between spikes within
+    :data:`SPIKE_TIE` of it, the smaller G). ``accel_from`` [m/s^2] the acceptance tests' reversal
+    acceleration (:func:`reversal_acceleration`), where the characteristic starts. Returns the
+    faster tests' reversal acceleration [m/s^2], where it ends."""
+    axes = tuple(settings)
+    accel_to = accel_from * ADAPT_FEED_FACTOR ** 2
+    trials: dict[str, list[tuple[float, float, float]]] = {a: [] for a in axes}  # (spike, G, factor)
+    for factor in ADAPT_FACTORS:
+        overrides = dict(base)
+        for s in settings.values():
+            overrides.update(replace(s, adapt_amplitude=s.amplitude * factor, adapt_from=accel_from,
+                                     adapt_to=accel_to).overrides())
+        figures = axis_figures(overrides, scenarios=scenarios, planes=planes, feed_factor=ADAPT_FEED_FACTOR)
+        for axis in axes:
+            trials[axis].append((figures[axis].spike, figures[axis].circular, factor))
+        report(f"adaptation x{factor:g}: " + ", ".join(f"{a} spike {figures[a].spike:.1f} um, G {figures[a].circular:.1f} um"
+                                                      for a in axes))
+    for axis in axes:
+        smallest = min(spike for spike, _, _ in trials[axis])
+        _, _, factor = min((g, -spike, f) for spike, g, f in trials[axis] if spike <= smallest + SPIKE_TIE)
+        s = settings[axis]
+        settings[axis] = replace(s, adapt_amplitude=s.amplitude * factor, adapt_from=accel_from, adapt_to=accel_to)
+    return accel_to
+
+
 def describe(s: ReversalSetting) -> str:
     """One line: the setting in the scenario's units and, once measured, its spike."""
     o = s.overrides()
@@ -264,5 +338,8 @@ def describe(s: ReversalSetting) -> str:
     backlash = o[f"axes.{s.axis}.compensation.backlash"] * 1e3
     unit = "deg/min" if AXES.index(s.axis) >= 3 else "mm/min"
     measured = "" if s.spike is None else f": spike {s.spike:.1f} um, G {s.circular:.1f} um"
-    return (f"{a:.0f} {unit} / {t:.1f} ms / lead {lead:.1f} ms / rise {rise:.1f} ms, "
+    adapted = "" if not s.adapt_amplitude else (
+        f", {o[f'servo.{s.axis}.reversal_adapt_amplitude']:.0f} {unit} from {o[f'servo.{s.axis}.reversal_adapt_to']:g} "
+        f"{unit.split('/')[0]}/s^2")
+    return (f"{a:.0f} {unit} / {t:.1f} ms / lead {lead:.1f} ms / rise {rise:.1f} ms{adapted}, "
             f"backlash {backlash:.1f} um{measured}")
