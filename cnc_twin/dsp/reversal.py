@@ -59,15 +59,20 @@ full friction while the axis moved, creeps the axis on past its stop; at rest th
 bleeds the integrator down to about nothing. A reversal's swing is then a stop's half and a
 start's half::
 
-    stop     |velocity| falls below stop_speed, decelerating, after an armed move (no
-             reversal predicted):        pulse = -standstill x amplitude x sign(velocity)
-    start    |velocity| rises above start_speed, accelerating, after a stop (the other way, or
-             from rest, or past stop_speed again the same way):
-                                         pulse = +standstill x amplitude x sign(velocity)
+    stop     |velocity| falls below stop_speed, decelerating, after an armed move, while another
+             axis moves (``path_on``: a contour's stop; no reversal predicted):
+                                         pulse = -standstill x amplitude x sign(velocity)
+    start    |velocity| rises above start_speed, accelerating, after a stop's pulse (the other
+             way, or from rest, or past stop_speed again the same way) or a standstill longer
+             than ``patience``:          pulse = +standstill x amplitude x sign(velocity)
 
-A reversal predicted ahead that ends in a stop gives the stop's half. On the commissioned
+A reversal predicted ahead that ends in a stop gives the stop's half. A point-to-point move's stop,
+where every axis comes to rest together, gets none: there it moved a worn screw's positioning
+by up to 10 um along the travel, and a position loop at rest bleeds the integral down by itself
+(the next start, after ``patience``, gets its share). On the commissioned
 6 m/min circle the start after the approach (X 12 um behind while its integrator built up the
-friction) and the end (X 11 um past its stop) went from 14.0 um of contour error to 4.7 and 3.1.
+friction) and the end (X 11 um past its stop) went from 14.0 and 11.2 um off the circle to 5.3 and
+3.2.
 The start waits for ``start_speed`` (0.3 mm/s) so that the pulse does not push an axis whose
 command has hardly begun to move (at the first tick of motion it pushed the circle's start 10 um
 inside); a stop's hysteresis (a re-start the same way only past ``stop_speed``) keeps the pulses
@@ -75,7 +80,8 @@ from chattering where a slow axis's period velocity wobbles around ``start_speed
 the published guitar curve (25.5 -> 54.8 um before the hysteresis, 18.9 with it).
 
 :data:`REVERSAL` is one axis's record; :func:`reversal_pulse` the block (plain, compiled with
-numba from this source for every path that runs the servo).
+numba from this source for every path that runs the servo); :func:`pulse_height` the pulse's
+height at a reversal's acceleration (the adaptation, ``adapt_*``).
 """
 
 from __future__ import annotations
@@ -98,37 +104,35 @@ REVERSAL = np.dtype([("amplitude", np.float64), ("decay", np.float64), ("lead", 
                      ("adapt_to", np.float64)])
 """One axis's reversal compensation:
 
-=========  ======  ======================================================  ==================
-field      unit    meaning                                                 written by
-=========  ======  ======================================================  ==================
-amplitude  V       the pulse's height at the reversal (0: off)             :func:`setup_reversal`
-decay      -       the pulse's factor per tick, ``exp(-dt / T)``            :func:`setup_reversal`
-lead       s       how far ahead the velocity is predicted                 :func:`setup_reversal`
-rise       -       the output's step towards the pulse per tick,           :func:`setup_reversal`
-                   ``1 - exp(-dt / T_rise)`` (1: no low-pass)
-patience   ticks   the longest standstill a reversal may follow            :func:`setup_reversal`
-arm_speed  c/s     the speed a move must reach for its reversal to count   :func:`setup_reversal`
-armed      0 / 1   it has, since the last reversal (state)                 :func:`reversal_pulse`
-direction  -       +1 / -1 / 0, the last commanded direction (state)       :func:`reversal_pulse`
-pulse      V       the pulse before its low-pass (state)                   :func:`reversal_pulse`
-output     V       the pulse after it, this tick's (state)                 :func:`reversal_pulse`
-still      ticks   since the commanded velocity last exceeded REST_SPEED   :func:`reversal_pulse`
-pending    -       the new direction of a pulse the prediction fired,      :func:`reversal_pulse`
-                   until the velocity itself turns (0: none)
-count      -       reversals seen since set up (state)                     :func:`reversal_pulse`
-standstill -       the share of the pulse given at a stop and a start      :func:`setup_reversal`
-                   (0: none)
-start_     c/s     the speeds a start rises above, a stop falls below      :func:`setup_reversal`
-speed,
-stop_speed
-unloaded   -       a stop's pulse was given: the direction it stopped in   :func:`reversal_pulse`
-                   (+1 / -1), 2 once at rest, 0 none (state)
-adapt_     V       the pulse's height at a reversal with the commanded     :func:`setup_reversal`
-amplitude          acceleration ``adapt_to`` (the adaptation; see
-                   :func:`pulse_height`)
-adapt_     c/s^2   the accelerations between which the height goes from    :func:`setup_reversal`
-from, _to          ``amplitude`` to ``adapt_amplitude`` (held beyond)
-=========  ======  ======================================================  ==================
+===============  ======  ======================================================  ======================
+field            unit    meaning                                                 written by
+===============  ======  ======================================================  ======================
+amplitude        V       the pulse's height at the reversal (0: off)             :func:`setup_reversal`
+decay            -       the pulse's factor per tick, ``exp(-dt / T)``           :func:`setup_reversal`
+lead             s       how far ahead the velocity is predicted                 :func:`setup_reversal`
+rise             -       the output's step towards the pulse per tick,           :func:`setup_reversal`
+                         ``1 - exp(-dt / T_rise)`` (1: no low-pass)
+patience         ticks   the longest standstill a reversal may follow            :func:`setup_reversal`
+arm_speed        c/s     the speed a move must reach for its reversal to count   :func:`setup_reversal`
+armed            0 / 1   it has, since the last reversal (state)                 :func:`reversal_pulse`
+direction        -       +1 / -1 / 0, the last commanded direction (state)       :func:`reversal_pulse`
+pulse            V       the pulse before its low-pass (state)                   :func:`reversal_pulse`
+output           V       the pulse after it, this tick's (state)                 :func:`reversal_pulse`
+still            ticks   since the commanded velocity last exceeded REST_SPEED   :func:`reversal_pulse`
+pending          -       the new direction of a pulse the prediction fired,      :func:`reversal_pulse`
+                         until the velocity itself turns (0: none)
+count            -       reversals seen since set up (state)                     :func:`reversal_pulse`
+standstill       -       the share of the pulse given at a stop and a start      :func:`setup_reversal`
+                         (0: none)
+start_speed      c/s     the speed a start's pulse waits for                     :func:`setup_reversal`
+stop_speed       c/s     the speed under which a stop's pulse comes              :func:`setup_reversal`
+unloaded         -       a stop's pulse was given: the direction it stopped in   :func:`reversal_pulse`
+                         (+1 / -1), 2 at rest, 0 none (state)
+adapt_amplitude  V       the pulse's height at a reversal with the commanded     :func:`setup_reversal`
+                         acceleration ``adapt_to`` (:func:`pulse_height`)
+adapt_from       c/s^2   up to this acceleration the height is ``amplitude``     :func:`setup_reversal`
+adapt_to         c/s^2   from this one ``adapt_amplitude``; linear between       :func:`setup_reversal`
+===============  ======  ======================================================  ======================
 """
 
 
