@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -16,6 +19,12 @@ os.environ["CNC_TWIN_CACHE"] = "off"
 # every command in its own process, and no warm server left behind by the suite's many commands;
 # tests/test_warm_server.py starts its own, in a private folder, and ends it
 os.environ["CNC_TWIN_SERVER"] = "off"
+# a runtime folder of the suite's own (each process's), so that no command of the suite ever
+# reaches a warm server its user has running (in $XDG_RUNTIME_DIR/cnc-twin), nor leaves a socket
+# there; short, as a socket's path has room for 107 bytes
+_RUNTIME = tempfile.mkdtemp(prefix="cnc-rt-")
+os.environ["XDG_RUNTIME_DIR"] = _RUNTIME
+atexit.register(shutil.rmtree, _RUNTIME, True)
 
 
 @pytest.fixture

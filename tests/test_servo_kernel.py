@@ -1,4 +1,9 @@
-"""The compiled servo period against the pure-Python reference servo: the same trace, bit for bit."""
+"""The compiled period kernel (cnc_twin.run.servo_kernel: whole interpolation periods, the card's
+tasks and the machine's steps in one numba call, batches of them) against the per-tick path (the
+card's tasks orchestrated in Python, a servo tick at a time, Twin(compiled=False)): the same trace,
+bit for bit. Both call the same compiled card blocks (servo_tick and the blocks under it); that
+each compiled block computes what its own Python source does is tests/test_block_kernels.py's
+check (every block, servo_tick among them, against its ``py_func``)."""
 
 from __future__ import annotations
 

@@ -57,17 +57,27 @@ def server(tmp_path_factory):
 
 
 def _server_processes(env: dict[str, str]) -> list[int]:
-    """Live processes of the server for ``env``: it and its forks (commands, their workers and
-    planners, the spare recording process) carry its command line."""
-    key = _status(env)["key"].encode()
-    found = []
+    """Live processes of the server for ``env``: it and its descendants (commands, their workers
+    and planners, the spare recording process), by the process tree from its pid. (Not by its key
+    on the command line: a user's own warm server of the same installation and environment, in
+    their own socket folder, carries the same key.)"""
+    root = int(_status(env)["pid"])
+    parent: dict[int, int] = {}
     for proc in Path("/proc").iterdir():
         try:
-            if proc.name.isdigit() and key in (proc / "cmdline").read_bytes() \
-                    and (proc / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z":
-                found.append(int(proc.name))
-        except OSError:
+            if proc.name.isdigit():
+                fields = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+                if fields[0] != "Z":
+                    parent[int(proc.name)] = int(fields[1])
+        except (OSError, IndexError):
             continue
+    found = []
+    for pid in parent:
+        ancestor = pid
+        while ancestor not in (root, 0, 1) and ancestor in parent:
+            ancestor = parent[ancestor]
+        if ancestor == root:
+            found.append(pid)
     return found
 
 
