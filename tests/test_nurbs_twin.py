@@ -15,9 +15,12 @@ from cnc_twin.scenario.resources import scenarios_dir
 from cnc_twin.scenario.load import scenario_from_dict
 
 CURVES = ["nurbs_circle.yaml", "nurbs_freeform.yaml", "nurbs_tilted.yaml"]
-# Contour error bounds [um]. With the tool axis moving, A/B following errors (about 0.04 deg with
-# the default gains) act on the 250 mm pivot-to-tip lever: a few hundred um at the tip.
-CONTOUR_BOUND = {"nurbs_circle": 100.0, "nurbs_freeform": 100.0, "nurbs_tilted": 1000.0}
+# Contour error bounds [um]. The circle: a commissioned machine's, Heidenhain's "several um" with
+# feed-forward, as the commissioning's acceptance asks (<= 10 um; tests/test_commission.py checks
+# it by the tip's own distance from the circle too). The others have no outside figure: gross
+# breakage only. With the tool axis moving, A/B following errors (about 0.04 deg with the default
+# gains) act on the 250 mm pivot-to-tip lever: a few hundred um at the tip.
+CONTOUR_BOUND = {"nurbs_circle": 10.0, "nurbs_freeform": 100.0, "nurbs_tilted": 1000.0}
 
 
 @pytest.fixture(scope="module", params=CURVES)
