@@ -108,3 +108,14 @@ def test_a_later_run_of_the_same_workpiece_takes_it_built_and_a_model_of_its_own
     included = models / "polisher_rigid.xml"
     os.utime(included, ns=(included.stat().st_atime_ns, included.stat().st_mtime_ns + 1_000_000))
     assert workpiece(scene, *args)[2] is not tiling
+
+
+def test_a_polishing_run_that_never_reaches_the_work_reports_no_tracking_rather_than_a_figure():
+    """Stopped by max_time before the seek finds the plate: the force tracking is ``None`` (no
+    period tracked, no mean of nothing), and metrics.json's content stays plain JSON."""
+    from cnc_twin import load_scenario, run_scenario
+
+    result = run_scenario(load_scenario(scenarios_dir() / "flat_plate_polish.yaml", overrides={"max_time": 0.5}))
+    force = result.metrics["polish"]["force"]
+    assert force == {"setpoint_n": 20.0, "tracking": None}
+    json.loads(json.dumps(result.metrics, allow_nan=False))
