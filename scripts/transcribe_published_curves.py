@@ -34,8 +34,8 @@ CURVES = {
     "stella": ("Curva_Stella #1=1.ngc", "Stella (star)"),
     "mazatrol": ("Curva_Mazatrol #1=1-xy.ngc", "Mazatrol"),
     # longer than one record (2048 words): the card receives their geometry in parts
-    "scroll_m": ("Curva_Scrool_M #1=1.ngc", "Scrool M (scroll)"),          # 221 control points
-    "scroll_f": ("Curva_Scrool_F #1=1.ngc", "Scrool F (scroll)"),          # 666
+    "scroll_m": ("Curva_Scrool_M #1=1.ngc", "Scroll M (scroll)"),          # 221 control points
+    "scroll_f": ("Curva_Scrool_F #1=1.ngc", "Scroll F (scroll)"),          # 666
     "ruota_dentata": ("Ruota_dentata #1=1.ngc", "Ruota dentata (gear)"),   # 589
 }
 # UNIPA and homer hold many curves each, with moves between: they run as the .ngc programs

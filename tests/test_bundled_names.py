@@ -17,6 +17,19 @@ def test_list_names_every_bundled_scenario_and_program_once_and_each_name_finds_
     listed_scenarios, listed_programs = names[:len(scenarios)], names[len(scenarios):]
     assert [input_path(name) for name in listed_scenarios] == scenarios
     assert [input_path(name + ".ngc") for name in listed_programs] == programs
+    # each a whole sentence: none cut where its first comment line breaks (cam_raster's did, at a comma)
+    described = [line.split(None, 1)[1] for line in out.splitlines() if line.startswith("  ") and len(line.split()) > 1]
+    assert described and not [text for text in described if text.rstrip().endswith((",", ":"))]
+
+
+def test_a_program_s_description_carries_its_sentence_over_comment_lines(tmp_path):
+    from cnc_twin.scenario.catalogue import _program_description
+
+    program = tmp_path / "p.ngc"
+    program.write_text("; a raster of 11 passes,\n; 7 mm apart: a dry run.\n; written by hand\nG0 X0\n")
+    assert _program_description(program) == "a raster of 11 passes, 7 mm apart: a dry run."
+    program.write_text("(one comment)\n(another)\nG0 X0\n")
+    assert _program_description(program) == "one comment"
 
 
 def test_a_bundled_scenario_validates_by_name_from_another_folder(tmp_path, monkeypatch):

@@ -70,7 +70,7 @@ def test_a_poor_prediction_gets_a_second_newton_step_in_both_steppers():
     assert max(errors) <= 1e-6, max(errors)
 
 
-# two periods of the scroll (Scrool F) at 2400 mm/min, 1 ms, as the run stepped them: start
+# two periods of the scroll (Scroll F) at 2400 mm/min, 1 ms, as the run stepped them: start
 # parameter, arc length; one Simpson panel left relative feed errors of 1.03e-6 and 1.39e-6
 SCROLL_STEPS = [(493.6431642628107, 1.3569259715560346e-05), (494.66062523814486, 1.356383184602088e-05)]
 

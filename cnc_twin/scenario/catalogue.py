@@ -44,17 +44,24 @@ def _scenario_description(path: Path) -> str:
 
 
 def _program_description(path: Path) -> str:
-    """The program's first comment: a ``; ...`` line or a line that is one ``( ... )``."""
+    """The program's first comment: a ``; ...`` line or a line that is one ``( ... )``, with the
+    comment lines after it while it ends in a comma or a colon (a sentence carried on)."""
+    found: list[str] = []
     with path.open(encoding="utf-8", errors="replace") as lines:
         for line in lines:
             text = line.strip()
             if text.startswith(";"):
-                return text[1:].strip()
-            if text.startswith("(") and text.endswith(")"):
-                return text[1:-1].strip()
-            if text and text != "%":
-                return ""
-    return ""
+                comment = text[1:].strip()
+            elif text.startswith("(") and text.endswith(")"):
+                comment = text[1:-1].strip()
+            elif found or (text and text != "%"):
+                break
+            else:
+                continue
+            found.append(comment)
+            if not comment.endswith((",", ":")):
+                break
+    return " ".join(found)
 
 
 def catalogue_lines() -> list[str]:
