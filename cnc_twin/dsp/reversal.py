@@ -249,10 +249,11 @@ def reversal_pulse(r, velocity, acceleration, jerk, path_on):
             r.direction = -r.pending
             r.pending = 0.0
             r.count -= 1
-            r.armed = 1  # the move it was fired in still counts
-            if r.standstill > 0.0:  # ... unless the stop's half was given
+            if r.standstill > 0.0:  # the stop's half was given: the next start loads the friction
                 r.unloaded = 2
                 r.armed = 0
+            else:
+                r.armed = 1  # the move it was fired in still counts
             cancelled = True
     predicted = velocity + r.lead * (acceleration + 0.5 * r.lead * jerk)
     if predicted > REST_SPEED:

@@ -312,12 +312,15 @@ def adapt(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scen
     faster tests' reversal acceleration [m/s^2], where it ends."""
     axes = tuple(settings)
     accel_to = accel_from * ADAPT_FEED_FACTOR ** 2
+
+    def adapted(s: ReversalSetting, factor: float) -> ReversalSetting:
+        return replace(s, adapt_amplitude=s.amplitude * factor, adapt_from=accel_from, adapt_to=accel_to)
+
     trials: dict[str, list[tuple[float, float, float]]] = {a: [] for a in axes}  # (spike, G, factor)
     for factor in ADAPT_FACTORS:
         overrides = dict(base)
         for s in settings.values():
-            overrides.update(replace(s, adapt_amplitude=s.amplitude * factor, adapt_from=accel_from,
-                                     adapt_to=accel_to).overrides())
+            overrides.update(adapted(s, factor).overrides())
         figures = axis_figures(overrides, scenarios=scenarios, planes=planes, feed_factor=ADAPT_FEED_FACTOR)
         for axis in axes:
             trials[axis].append((figures[axis].spike, figures[axis].circular, factor))
@@ -326,8 +329,7 @@ def adapt(settings: dict[str, ReversalSetting], base: Mapping[str, Any], *, scen
     for axis in axes:
         smallest = min(spike for spike, _, _ in trials[axis])
         _, _, factor = min((g, -spike, f) for spike, g, f in trials[axis] if spike <= smallest + SPIKE_TIE)
-        s = settings[axis]
-        settings[axis] = replace(s, adapt_amplitude=s.amplitude * factor, adapt_from=accel_from, adapt_to=accel_to)
+        settings[axis] = adapted(settings[axis], factor)
     return accel_to
 
 
